@@ -1,0 +1,213 @@
+"""Topological checks of polygon meshes: manifoldness, orientation, closedness, genus.
+
+Everything here depends on connectivity only; geometric checks (self-intersections,
+degenerate areas, outward orientation) live in :mod:`spacemesh.data.validate`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from spacemesh.mesh import PolygonMesh
+from spacemesh.typed import IntArray
+
+
+@dataclass(frozen=True)
+class TopologyReport:
+    """Counts of topological defects of a polygon mesh (all zero for a closed manifold)."""
+
+    n_vertices: int
+    n_faces: int
+    n_edges: int
+    n_small_faces: int  # faces with fewer than 3 sides
+    n_repeated_vertex_faces: int  # faces that visit a vertex twice
+    n_boundary_edges: int  # edges with one incident face
+    n_nonmanifold_edges: int  # edges with more than two incident faces
+    n_misoriented_edges: int  # edges whose two faces traverse them the same way
+    n_nonmanifold_vertices: int  # vertices whose faces form more than one fan
+    n_unreferenced_vertices: int
+    n_components: int  # edge-connected components of faces
+    euler_characteristic: int
+
+    @property
+    def is_edge_manifold(self) -> bool:
+        """Every edge has at most two faces."""
+        return self.n_nonmanifold_edges == 0
+
+    @property
+    def is_closed(self) -> bool:
+        """No boundary edges."""
+        return self.n_boundary_edges == 0
+
+    @property
+    def is_oriented(self) -> bool:
+        """Neighbouring faces traverse shared edges in opposite directions."""
+        return self.n_misoriented_edges == 0
+
+    @property
+    def is_manifold(self) -> bool:
+        """Edge- and vertex-manifold, with well-formed faces."""
+        return (
+            self.n_small_faces == 0
+            and self.n_repeated_vertex_faces == 0
+            and self.n_nonmanifold_edges == 0
+            and self.n_nonmanifold_vertices == 0
+        )
+
+    @property
+    def is_closed_oriented_manifold(self) -> bool:
+        """Closed, manifold and consistently oriented: what SpaceMesh can encode."""
+        return self.is_manifold and self.is_closed and self.is_oriented and self.n_faces > 0
+
+    @property
+    def genus(self) -> int | None:
+        """Genus summed over components, for closed oriented manifolds (else None)."""
+        if not self.is_closed_oriented_manifold:
+            return None
+        return (2 * self.n_components - self.euler_characteristic) // 2
+
+    def defects(self) -> list[str]:
+        """Human-readable list of what is wrong (empty for a closed oriented manifold)."""
+        names = {
+            "n_small_faces": "faces with fewer than 3 sides",
+            "n_repeated_vertex_faces": "faces that repeat a vertex",
+            "n_boundary_edges": "boundary edges (the mesh is open)",
+            "n_nonmanifold_edges": "non-manifold edges (more than two faces)",
+            "n_misoriented_edges": "inconsistently oriented edges",
+            "n_nonmanifold_vertices": "non-manifold vertices (pinched fans)",
+        }
+        out = [f"{getattr(self, key)} {text}" for key, text in names.items() if getattr(self, key)]
+        if self.n_faces == 0:
+            out.append("no faces")
+        return out
+
+    def to_dict(self) -> dict:
+        """Plain dict with the counts and the derived flags."""
+        data = asdict(self)
+        data.update(
+            is_manifold=self.is_manifold,
+            is_closed=self.is_closed,
+            is_oriented=self.is_oriented,
+            genus=self.genus,
+        )
+        return data
+
+
+def _edge_keys(halfedges: IntArray, n_vertices: int) -> IntArray:
+    """(S,) integer key of the undirected edge of each halfedge."""
+    lo = np.minimum(halfedges[:, 0], halfedges[:, 1])
+    hi = np.maximum(halfedges[:, 0], halfedges[:, 1])
+    return lo * max(n_vertices, 1) + hi
+
+
+def count_vertex_fans(mesh: PolygonMesh) -> IntArray:
+    """(V,) number of edge-connected fans of faces around each vertex (0 if unused).
+
+    Corners (face, vertex) at the same vertex are joined when their faces share an
+    edge incident to that vertex through exactly two face sides.
+    """
+    halfedges = mesh.halfedges  # (S, 2)
+    nxt = mesh.next_corner  # (S,)
+    n_corners = len(halfedges)
+    if n_corners == 0:
+        return np.zeros(mesh.n_vertices, dtype=np.int64)
+    keys = _edge_keys(halfedges, mesh.n_vertices)
+    order = np.argsort(keys, kind="stable")
+    sorted_keys = keys[order]
+    uniq, start, counts = np.unique(sorted_keys, return_index=True, return_counts=True)
+    pair = counts == 2
+    c1 = order[start[pair]]
+    c2 = order[start[pair] + 1]
+    # Corner c is at halfedges[c, 0]; its face's corner at halfedges[c, 1] is nxt[c].
+    same_dir = halfedges[c1, 0] == halfedges[c2, 0]
+    a1 = c1
+    b1 = np.where(same_dir, c2, nxt[c2])  # the other face's corner at the origin of c1
+    a2 = nxt[c1]
+    b2 = np.where(same_dir, nxt[c2], c2)  # ... at the target of c1
+    rows = np.concatenate([a1, a2])
+    cols = np.concatenate([b1, b2])
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_corners, n_corners))
+    _, label = connected_components(graph, directed=False)
+    vertex = halfedges[:, 0]
+    fan_ids = np.unique(np.stack([vertex, label], axis=1), axis=0)
+    return np.bincount(fan_ids[:, 0], minlength=mesh.n_vertices).astype(np.int64)
+
+
+def face_components(mesh: PolygonMesh) -> tuple[int, IntArray]:
+    """Edge-connected components of faces.
+
+    Returns
+    -------
+    n_components : int
+    label : (F,) int64
+        Component of each face.
+    """
+    if mesh.n_faces == 0:
+        return 0, np.zeros(0, dtype=np.int64)
+    halfedges = mesh.halfedges
+    face = mesh.face_of_corner
+    keys = _edge_keys(halfedges, mesh.n_vertices)
+    order = np.argsort(keys, kind="stable")
+    sk = keys[order]
+    same = sk[1:] == sk[:-1]
+    rows = face[order[:-1][same]]
+    cols = face[order[1:][same]]
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(mesh.n_faces, mesh.n_faces))
+    n, label = connected_components(graph, directed=False)
+    return int(n), label.astype(np.int64)
+
+
+def check_topology(mesh: PolygonMesh) -> TopologyReport:
+    """Count every topological defect of ``mesh``.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+
+    Returns
+    -------
+    TopologyReport
+    """
+    sizes = mesh.face_sizes
+    halfedges = mesh.halfedges
+    face = mesh.face_of_corner
+
+    # Faces that visit a vertex twice: duplicate (face, vertex) pairs.
+    fv = face * max(mesh.n_vertices, 1) + mesh.face_indices
+    _, fv_counts = np.unique(fv, return_counts=True)
+    dup_pairs = np.unique(fv[np.isin(fv, np.unique(fv)[fv_counts > 1])] // max(mesh.n_vertices, 1))
+    n_repeated = len(dup_pairs)
+
+    keys = _edge_keys(halfedges, mesh.n_vertices)
+    uniq, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    n_edges = len(uniq)
+    boundary = int(np.sum(counts == 1))
+    nonmanifold = int(np.sum(counts > 2))
+    # Orientation: for edges with exactly two sides, the directions must differ.
+    forward = halfedges[:, 0] < halfedges[:, 1]
+    n_forward = np.bincount(inverse, weights=forward, minlength=n_edges)
+    misoriented = int(np.sum((counts == 2) & (n_forward != 1)))
+
+    fans = count_vertex_fans(mesh)
+    used = np.zeros(mesh.n_vertices, dtype=bool)
+    used[mesh.face_indices] = True
+    n_components, _ = face_components(mesh)
+    euler = int(used.sum()) - n_edges + mesh.n_faces
+    return TopologyReport(
+        n_vertices=mesh.n_vertices,
+        n_faces=mesh.n_faces,
+        n_edges=n_edges,
+        n_small_faces=int(np.sum(sizes < 3)),
+        n_repeated_vertex_faces=n_repeated,
+        n_boundary_edges=boundary,
+        n_nonmanifold_edges=nonmanifold,
+        n_misoriented_edges=misoriented,
+        n_nonmanifold_vertices=int(np.sum(fans > 1)),
+        n_unreferenced_vertices=int(np.sum(~used)),
+        n_components=n_components,
+        euler_characteristic=euler,
+    )
