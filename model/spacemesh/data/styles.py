@@ -1,0 +1,364 @@
+"""Tessellation styles: how a CSG solid becomes the mesh that is stored.
+
+- ``qem``: the solid is refined to a dense triangle mesh, then pymeshlab's quadric
+  edge collapse (topology preserved, planar quadrics) brings it down to the target
+  vertex count.
+- ``planar``: a minimal planar-decimated polygon mesh, as Blender's planar
+  decimation makes one: adjacent facets within a small angle merge into one n-gon,
+  and vertices left between only two faces are dissolved.
+- ``isotropic``: pymeshlab isotropic explicit remeshing at an edge length that
+  gives slightly more vertices than the target, then a short QEM collapse to it.
+- ``quad``: quad-dominant. The isotropic mesh is paired into quads with pymeshlab's
+  ``meshing_tri_to_quad_by_smart_triangle_pairing`` (a maintained package); this is
+  triangle pairing, not a field-aligned remesh like Instant Meshes (see docs/DATA.md).
+
+Every style takes the solid, the target vertex count and the shape's random
+generator, and returns a :class:`~spacemesh.mesh.PolygonMesh`. Styles do not
+validate; :mod:`spacemesh.data.validate` does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from spacemesh.data.shapes import solid_to_mesh
+from spacemesh.mesh import PolygonMesh
+from spacemesh.typed import IntArray
+
+#: Oversampling of the dense mesh that QEM starts from (vertices per target vertex).
+QEM_DENSITY = 6.0
+
+
+def _meshset(mesh: PolygonMesh):
+    import pymeshlab
+
+    meshset = pymeshlab.MeshSet()
+    faces = mesh.face_indices.reshape(-1, 3).astype(np.int32)
+    meshset.add_mesh(pymeshlab.Mesh(vertex_matrix=mesh.vertices, face_matrix=faces))
+    return meshset
+
+
+def _current(meshset) -> PolygonMesh:
+    current = meshset.current_mesh()
+    return PolygonMesh.from_faces(current.vertex_matrix(), current.face_matrix())
+
+
+def _edge_length_for(area: float, n_vertices: float) -> float:
+    """Edge length of an equilateral triangulation of ``area`` with ``n_vertices``."""
+    # A closed triangle mesh has about 2V faces of area sqrt(3)/4 L^2 each.
+    return float(np.sqrt(2.0 * area / (np.sqrt(3.0) * max(n_vertices, 4.0))))
+
+
+def _faces_for(n_vertices: int, genus: int) -> int:
+    """Faces of a closed triangle mesh with ``n_vertices`` and ``genus`` (Euler)."""
+    return max(4, 2 * n_vertices - 4 + 4 * genus)
+
+
+def _qem(meshset, target_vertices: int, genus: int) -> None:
+    meshset.meshing_decimation_quadric_edge_collapse(
+        targetfacenum=_faces_for(target_vertices, genus),
+        qualitythr=0.5,
+        preserveboundary=True,
+        preservenormal=True,
+        preservetopology=True,
+        optimalplacement=True,
+        planarquadric=True,
+        autoclean=True,
+    )
+
+
+def _dense(solid, target_vertices: int) -> PolygonMesh:
+    """The solid refined so it has about QEM_DENSITY times the target vertices."""
+    length = _edge_length_for(solid.surface_area(), QEM_DENSITY * target_vertices)
+    return solid_to_mesh(solid.refine_to_length(length))
+
+
+def qem(solid, target_vertices: int, rng: np.random.Generator) -> PolygonMesh:
+    """Quadric edge collapse of a dense mesh down to ``target_vertices``.
+
+    Parameters
+    ----------
+    solid : manifold3d.Manifold
+    target_vertices : int
+    rng : numpy.random.Generator
+        Unused (QEM is deterministic); kept for a uniform signature.
+
+    Returns
+    -------
+    PolygonMesh
+        A triangle mesh.
+    """
+    meshset = _meshset(_dense(solid, target_vertices))
+    _qem(meshset, target_vertices, solid.genus())
+    return _current(meshset)
+
+
+def isotropic(solid, target_vertices: int, rng: np.random.Generator) -> PolygonMesh:
+    """Isotropic remeshing, then a short collapse to ``target_vertices``.
+
+    Parameters
+    ----------
+    solid : manifold3d.Manifold
+    target_vertices : int
+    rng : numpy.random.Generator
+        Unused; kept for a uniform signature.
+
+    Returns
+    -------
+    PolygonMesh
+        A triangle mesh.
+    """
+    import pymeshlab
+
+    meshset = _meshset(_dense(solid, 2 * target_vertices))
+    length = _edge_length_for(solid.surface_area(), 1.15 * target_vertices)
+    meshset.meshing_isotropic_explicit_remeshing(
+        iterations=8, targetlen=pymeshlab.PureValue(length), featuredeg=30.0
+    )
+    if meshset.current_mesh().vertex_number() > target_vertices:
+        _qem(meshset, target_vertices, solid.genus())
+    return _current(meshset)
+
+
+def quad(solid, target_vertices: int, rng: np.random.Generator) -> PolygonMesh:
+    """Quad-dominant mesh: the isotropic mesh with triangles paired into quads.
+
+    Parameters
+    ----------
+    solid : manifold3d.Manifold
+    target_vertices : int
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    PolygonMesh
+        Mostly quads, some triangles.
+    """
+    triangles = isotropic(solid, target_vertices, rng)
+    meshset = _meshset(triangles)
+    meshset.meshing_tri_to_quad_by_smart_triangle_pairing()
+    current = meshset.current_mesh()
+    return PolygonMesh.from_faces(current.vertex_matrix(), current.polygonal_face_list())
+
+
+# ---------------------------------------------------------------- planar decimation
+def _triangle_normals(vertices: np.ndarray, tri: IntArray) -> np.ndarray:
+    p = vertices[tri]  # (T, 3, 3)
+    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+
+def _triangle_neighbours(tri: IntArray) -> IntArray:
+    """(T, 3) triangle across side k (from corner k to k+1), -1 where none."""
+    n = len(tri)
+    origin = tri.reshape(-1)
+    target = tri[:, [1, 2, 0]].reshape(-1)
+    lookup = {(int(a), int(b)): i for i, (a, b) in enumerate(zip(origin, target, strict=True))}
+    out = np.full(3 * n, -1, dtype=np.int64)
+    for i, (a, b) in enumerate(zip(origin, target, strict=True)):
+        j = lookup.get((int(b), int(a)))
+        if j is not None:
+            out[i] = j // 3
+    return out.reshape(n, 3)
+
+
+def _grow_regions(normals: np.ndarray, area: np.ndarray, nbr: IntArray, cos_limit: float) -> IntArray:
+    """(T,) region label: facets within the angle limit of their region's seed."""
+    label = np.full(len(normals), -1, dtype=np.int64)
+    region = 0
+    for seed in np.argsort(-area, kind="stable"):
+        if label[seed] >= 0:
+            continue
+        label[seed] = region
+        stack = [int(seed)]
+        while stack:
+            t = stack.pop()
+            for u in nbr[t]:
+                if u >= 0 and label[u] < 0 and normals[u] @ normals[seed] >= cos_limit:
+                    label[u] = region
+                    stack.append(int(u))
+        region += 1
+    return label
+
+
+def _boundary_loop(tri: IntArray, members: IntArray) -> list[int] | None:
+    """The single simple boundary loop of a disk-like set of triangles, else None."""
+    sides = {}
+    for t in members:
+        a, b, c = (int(x) for x in tri[t])
+        for u, v in ((a, b), (b, c), (c, a)):
+            sides[(u, v)] = True
+    outgoing: dict[int, int] = {}
+    for u, v in sides:
+        if (v, u) not in sides:
+            if u in outgoing:  # two boundary sides leave one vertex: pinched
+                return None
+            outgoing[u] = v
+    if not outgoing:
+        return None
+    n_vertices = len({int(x) for x in tri[members].reshape(-1)})
+    n_edges = len({(min(u, v), max(u, v)) for u, v in sides})
+    if n_vertices - n_edges + len(members) != 1:  # not a disk
+        return None
+    start = min(outgoing)
+    loop = [start]
+    while True:
+        nxt = outgoing[loop[-1]]
+        if nxt == start:
+            break
+        loop.append(nxt)
+        if len(loop) > len(outgoing):
+            return None
+    return loop if len(loop) == len(outgoing) else None
+
+
+def _split(vertices: np.ndarray, tri: IntArray, members: IntArray) -> list[IntArray]:
+    """Split a region in two by the median of its centroids along its widest axis."""
+    centres = vertices[tri[members]].mean(axis=1)  # (m, 3)
+    axis = int(np.argmax(np.ptp(centres, axis=0)))
+    order = np.argsort(centres[:, axis], kind="stable")
+    half = len(members) // 2
+    return [members[order[:half]], members[order[half:]]]
+
+
+def _polygons(vertices: np.ndarray, tri: IntArray, label: IntArray) -> list[list[int]]:
+    """One polygon per disk-like region; other regions are split until they are."""
+    polygons: list[list[int]] = []
+    queue = [np.flatnonzero(label == r) for r in range(int(label.max()) + 1)]
+    while queue:
+        members = queue.pop()
+        if len(members) == 0:
+            continue
+        loop = _boundary_loop(tri, members) if len(members) > 1 else list(tri[members[0]])
+        if loop is not None:
+            polygons.append([int(v) for v in loop])
+        else:
+            queue.extend(_split(vertices, tri, members))
+    return polygons
+
+
+def _dissolve_two_face_vertices(polygons: list[list[int]]) -> list[list[int]]:
+    """Remove vertices that only two faces share (Blender's collinear dissolve)."""
+    changed = True
+    while changed:
+        changed = False
+        faces_of: dict[int, list[int]] = {}
+        for f, poly in enumerate(polygons):
+            for v in poly:
+                faces_of.setdefault(v, []).append(f)
+        removed: set[int] = set()
+        touched: set[int] = set()
+        for v, faces in sorted(faces_of.items()):
+            if len(faces) != 2 or touched.intersection(faces):
+                continue
+            if any(len(polygons[f]) <= 3 for f in faces):
+                continue
+            removed.add(v)
+            touched.update(faces)
+        if removed:
+            polygons = [[v for v in poly if v not in removed] for poly in polygons]
+            changed = True
+    return polygons
+
+
+def planar_decimate(mesh: PolygonMesh, angle_degrees: float = 1.0) -> PolygonMesh:
+    """Merge nearly coplanar triangles into polygons and dissolve redundant vertices.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+        A closed triangle mesh.
+    angle_degrees : float
+        Facets whose normal is within this angle of their region's seed facet merge.
+
+    Returns
+    -------
+    PolygonMesh
+        A polygon mesh without unreferenced vertices.
+    """
+    tri = mesh.face_indices.reshape(-1, 3)
+    normals = _triangle_normals(mesh.vertices, tri)
+    area = np.linalg.norm(
+        np.cross(
+            mesh.vertices[tri[:, 1]] - mesh.vertices[tri[:, 0]],
+            mesh.vertices[tri[:, 2]] - mesh.vertices[tri[:, 0]],
+        ),
+        axis=1,
+    )
+    label = _grow_regions(normals, area, _triangle_neighbours(tri), np.cos(np.radians(angle_degrees)))
+    polygons = _dissolve_two_face_vertices(_polygons(mesh.vertices, tri, label))
+    compact, _ = PolygonMesh.from_faces(mesh.vertices, polygons).remove_unreferenced_vertices()
+    return compact
+
+
+def planar(solid, target_vertices: int, rng: np.random.Generator) -> PolygonMesh:
+    """Minimal planar-decimated polygon mesh of the solid's exact facets.
+
+    The vertex count is set by the facets of curved primitives (chosen when the
+    solid is built, see :func:`segments_for`), not by decimation.
+
+    Parameters
+    ----------
+    solid : manifold3d.Manifold
+    target_vertices : int
+        Unused here; the synthesiser picks circular segments from it.
+    rng : numpy.random.Generator
+        Draws the merge angle limit (0.5 to 3 degrees).
+
+    Returns
+    -------
+    PolygonMesh
+    """
+    angle = float(rng.uniform(0.5, 3.0))
+    return planar_decimate(solid_to_mesh(solid), angle)
+
+
+#: Style name -> function(solid, target_vertices, rng) -> PolygonMesh.
+STYLES: dict[str, Callable[..., PolygonMesh]] = {
+    "qem": qem,
+    "planar": planar,
+    "isotropic": isotropic,
+    "quad": quad,
+}
+
+
+def segments_for(style: str, target_vertices: int, rng: np.random.Generator) -> int:
+    """Circular segments of curved primitives for a style and vertex target.
+
+    Parameters
+    ----------
+    style : str
+    target_vertices : int
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    int
+    """
+    if style == "planar":  # the facets are the mesh: scale them with the target
+        return int(np.clip(np.sqrt(target_vertices) * rng.uniform(0.8, 1.6), 6, 64))
+    return 48
+
+
+def tessellate(style: str, solid, target_vertices: int, rng: np.random.Generator) -> PolygonMesh:
+    """Mesh ``solid`` in ``style``.
+
+    Parameters
+    ----------
+    style : str
+        One of :data:`STYLES`.
+    solid : manifold3d.Manifold
+    target_vertices : int
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    PolygonMesh
+    """
+    try:
+        function = STYLES[style]
+    except KeyError:
+        raise ValueError(f"unknown style {style!r}; choose from {', '.join(STYLES)}") from None
+    return function(solid, target_vertices, rng)

@@ -1,0 +1,298 @@
+"""Decoding: per-vertex embeddings to an oriented manifold polygon mesh (paper Sec. 3).
+
+The guarantee: :func:`decode` turns ANY finite or non-finite embedding into a valid
+halfedge mesh: twin is an involution without fixed points, ``next`` is a permutation,
+every face has at least three distinct vertices, and every vertex has one fan of faces.
+It follows from construction plus three rules, applied until nothing changes:
+
+1. Vertices with degree 0 or 1 are removed (with their edge). A degree-1 vertex would
+   need ``next`` to map its only incoming halfedge to its own twin: a two-sided face.
+   With every degree at least 2 and one cyclic order per vertex, a face of one or two
+   sides is impossible, so no two-sided orbit survives.
+2. Degree-2 vertices are kept: they lie on two faces, one on each side.
+3. A face that visits a vertex twice (a pinched polygon) loses one of the vertices it
+   repeats (the one of highest degree, then lowest index) with its edges, and the
+   affected neighbourhoods are matched again. After ``GENTLE_ROUNDS`` such rounds (only
+   pathological embeddings get there) every repeated vertex is removed at once.
+
+Each round removes at least one vertex, so decoding terminates; in the worst case (an
+adversarial embedding) the result is the empty mesh, which is valid. Non-finite
+embedding entries are treated as "no edge" for that vertex. See docs/REPRESENTATION.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from spacemesh.connectivity import Connectivity, csr_from_edges
+from spacemesh.matching import match_cycles
+from spacemesh.mesh import PolygonMesh
+from spacemesh.permutation import (
+    SINKHORN_ITERS,
+    Reduction,
+    group_by_degree,
+    neighbourhood_log_phi_bar,
+)
+from spacemesh.spacetime import Distance, edges_below_threshold
+from spacemesh.typed import BoolArray, FloatArray, IntArray
+
+#: Rounds of one-vertex-per-face removal before every repeated vertex goes at once.
+GENTLE_ROUNDS = 12
+
+#: Degree bound applied while decoding arbitrary embeddings (see edges_below_threshold).
+MAX_DEGREE = 64
+
+
+@dataclass(frozen=True)
+class Embeddings:
+    """The SpaceMesh embeddings of ``N`` vertices.
+
+    Parameters
+    ----------
+    adjacency : (N, k) float
+        Adjacency embeddings ``x``.
+    tau : float
+        Edge threshold.
+    root, prev, next : (N, kp) float
+        Permutation embeddings.
+    """
+
+    adjacency: FloatArray
+    tau: float
+    root: FloatArray
+    prev: FloatArray
+    next: FloatArray
+
+    @property
+    def n_vertices(self) -> int:
+        """Number of vertices ``N``."""
+        return len(self.adjacency)
+
+
+@dataclass(frozen=True)
+class DecodeOptions:
+    """How embeddings are read: distance, reduction, Sinkhorn iterations, degree bound."""
+
+    distance: Distance = "spacetime"
+    n_space: int | None = None
+    reduction: Reduction = "product"
+    reduction_params: dict[str, FloatArray] | None = None
+    sinkhorn_iters: int = SINKHORN_ITERS
+    max_degree: int | None = MAX_DEGREE
+
+
+@dataclass
+class DecodeResult:
+    """The decoded mesh and how it was obtained.
+
+    Attributes
+    ----------
+    mesh : PolygonMesh
+        The mesh over the vertices that survived (only vertices used by faces).
+    vertex_ids : (V',) int64
+        Input index of each output vertex.
+    connectivity : Connectivity
+        Edges and cyclic orders over the input indices (removed vertices have degree 0).
+    n_fallbacks : int
+        Vertices whose optimal assignment was not a single orbit (greedy fallback).
+    n_pruned : int
+        Vertices removed for degree below 2 (isolated vertices included).
+    n_unpinched : int
+        Vertices removed because a face visited them twice.
+    rounds : int
+        Matching rounds (1 when no vertex had to be removed for a pinched face).
+    """
+
+    mesh: PolygonMesh
+    vertex_ids: IntArray
+    connectivity: Connectivity
+    n_fallbacks: int = 0
+    n_pruned: int = 0
+    n_unpinched: int = 0
+    rounds: int = 1
+    stats: dict = field(default_factory=dict)
+
+
+def _prune_low_degree(edges: IntArray, alive: BoolArray) -> tuple[IntArray, BoolArray, int]:
+    """Remove vertices of degree < 2 until none is left; returns the kept edges."""
+    n_removed = 0
+    while True:
+        keep = alive[edges[:, 0]] & alive[edges[:, 1]]
+        edges = edges[keep]
+        degree = np.bincount(edges.reshape(-1), minlength=len(alive))
+        low = alive & (degree < 2)
+        if not low.any():
+            return edges, alive, n_removed
+        alive = alive & ~low
+        n_removed += int(low.sum())
+
+
+def _pinched_vertices(
+    indices: IntArray, offsets: IntArray, degree: IntArray, all_repeated: bool = False
+) -> IntArray:
+    """One vertex per pinched face: the repeated vertex of highest degree (then lowest index).
+
+    Parameters
+    ----------
+    indices, offsets : CSR faces
+    degree : (N,) int64
+        Vertex degrees.
+    all_repeated : bool
+        Return every repeated vertex instead (the fast rule for pathological inputs).
+
+    Returns
+    -------
+    (P,) int64
+        Distinct vertices to remove.
+    """
+    n_vertices = len(degree)
+    face = np.repeat(np.arange(len(offsets) - 1, dtype=np.int64), np.diff(offsets))
+    key = np.sort(face * n_vertices + indices)
+    repeated = np.unique(key[1:][key[1:] == key[:-1]])
+    if repeated.size == 0:
+        return repeated
+    rep_face, rep_vertex = np.divmod(repeated, n_vertices)
+    if all_repeated:
+        return np.unique(rep_vertex)
+    # within each face: highest degree first, then lowest index
+    order = np.lexsort((rep_vertex, -degree[rep_vertex], rep_face))
+    first = np.concatenate([[True], rep_face[order][1:] != rep_face[order][:-1]])
+    return np.unique(rep_vertex[order][first])
+
+
+def _match_all(
+    emb: Embeddings,
+    offsets: IntArray,
+    neighbours: IntArray,
+    todo: BoolArray,
+    local: IntArray,
+    options: DecodeOptions,
+) -> int:
+    """Fill ``local`` (local successor per slot) for vertices flagged in ``todo``."""
+    fallbacks = 0
+    for degree, vertices in group_by_degree(offsets).items():
+        vertices = vertices[todo[vertices]]
+        if degree < 2 or vertices.size == 0:
+            continue
+        log_phi_bar = neighbourhood_log_phi_bar(
+            emb.root, emb.prev, emb.next, vertices, offsets, neighbours, degree,
+            options.reduction, options.reduction_params, options.sinkhorn_iters,
+        )
+        perms, n_fb = match_cycles(log_phi_bar)  # (B, d)
+        slots = offsets[vertices][:, None] + np.arange(degree)[None, :]
+        local[slots] = perms
+        fallbacks += n_fb
+    return fallbacks
+
+
+def _sanitise(emb: Embeddings, alive: BoolArray) -> tuple[Embeddings, BoolArray]:
+    """Replace non-finite entries; vertices with non-finite adjacency take no part."""
+    finite = np.isfinite(emb.adjacency).all(axis=1)
+    perm_finite = [np.nan_to_num(np.asarray(a, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+                   for a in (emb.root, emb.prev, emb.next)]
+    adjacency = np.where(finite[:, None], emb.adjacency, 0.0)
+    tau = float(emb.tau) if np.isfinite(emb.tau) else -np.inf
+    clean = Embeddings(adjacency, tau, *perm_finite)
+    return clean, alive & finite
+
+
+def decode_connectivity(
+    emb: Embeddings, options: DecodeOptions | None = None, alive: BoolArray | None = None
+) -> tuple[Connectivity, dict]:
+    """Edges and single-orbit cyclic orders for the embeddings (see module docstring).
+
+    Parameters
+    ----------
+    emb : Embeddings
+    options : DecodeOptions, optional
+    alive : (N,) bool, optional
+        Vertices that take part (for example the diffusion's padding mask).
+
+    Returns
+    -------
+    connectivity : Connectivity
+        Over all ``N`` input indices; removed vertices have degree 0.
+    stats : dict
+        ``n_fallbacks``, ``n_pruned``, ``n_unpinched``, ``rounds``.
+    """
+    options = options or DecodeOptions()
+    n = emb.n_vertices
+    alive = np.ones(n, dtype=bool) if alive is None else np.asarray(alive, dtype=bool).copy()
+    emb, alive = _sanitise(emb, alive)
+    edges = edges_below_threshold(
+        emb.adjacency, emb.tau, options.distance, options.n_space, alive, options.max_degree
+    )
+    stats = {"n_fallbacks": 0, "n_pruned": 0, "n_unpinched": 0, "rounds": 0}
+    old_offsets = np.zeros(n + 1, dtype=np.int64)
+    old_local = np.zeros(0, dtype=np.int64)
+    dirty = np.ones(n, dtype=bool)
+    while True:
+        edges, alive, pruned = _prune_low_degree(edges, alive)
+        stats["n_pruned"] += pruned
+        offsets, neighbours = csr_from_edges(edges, n)
+        degree = np.diff(offsets)
+        # neighbourhoods that changed since the last round are matched again
+        dirty |= degree != np.diff(old_offsets)
+        local = np.zeros(len(neighbours), dtype=np.int64)
+        clean = np.flatnonzero(~dirty & (degree > 0))
+        if clean.size:
+            d = degree[clean]
+            within = np.arange(d.sum()) - np.repeat(np.cumsum(d) - d, d)
+            local[np.repeat(offsets[clean], d) + within] = old_local[
+                np.repeat(old_offsets[clean], d) + within
+            ]
+        stats["n_fallbacks"] += _match_all(emb, offsets, neighbours, dirty, local, options)
+        stats["rounds"] += 1
+        successor = np.repeat(offsets[:-1], degree) + local
+        connectivity = Connectivity(n, offsets, neighbours, successor)
+        indices, face_offsets = connectivity.faces()
+        pinched = _pinched_vertices(
+            indices, face_offsets, degree, all_repeated=stats["rounds"] > GENTLE_ROUNDS
+        )
+        if pinched.size == 0:
+            return connectivity, stats
+        alive[pinched] = False
+        stats["n_unpinched"] += int(pinched.size)
+        dirty = np.zeros(n, dtype=bool)
+        touched = np.isin(edges, pinched).any(axis=1)
+        dirty[edges[touched].reshape(-1)] = True
+        old_offsets, old_local = offsets, local
+
+
+def decode(
+    positions: FloatArray,
+    emb: Embeddings,
+    options: DecodeOptions | None = None,
+    alive: BoolArray | None = None,
+) -> DecodeResult:
+    """Decode embeddings into a valid oriented manifold polygon mesh.
+
+    Parameters
+    ----------
+    positions : (N, 3) float
+        Vertex positions.
+    emb : Embeddings
+        Adjacency and permutation embeddings of the same ``N`` vertices.
+    options : DecodeOptions, optional
+    alive : (N,) bool, optional
+        Vertices that take part (padding mask).
+
+    Returns
+    -------
+    DecodeResult
+    """
+    connectivity, stats = decode_connectivity(emb, options, alive)
+    full = connectivity.to_mesh(np.asarray(positions, dtype=np.float64).reshape(-1, 3))
+    mesh, kept = full.remove_unreferenced_vertices()
+    return DecodeResult(
+        mesh=mesh,
+        vertex_ids=kept,
+        connectivity=connectivity,
+        n_fallbacks=stats["n_fallbacks"],
+        n_pruned=stats["n_pruned"],
+        n_unpinched=stats["n_unpinched"],
+        rounds=stats["rounds"],
+        stats=stats,
+    )

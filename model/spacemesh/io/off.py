@@ -1,0 +1,231 @@
+"""Object File Format (OFF), ASCII: polygons read and written as they are.
+
+Read: the ``OFF``, ``COFF``, ``NOFF``, ``CNOFF``, ``STOFF`` and ``4OFF`` headers (or
+none), counts on the header line or the next one, ``#`` comments, extra vertex
+columns (colours, normals, texture coordinates) and face colours ignored, and faces
+wrapped over several lines. Each vertex and face is expected to start a new line;
+when that reading does not fit the counts, the file is read again as one plain
+token stream (several records per line).
+"""
+
+from __future__ import annotations
+
+import re
+from itertools import pairwise
+
+import numpy as np
+
+from spacemesh.io.errors import (
+    MeshFormatError,
+    check_face_indices,
+    check_vertices,
+    decode_text,
+    require_nonempty,
+)
+from spacemesh.mesh import PolygonMesh
+
+_HEADER = re.compile(r"^(ST)?(C)?(N)?(4)?(n)?OFF$")
+
+
+def _int(token: str, what: str) -> int:
+    try:
+        return int(token)
+    except ValueError:
+        raise MeshFormatError(f"OFF: {what} is not a whole number: '{token}'") from None
+
+
+def _is_int(token: str) -> bool:
+    try:
+        int(token)
+    except ValueError:
+        return False
+    return True
+
+
+class _EndOfData(Exception):
+    """The token lines ran out in the middle of a record."""
+
+
+class _Cursor:
+    """A position in a list of token lines; records may wrap onto following lines."""
+
+    def __init__(self, lines: list[list[str]], line: int = 0, token: int = 0) -> None:
+        self.lines, self.line, self.token = lines, line, token
+
+    def take(self, count: int) -> list[str]:
+        """The next ``count`` tokens, continuing onto following lines as needed."""
+        out: list[str] = []
+        while len(out) < count:
+            if self.line >= len(self.lines):
+                raise _EndOfData
+            row = self.lines[self.line]
+            chunk = row[self.token : self.token + count - len(out)]
+            out.extend(chunk)
+            self.token += len(chunk)
+            if self.token >= len(row):
+                self.line, self.token = self.line + 1, 0
+        return out
+
+    def record(self, count: int, by_line: bool) -> list[str]:
+        """The next record of ``count`` tokens; by line, the rest of its line is skipped."""
+        if by_line and self.token == 0 and self.line < len(self.lines):
+            row = self.lines[self.line]
+            if len(row) >= count:  # the usual case: the record fits on its line
+                self.line += 1
+                return row[:count]
+        out = self.take(count)
+        if by_line:
+            self.end_record()
+        return out
+
+    def end_record(self) -> None:
+        """Skip what is left of the current line (vertex or face colours)."""
+        if self.token:
+            self.line, self.token = self.line + 1, 0
+
+
+def _read_header(lines: list[list[str]]) -> tuple[str, int, int, _Cursor]:
+    """The header keyword, the vertex and face counts, and where the data starts."""
+    first = lines[0]
+    keyword = ""
+    cursor = _Cursor(lines)
+    if _HEADER.match(first[0]):
+        keyword = first[0]
+        cursor.token = 1
+        if len(first) == 1:
+            cursor.end_record()
+    elif not first[0].lstrip("+-").isdigit():
+        raise MeshFormatError(
+            f"OFF: the file does not start with an OFF header (found '{first[0][:20]}')"
+        )
+    if "n" in keyword or "4" in keyword:
+        raise MeshFormatError(f"OFF: the '{keyword}' variant (not 3D) is not supported")
+    row = lines[cursor.line] if cursor.line < len(lines) else []
+    counts = row[cursor.token :]
+    if len(counts) < 2:
+        raise MeshFormatError("OFF: the header must give the vertex and face counts")
+    n_vertices = _int(counts[0], "the vertex count")
+    n_faces = _int(counts[1], "the face count")
+    if n_vertices < 0 or n_faces < 0:
+        raise MeshFormatError("OFF: the vertex and face counts must not be negative")
+    return keyword, n_vertices, n_faces, _Cursor(lines, cursor.line + 1)
+
+
+def _to_floats(tokens: list[str], n_vertices: int) -> np.ndarray:
+    try:
+        return np.array(tokens, dtype=np.float64).reshape(n_vertices, 3)
+    except ValueError:
+        for i, token in enumerate(tokens):
+            try:
+                float(token)
+            except ValueError:
+                raise MeshFormatError(
+                    f"OFF: vertex {i // 3} has a coordinate that is not a number: '{token}'"
+                ) from None
+        raise
+
+
+def _read_faces(cursor: _Cursor, n_faces: int, by_line: bool) -> tuple[np.ndarray, np.ndarray]:
+    indices: list[str] = []
+    sizes: list[int] = []
+    f = 0
+    try:
+        for f in range(n_faces):
+            if by_line and cursor.token == 0 and cursor.line < len(cursor.lines):
+                row = cursor.lines[cursor.line]
+                size = _int(row[0], f"the size of face {f}")
+                if 0 < size < len(row):  # the usual case: the face fits on its line
+                    indices.extend(row[1 : size + 1])
+                    sizes.append(size)
+                    cursor.line += 1
+                    continue
+            size = _int(cursor.take(1)[0], f"the size of face {f}")
+            if size < 1:
+                raise MeshFormatError(f"OFF: face {f} has {size} vertices")
+            indices.extend(cursor.take(size))
+            sizes.append(size)
+            if by_line:
+                cursor.end_record()
+    except _EndOfData:
+        raise MeshFormatError(
+            f"OFF: file ends early: expected {n_faces} faces, found {f}"
+        ) from None
+    try:
+        flat = np.array([int(t) for t in indices], dtype=np.int64)
+    except ValueError:
+        bad = next(t for t in indices if not _is_int(t))
+        raise MeshFormatError(f"OFF: a face index is not a whole number: '{bad}'") from None
+    except OverflowError:
+        raise MeshFormatError("OFF: a face index is too large") from None
+    offsets = np.concatenate([[0], np.cumsum(sizes, dtype=np.int64)]).astype(np.int64)
+    return flat, offsets
+
+
+def _parse(lines: list[list[str]], by_line: bool) -> PolygonMesh:
+    keyword, n_vertices, n_faces, cursor = _read_header(lines)
+    width = 3
+    if not by_line:  # one token stream: vertex records have a fixed width
+        if "C" in keyword:
+            raise MeshFormatError("OFF: coloured vertices must each start a new line")
+        width = 3 + 3 * ("N" in keyword) + 2 * ("ST" in keyword)
+    coordinates: list[str] = []
+    v = 0
+    try:
+        for v in range(n_vertices):  # noqa: B007 - v is reported on error
+            coordinates.extend(cursor.record(width, by_line)[:3])
+    except _EndOfData:
+        raise MeshFormatError(
+            f"OFF: file ends early: expected {n_vertices} vertices, found {v}"
+        ) from None
+    vertices = check_vertices(_to_floats(coordinates, n_vertices), "OFF")
+    flat, offsets = _read_faces(cursor, n_faces, by_line)
+    check_face_indices(flat, offsets, n_vertices, "OFF")
+    return PolygonMesh(vertices, flat, offsets)
+
+
+def load_off(data: bytes) -> PolygonMesh:
+    """Read an OFF file's polygons.
+
+    Parameters
+    ----------
+    data : bytes
+        The file's content.
+
+    Returns
+    -------
+    PolygonMesh
+    """
+    require_nonempty(data, "OFF")
+    text = decode_text(data, "OFF")
+    lines = [tokens for raw in text.splitlines() if (tokens := raw.split("#", 1)[0].split())]
+    if not lines:
+        raise MeshFormatError("OFF: the file holds only comments")
+    try:
+        return _parse(lines, by_line=True)
+    except MeshFormatError as by_line_error:
+        try:
+            return _parse(lines, by_line=False)
+        except MeshFormatError:
+            raise by_line_error from None
+
+
+def export_off(mesh: PolygonMesh) -> bytes:
+    """Write a mesh as OFF text, polygons kept, positions written exactly.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+
+    Returns
+    -------
+    bytes
+    """
+    lines = ["OFF", f"{mesh.n_vertices} {mesh.n_faces} 0"]  # edge count: unused by readers
+    lines.extend(f"{x!r} {y!r} {z!r}" for x, y, z in mesh.vertices.tolist())
+    indices = mesh.face_indices.tolist()
+    offsets = mesh.face_offsets.tolist()
+    lines.extend(f"{b - a} " + " ".join(map(str, indices[a:b])) for a, b in pairwise(offsets))
+    return ("\n".join(lines) + "\n").encode("ascii")
+
+
+__all__ = ["export_off", "load_off"]

@@ -1,0 +1,1 @@
+"""Torch parts of SpaceMesh: losses, networks, training. Needs the ``train`` extra."""
