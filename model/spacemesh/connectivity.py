@@ -69,9 +69,7 @@ class Connectivity:
 
     def next_triplets(self) -> IntArray:
         """(H, 3) rows ``(i, j, k)`` with ``next(j -> i) = (i -> k)``."""
-        return np.stack(
-            [self.origin, self.neighbours, self.neighbours[self.successor]], axis=1
-        )
+        return np.stack([self.origin, self.neighbours, self.neighbours[self.successor]], axis=1)
 
     def local_successor(self) -> IntArray:
         """(H,) successor as a local index ``0 .. degree - 1`` within each vertex."""

@@ -177,8 +177,16 @@ def _match_all(
         if degree < 2 or vertices.size == 0:
             continue
         log_phi_bar = neighbourhood_log_phi_bar(
-            emb.root, emb.prev, emb.next, vertices, offsets, neighbours, degree,
-            options.reduction, options.reduction_params, options.sinkhorn_iters,
+            emb.root,
+            emb.prev,
+            emb.next,
+            vertices,
+            offsets,
+            neighbours,
+            degree,
+            options.reduction,
+            options.reduction_params,
+            options.sinkhorn_iters,
         )
         perms, n_fb = match_cycles(log_phi_bar)  # (B, d)
         slots = offsets[vertices][:, None] + np.arange(degree)[None, :]
@@ -190,8 +198,10 @@ def _match_all(
 def _sanitise(emb: Embeddings, alive: BoolArray) -> tuple[Embeddings, BoolArray]:
     """Replace non-finite entries; vertices with non-finite adjacency take no part."""
     finite = np.isfinite(emb.adjacency).all(axis=1)
-    perm_finite = [np.nan_to_num(np.asarray(a, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
-                   for a in (emb.root, emb.prev, emb.next)]
+    perm_finite = [
+        np.nan_to_num(np.asarray(a, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+        for a in (emb.root, emb.prev, emb.next)
+    ]
     adjacency = np.where(finite[:, None], emb.adjacency, 0.0)
     tau = float(emb.tau) if np.isfinite(emb.tau) else -np.inf
     clean = Embeddings(adjacency, tau, *perm_finite)

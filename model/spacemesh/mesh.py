@@ -72,9 +72,7 @@ class PolygonMesh:
         else:
             face_list = [np.asarray(f, dtype=np.int64).reshape(-1) for f in faces]
             sizes = np.array([len(f) for f in face_list], dtype=np.int64)
-            indices = (
-                np.concatenate(face_list) if face_list else np.zeros(0, dtype=np.int64)
-            )
+            indices = np.concatenate(face_list) if face_list else np.zeros(0, dtype=np.int64)
         offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
         return cls(np.asarray(vertices, dtype=np.float64).reshape(-1, 3), indices, offsets)
 
@@ -144,7 +142,9 @@ class PolygonMesh:
     # ------------------------------------------------------------------ derived meshes
     def with_vertices(self, vertices: ArrayLike) -> PolygonMesh:
         """The same connectivity with new positions (for example after denormalising)."""
-        return PolygonMesh(np.asarray(vertices, dtype=np.float64), self.face_indices, self.face_offsets)
+        return PolygonMesh(
+            np.asarray(vertices, dtype=np.float64), self.face_indices, self.face_offsets
+        )
 
     def remove_unreferenced_vertices(self) -> tuple[PolygonMesh, IntArray]:
         """Drop vertices used by no face.
@@ -174,11 +174,23 @@ class PolygonMesh:
         Two meshes have the same connectivity exactly when these sets are equal
         (orientation matters: a reversed face is a different key).
         """
-        keys = set()
-        for face in self.faces:
-            start = int(np.argmin(face))
-            keys.add(tuple(int(v) for v in np.roll(face, -start)))
-        return keys
+        if self.n_faces == 0:
+            return set()
+        sizes = self.face_sizes
+        start = self.face_offsets[:-1]
+        # position of each face's smallest index, then a rotated gather
+        smallest = np.minimum.reduceat(self.face_indices, start) if len(start) else start
+        is_min = self.face_indices == np.repeat(smallest, sizes)
+        corner = np.arange(self.face_indices.size)
+        first_min = np.full(self.n_faces, np.iinfo(np.int64).max)
+        np.minimum.at(first_min, self.face_of_corner, np.where(is_min, corner, first_min.max()))
+        local = corner - np.repeat(start, sizes)
+        shift = np.repeat(first_min - start, sizes)
+        rotated = self.face_indices[
+            np.repeat(start, sizes) + (local + shift) % np.repeat(sizes, sizes)
+        ]
+        rows = np.split(rotated, self.face_offsets[1:-1])
+        return {tuple(r.tolist()) for r in rows}
 
     def face_normals(self) -> FloatArray:
         """(F, 3) unit normals by Newell's method (robust for non-planar polygons)."""

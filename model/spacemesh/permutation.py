@@ -60,9 +60,7 @@ def reduction_logits(
     if reduction == "product":
         return np.einsum("bak,bk,bck->bac", prev, root, nxt)
     if reduction == "sum":
-        return (
-            root.sum(-1)[:, None, None] + prev.sum(-1)[:, :, None] + nxt.sum(-1)[:, None, :]
-        )
+        return root.sum(-1)[:, None, None] + prev.sum(-1)[:, :, None] + nxt.sum(-1)[:, None, :]
     if reduction == "max":
         stacked = np.maximum(prev[:, :, None, :], nxt[:, None, :, :])
         return np.maximum(stacked, root[:, None, None, :]).sum(-1)

@@ -78,7 +78,9 @@ def distance_operands(
 
 
 def pairwise_distance(
-    x: FloatArray, y: FloatArray | None = None, distance: Distance = "spacetime",
+    x: FloatArray,
+    y: FloatArray | None = None,
+    distance: Distance = "spacetime",
     n_space: int | None = None,
 ) -> FloatArray:
     """Dense distances between two small sets (tests, local neighbourhoods).
@@ -164,6 +166,37 @@ def edges_below_threshold(
     else:
         pairs = pairs[pairs[:, 0] < pairs[:, 1]]
     return index[pairs].astype(np.int64).reshape(-1, 2)
+
+
+def count_pairs_below_threshold(
+    x: FloatArray,
+    tau: float,
+    distance: Distance = "spacetime",
+    n_space: int | None = None,
+    block_entries: int = BLOCK_ENTRIES,
+) -> int:
+    """Number of pairs ``i < j`` with ``d(x_i, x_j) < tau``, without listing them.
+
+    Parameters
+    ----------
+    x : (N, k) array
+    tau : float
+    distance, n_space, block_entries
+        As in :func:`edges_below_threshold`.
+
+    Returns
+    -------
+    int
+    """
+    a, b = distance_operands(x, distance, n_space)
+    n = len(a)
+    rows_per_block = max(1, block_entries // max(n, 1))
+    total = 0
+    for start in range(0, n, rows_per_block):
+        block = a[start : start + rows_per_block] @ b[start:].T  # (rows, n - start)
+        below = block < tau
+        total += int(np.triu(below, k=1).sum())
+    return total
 
 
 def _keep_closest(block: FloatArray, below: BoolArray, max_degree: int) -> BoolArray:

@@ -118,7 +118,7 @@ def count_vertex_fans(mesh: PolygonMesh) -> IntArray:
     keys = _edge_keys(halfedges, mesh.n_vertices)
     order = np.argsort(keys, kind="stable")
     sorted_keys = keys[order]
-    uniq, start, counts = np.unique(sorted_keys, return_index=True, return_counts=True)
+    _, start, counts = np.unique(sorted_keys, return_index=True, return_counts=True)
     pair = counts == 2
     c1 = order[start[pair]]
     c2 = order[start[pair] + 1]

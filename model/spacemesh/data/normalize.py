@@ -67,14 +67,18 @@ def sort_zyx(mesh: PolygonMesh) -> PolygonMesh:
     is_min = indices == np.repeat(smallest, sizes)
     first = np.full(len(sizes), np.iinfo(np.int64).max)
     np.minimum.at(first, mesh.face_of_corner[is_min], position[is_min])
-    rotated = np.repeat(starts, sizes) + (position + np.repeat(first, sizes)) % np.repeat(sizes, sizes)
+    rotated = np.repeat(starts, sizes) + (position + np.repeat(first, sizes)) % np.repeat(
+        sizes, sizes
+    )
     indices = indices[rotated]
     # Sort faces lexicographically; padding with -1 puts a prefix before its extensions.
     padded = np.full((len(sizes), int(sizes.max())), -1, dtype=np.int64)
     padded[mesh.face_of_corner, position] = indices
     face_order = np.lexsort(padded.T[::-1])
     padded = padded[face_order]
-    return PolygonMesh(mesh.vertices, padded[padded >= 0], np.concatenate([[0], np.cumsum(sizes[face_order])]))
+    return PolygonMesh(
+        mesh.vertices, padded[padded >= 0], np.concatenate([[0], np.cumsum(sizes[face_order])])
+    )
 
 
 def canonical(mesh: PolygonMesh, dtype: type = np.float32) -> PolygonMesh:

@@ -95,7 +95,7 @@ def _star_polygon(rng: np.random.Generator, radius: float) -> np.ndarray:
     angles = np.sort(rng.uniform(0.0, 2 * np.pi, k))
     # Keep angular gaps from collapsing so the polygon has no needle spikes.
     gaps = np.diff(np.concatenate([angles, [angles[0] + 2 * np.pi]]))
-    if gaps.min() < 0.25:
+    if gaps.min() < 0.25 or gaps.max() > 0.8 * np.pi:  # needles, or the origin outside
         angles = np.linspace(0, 2 * np.pi, k, endpoint=False) + rng.uniform(0, 2 * np.pi)
     concave = rng.random() < 0.5
     radii = radius * (rng.uniform(0.45, 1.0, k) if concave else np.full(k, 1.0))
@@ -239,7 +239,9 @@ def _slot(rng, lo, hi, segments):
     width = float(extent[others].min() * rng.uniform(0.08, 0.2))
     length = float(extent[others[0]] * rng.uniform(0.3, 0.6))
     through = rng.random() < 0.5
-    depth = float(extent[axis] * 3 + 1.0) if through else float(extent[axis] * rng.uniform(0.3, 0.6))
+    depth = (
+        float(extent[axis] * 3 + 1.0) if through else float(extent[axis] * rng.uniform(0.3, 0.6))
+    )
     if rng.random() < 0.5:  # rounded ends: the hull of two cylinders
         end = m3.Manifold.cylinder(depth, width / 2, circular_segments=segments, center=True)
         tool = m3.Manifold.batch_hull(
@@ -285,10 +287,14 @@ def random_solid(rng: np.random.Generator, segments: int = 32):
     recipe = ShapeRecipe(base=base_name)
     axis_aligned = rng.random() < 0.85
     solid = _orient(primitive(base_name, rng, 2.0, segments), rng, True)
+    if solid.is_empty():  # a degenerate random profile; the caller draws again
+        return solid, recipe
     for _ in range(int(rng.choice([0, 1, 2, 3, 4], p=[0.2, 0.3, 0.25, 0.15, 0.1]))):
         name = _choice(rng, _ADD_WEIGHTS)
         lo, hi = _bounds(solid)
-        part = _orient(primitive(name, rng, float(rng.uniform(0.5, 1.4)), segments), rng, axis_aligned)
+        part = _orient(
+            primitive(name, rng, float(rng.uniform(0.5, 1.4)), segments), rng, axis_aligned
+        )
         # Centre the part on the base's bounding box surface so that it protrudes.
         centre = rng.uniform(lo, hi)
         axis = int(rng.integers(0, 3))

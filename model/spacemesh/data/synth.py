@@ -103,13 +103,17 @@ def make_shape(config: SynthConfig, index: int) -> tuple[dict | None, Counter, i
     shape_id = f"{config.style}-s{config.seed}-{index:07d}"
     for attempt in range(config.max_attempts):
         target = int(rng.integers(config.vertex_min, config.vertex_max + 1))
-        solid, recipe = random_solid(rng, segments_for(config.style, target, rng))
+        try:
+            solid, recipe = random_solid(rng, segments_for(config.style, target, rng))
+        except Exception:  # a random construction manifold3d cannot build
+            rejections["csg_error"] += 1
+            continue
         if solid.is_empty():
             rejections["empty_solid"] += 1
             continue
         try:
             mesh = tessellate(config.style, solid, target, rng)
-        except Exception:  # noqa: BLE001 - native remeshers fail in many ways
+        except Exception:  # native remeshers fail in many ways
             rejections["tessellation_error"] += 1
             continue
         shape, causes = prepare_shape(
@@ -238,9 +242,7 @@ def synthesize(
     todo = [k for k in range(config.n_shards) if not (out / SHARD_PATTERN.format(k)).exists()]
     done = config.count - sum(len(config.shard_range(k)) for k in todo)
     start = time.perf_counter()
-    bar = tqdm(
-        total=config.count, initial=done, unit="shape", disable=not progress, smoothing=0.05
-    )
+    bar = tqdm(total=config.count, initial=done, unit="shape", disable=not progress, smoothing=0.05)
     rejected = 0
 
     def report(stored: bool, n_rejected: int) -> None:

@@ -67,7 +67,9 @@ def pair_distance(
     return (a[i] * b[j]).sum(-1)
 
 
-def dense_distance(x: Tensor, distance: Distance = "spacetime", n_space: int | None = None) -> Tensor:
+def dense_distance(
+    x: Tensor, distance: Distance = "spacetime", n_space: int | None = None
+) -> Tensor:
     """All pairwise distances ``(..., N, N)`` of ``x`` ``(..., N, k)`` (one matrix product)."""
     a, b = distance_operands(x, distance, n_space)
     return a @ b.transpose(-1, -2)
@@ -185,9 +187,7 @@ class PermutationReduction(nn.Module):
         if self.kind == "product":
             return torch.einsum("bak,bk,bck->bac", prev, root, nxt)
         if self.kind == "sum":
-            return (
-                root.sum(-1)[:, None, None] + prev.sum(-1)[:, :, None] + nxt.sum(-1)[:, None, :]
-            )
+            return root.sum(-1)[:, None, None] + prev.sum(-1)[:, :, None] + nxt.sum(-1)[:, None, :]
         if self.kind == "max":
             stacked = torch.maximum(prev[:, :, None, :], nxt[:, None, :, :])
             return torch.maximum(stacked, root[:, None, None, :]).sum(-1)
@@ -247,7 +247,9 @@ class DegreeGroup:
     target: Tensor
 
 
-def degree_groups(connectivity: Connectivity, device: torch.device | str = "cpu") -> list[DegreeGroup]:
+def degree_groups(
+    connectivity: Connectivity, device: torch.device | str = "cpu"
+) -> list[DegreeGroup]:
     """Group a ground-truth connectivity by vertex degree (degrees >= 2 only).
 
     Parameters

@@ -1,0 +1,108 @@
+"""``spacemesh train`` and ``spacemesh export``: train the networks, write a model repository.
+
+Several GPUs or nodes: ``torchrun --nproc_per_node K -m spacemesh.cli train ...``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from spacemesh.cli.common import app, fail
+
+
+def _require_torch() -> None:
+    try:
+        import torch  # noqa: F401
+    except ModuleNotFoundError:
+        fail("training needs the training extra (torch is missing): pip install 'spacemesh[train]'")
+
+
+@app.command()
+def train(
+    config: Annotated[str, typer.Option("--config", help="tiny, small or paper.")] = "small",
+    data: Annotated[Path, typer.Option("--data", help="Dataset folder (its train split).")] = Path(
+        "data"
+    ),
+    out: Annotated[Path, typer.Option("--out", help="Run folder.")] = Path("runs/small"),
+    resume: Annotated[bool, typer.Option("--resume", help="Continue from the run's last checkpoint.")] = False,
+    steps: Annotated[
+        int | None, typer.Option("--steps", min=1, help="Diffusion steps (overrides the config).")
+    ] = None,
+    val_data: Annotated[
+        Path | None, typer.Option("--val-data", help="Held-out dataset (default: the val split).")
+    ] = None,
+    device: Annotated[str | None, typer.Option("--device", help="cpu or cuda (default: cuda if available).")] = None,
+    threads: Annotated[int, typer.Option("--threads", min=0, help="Torch CPU threads (0: default).")] = 0,
+    seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
+    max_minutes: Annotated[
+        float | None, typer.Option("--max-minutes", min=0, help="Stop (with a checkpoint) after this long.")
+    ] = None,
+    progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Progress bar.")] = True,
+) -> None:
+    """Train the encoder, denoiser and connectivity network on a dataset."""
+    _require_torch()
+    from spacemesh.nn.config import get_config
+    from spacemesh.train.loop import TrainOptions
+    from spacemesh.train.loop import train as run_training
+
+    try:
+        model_config = get_config(config)
+    except ValueError as error:
+        fail(str(error))
+    if not (data / "manifest.json").is_file():
+        fail(f"{data}: not a dataset folder (no manifest.json)")
+    if val_data is not None and not (val_data / "manifest.json").is_file():
+        fail(f"{val_data}: not a dataset folder (no manifest.json)")
+    options = TrainOptions(
+        config=model_config, data=data, out=out, resume=resume, steps=steps, val_data=val_data,
+        device=device, threads=threads or None, seed=seed,
+        max_seconds=None if max_minutes is None else max_minutes * 60, progress=progress,
+    )
+    try:
+        summary = run_training(options, log=lambda m: typer.echo(m, err=True))
+    except ValueError as error:
+        fail(str(error))
+    typer.echo(f"trained {summary.steps} steps in {summary.seconds:.0f} s; "
+               f"checkpoint {summary.checkpoint}")
+
+
+@app.command("export")
+def export_(
+    run: Annotated[Path, typer.Argument(help="Run folder (or a checkpoint file).")],
+    out: Annotated[Path, typer.Option("--out", help="Model repository root.")] = Path("models"),
+    name: Annotated[
+        str | None, typer.Option("--name", help="Model name (default spacemesh-<config>).")
+    ] = None,
+    version: Annotated[int, typer.Option("--version", min=1, help="Model version.")] = 1,
+    eval_data: Annotated[
+        Path | None, typer.Option("--eval-data", help="Held-out dataset to measure into the manifest.")
+    ] = None,
+    eval_shapes: Annotated[int, typer.Option("--eval-shapes", min=1, help="Shapes for connectivity metrics.")] = 100,
+    pipeline_shapes: Annotated[
+        int, typer.Option("--pipeline-shapes", min=1, help="Shapes for full-pipeline metrics.")
+    ] = 16,
+    threads: Annotated[int, typer.Option("--threads", min=0, help="Torch and onnxruntime threads.")] = 0,
+) -> None:
+    """Export a run as a model repository: OUT/NAME/VERSION/{*.onnx, manifest.json}."""
+    _require_torch()
+    import torch
+
+    from spacemesh.export.repository import export_run
+
+    if threads:
+        torch.set_num_threads(threads)
+    if not run.exists():
+        fail(f"{run}: no such run folder or checkpoint")
+    if eval_data is not None and not (eval_data / "manifest.json").is_file():
+        fail(f"{eval_data}: not a dataset folder (no manifest.json)")
+    try:
+        directory = export_run(
+            run, out, name=name, version=version, eval_data=eval_data,
+            connectivity_shapes=eval_shapes, pipeline_shapes=pipeline_shapes, threads=threads,
+        )
+    except (FileNotFoundError, ValueError) as error:
+        fail(str(error))
+    typer.echo(str(directory))

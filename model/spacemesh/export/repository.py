@@ -1,0 +1,353 @@
+"""Write a model repository that the runtime loads without torch.
+
+Layout (Triton style)::
+
+    ROOT/NAME/VERSION/encoder.onnx
+    ROOT/NAME/VERSION/denoiser.onnx
+    ROOT/NAME/VERSION/connectivity.onnx
+    ROOT/NAME/VERSION/manifest.json
+
+``manifest.json`` keys:
+
+``format``, ``format_version``
+    ``"spacemesh-model"``, 1.
+``name``, ``version``
+    As in the path.
+``config``
+    The full :class:`spacemesh.nn.config.ModelConfig` as a dict.
+``inputs``
+    ``n_points``, ``max_vertices``, ``normals``: what a request feeds the encoder.
+``schedule``
+    ``kind``, ``timesteps`` and the trained ``betas`` (list of T floats).
+``sampler``
+    Default ``method`` and ``steps``.
+``embedding``
+    ``adjacency_dim``, ``n_space``, ``permutation_dim``, ``distance``, ``reduction``,
+    ``sinkhorn_iters`` (and ``reduction_params`` for a learned reduction).
+``graphs``
+    Per graph: ``file``, ``inputs`` and ``outputs`` (names, see
+    :mod:`spacemesh.runtime.backend`).
+``files``
+    Per file: ``sha256`` and ``bytes``.
+``onnx``
+    ``opset``, ``exporter``, ``torch`` version.
+``data``
+    The data card (dataset, generator, seed, style, vertex range, counts).
+``training``
+    Steps, seconds, device, world size, threads.
+``metrics``
+    Held-out metrics (see :mod:`spacemesh.train.evaluate`).
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from spacemesh.export.onnx_export import GRAPH_FILES, OPSET, export_onnx
+from spacemesh.nn.model import SpaceMeshModel
+from spacemesh.permutation import SINKHORN_ITERS
+from spacemesh.runtime.backend import (
+    CONNECTIVITY_INPUTS,
+    CONNECTIVITY_OUTPUTS,
+    DENOISER_INPUTS,
+    ENCODER_INPUTS,
+    volume_names,
+)
+from spacemesh.runtime.repository import FORMAT, FORMAT_VERSION, MANIFEST, sha256_file
+
+
+def graph_signatures(n_volumes: int) -> dict[str, dict[str, Any]]:
+    """File, input and output names of each graph."""
+    vols = volume_names(n_volumes)
+    return {
+        "encoder": {"file": GRAPH_FILES["encoder"], "inputs": list(ENCODER_INPUTS),
+                    "outputs": vols},
+        "denoiser": {"file": GRAPH_FILES["denoiser"], "inputs": [*DENOISER_INPUTS, *vols],
+                     "outputs": ["eps"]},
+        "connectivity": {"file": GRAPH_FILES["connectivity"],
+                         "inputs": [*CONNECTIVITY_INPUTS, *vols],
+                         "outputs": list(CONNECTIVITY_OUTPUTS)},
+    }
+
+
+def build_manifest(
+    model: SpaceMeshModel,
+    directory: Path,
+    *,
+    name: str,
+    version: int,
+    opset: int = OPSET,
+    data: dict[str, Any] | None = None,
+    training: dict[str, Any] | None = None,
+    metrics: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """The manifest of a version folder whose graphs are already written.
+
+    Parameters
+    ----------
+    model : SpaceMeshModel
+    directory : Path
+        The version folder (file hashes are computed from it).
+    name : str
+    version : int
+    opset : int
+    data, training, metrics : dict, optional
+
+    Returns
+    -------
+    dict
+    """
+    config = model.config
+    con = config.connectivity
+    params = model.reduction.numpy_params()
+    embedding = {
+        "adjacency_dim": con.adjacency_dim, "n_space": con.n_space,
+        "permutation_dim": con.permutation_dim, "distance": con.distance,
+        "reduction": con.reduction, "sinkhorn_iters": SINKHORN_ITERS,
+    }
+    if params is not None:
+        embedding["reduction_params"] = {k: v.tolist() for k, v in params.items()}
+    files = {
+        f: {"sha256": sha256_file(directory / f), "bytes": (directory / f).stat().st_size}
+        for f in GRAPH_FILES.values()
+    }
+    return {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "name": name,
+        "version": int(version),
+        "config": config.to_dict(),
+        "inputs": {"n_points": config.encoder.n_points, "max_vertices": config.max_vertices,
+                   "normals": config.encoder.normals},
+        "schedule": {"kind": config.diffusion.schedule, "timesteps": config.diffusion.timesteps,
+                     "betas": model.diffusion.schedule.betas.tolist()},
+        "sampler": {"method": config.diffusion.sampler, "steps": config.diffusion.steps},
+        "embedding": embedding,
+        "graphs": graph_signatures(len(config.encoder.resolutions)),
+        "files": files,
+        "onnx": {"opset": opset, "exporter": "torch.onnx.export(dynamo=True)",
+                 "torch": torch.__version__.split("+")[0]},
+        "data": data or {},
+        "training": training or {},
+        "metrics": metrics or {},
+    }
+
+
+def write_manifest(directory: Path, manifest: dict[str, Any]) -> Path:
+    """Write ``manifest.json`` (sorted keys, 2-space indent)."""
+    path = Path(directory) / MANIFEST
+    path.write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+    return path
+
+
+def write_model_repository(
+    model: SpaceMeshModel,
+    root: str | Path,
+    *,
+    name: str,
+    version: int = 1,
+    opset: int = OPSET,
+    data: dict[str, Any] | None = None,
+    training: dict[str, Any] | None = None,
+    metrics: dict[str, Any] | None = None,
+    overwrite: bool = True,
+) -> Path:
+    """Export the graphs and write ``ROOT/NAME/VERSION`` with its manifest.
+
+    Parameters
+    ----------
+    model : SpaceMeshModel
+    root : path
+        Repository root.
+    name : str
+    version : int
+    opset : int
+    data, training, metrics : dict, optional
+        Data card, training record and held-out metrics for the manifest.
+    overwrite : bool
+        Replace an existing version folder.
+
+    Returns
+    -------
+    Path
+        The version folder.
+    """
+    directory = Path(root) / name / str(version)
+    if directory.exists():
+        if not overwrite:
+            raise FileExistsError(f"{directory} exists")
+        shutil.rmtree(directory)
+    export_onnx(model, directory, opset=opset)
+    manifest = build_manifest(model, directory, name=name, version=version, opset=opset,
+                              data=data, training=training, metrics=metrics)
+    write_manifest(directory, manifest)
+    return directory
+
+
+def update_manifest(directory: str | Path, **sections: Any) -> dict[str, Any]:
+    """Replace top-level sections (e.g. ``metrics``) of an existing manifest.
+
+    Parameters
+    ----------
+    directory : path
+        The version folder.
+    **sections
+        Keys and their new values.
+
+    Returns
+    -------
+    dict
+        The new manifest.
+    """
+    path = Path(directory) / MANIFEST
+    manifest = json.loads(path.read_text())
+    manifest.update(sections)
+    write_manifest(Path(directory), manifest)
+    return manifest
+
+
+def load_trained_model(checkpoint: str | Path) -> tuple[SpaceMeshModel, dict[str, Any]]:
+    """A model with a checkpoint's weights (CPU, eval mode) and the checkpoint's state.
+
+    Parameters
+    ----------
+    checkpoint : path
+        A run folder (its ``checkpoints/last.pt``) or a checkpoint file.
+
+    Returns
+    -------
+    model : SpaceMeshModel
+    state : dict
+        See :func:`spacemesh.train.checkpoint.load_checkpoint`.
+    """
+    from spacemesh.nn.config import model_from_config
+    from spacemesh.train.checkpoint import latest_checkpoint, load_checkpoint
+
+    path = Path(checkpoint)
+    if path.is_dir():
+        found = latest_checkpoint(path)
+        if found is None:
+            raise FileNotFoundError(f"{path} has no checkpoints/last.pt")
+        path = found
+    state = load_checkpoint(path, map_location="cpu")
+    model = model_from_config(state["config"])
+    model.load_state_dict(state["model"])
+    return model.eval(), state
+
+
+def heldout_metrics(
+    model: SpaceMeshModel,
+    version_dir: Path,
+    data: str | Path,
+    *,
+    connectivity_shapes: int = 100,
+    pipeline_shapes: int = 16,
+    steps: int | None = None,
+    threads: int = 0,
+) -> dict[str, Any]:
+    """Measure a model on a held-out dataset (all its splits).
+
+    Connectivity metrics use the torch model on ground-truth vertices; pipeline metrics
+    use the onnxruntime model repository in ``version_dir``.
+
+    Parameters
+    ----------
+    model : SpaceMeshModel
+    version_dir : Path
+    data : path
+        A dataset folder (e.g. synthesised with another seed than the training set).
+    connectivity_shapes, pipeline_shapes : int
+        How many shapes each measurement uses.
+    steps : int, optional
+        Sampler steps (default: the model's).
+    threads : int
+        onnxruntime intra-op threads.
+
+    Returns
+    -------
+    dict
+    """
+    from spacemesh.data.shards import open_dataset
+    from spacemesh.runtime.pipeline import MeshGenerator
+    from spacemesh.train.evaluate import connectivity_metrics, pipeline_metrics
+    from spacemesh.train.loop import load_samples
+
+    max_vertices = model.config.max_vertices
+    samples = load_samples(data, None, max_vertices, limit=connectivity_shapes)
+    conn = connectivity_metrics(model, samples)
+    records = [r for r in open_dataset(data) if r.mesh.n_vertices <= max_vertices]
+    records = records[:pipeline_shapes]
+    generator = MeshGenerator.from_repository(version_dir, intra_op_threads=threads)
+    pipe = pipeline_metrics(generator, records, steps=steps)
+    return {
+        "dataset": Path(data).name,
+        "connectivity_on_gt_vertices": conn,
+        "pipeline": {**pipe, "sampler": generator.spec.method,
+                     "steps": steps or generator.spec.steps},
+    }
+
+
+def export_run(
+    run: str | Path,
+    root: str | Path,
+    *,
+    name: str | None = None,
+    version: int = 1,
+    eval_data: str | Path | None = None,
+    connectivity_shapes: int = 100,
+    pipeline_shapes: int = 16,
+    threads: int = 0,
+) -> Path:
+    """Export a training run's newest checkpoint as a model repository.
+
+    Parameters
+    ----------
+    run : path
+        Run folder or checkpoint file.
+    root : path
+        Repository root; the model goes to ``ROOT/NAME/VERSION``.
+    name : str, optional
+        Default ``spacemesh-<config name>``.
+    version : int
+    eval_data : path, optional
+        Held-out dataset to measure (metrics go into the manifest); without it the
+        manifest records the run's last validation metrics.
+    connectivity_shapes, pipeline_shapes : int
+    threads : int
+        onnxruntime threads for the measurement.
+
+    Returns
+    -------
+    Path
+        The version folder.
+    """
+    model, state = load_trained_model(run)
+    extra = state["extra"]
+    config = state["config"]
+    name = name or f"spacemesh-{config.name}"
+    training = {
+        "steps": state["step"],
+        "connectivity_steps": state["step"] * config.train.connectivity_steps,
+        "seconds": round(float(extra.get("train_seconds", 0.0)), 1),
+        "device": extra.get("device", "cpu"),
+        "world_size": extra.get("world_size", 1),
+        "batch_size": config.train.batch_size,
+        "optimizer": f"Adam(lr={config.train.lr})",
+        "parameters": sum(p.numel() for p in model.parameters()),
+    }
+    metrics = {"validation": extra.get("validation", {})}
+    directory = write_model_repository(model, root, name=name, version=version,
+                                       data=extra.get("data", {}), training=training,
+                                       metrics=metrics)
+    if eval_data is not None:
+        metrics["heldout"] = heldout_metrics(
+            model, directory, eval_data, connectivity_shapes=connectivity_shapes,
+            pipeline_shapes=pipeline_shapes, threads=threads,
+        )
+        update_manifest(directory, metrics=metrics)
+    return directory

@@ -1,0 +1,118 @@
+"""The connectivity network: per-vertex SpaceMesh embeddings from vertex positions.
+
+A transformer without positional embedding reads each vertex's position concatenated
+with the encoder volumes sampled there, and predicts for every vertex at once the
+adjacency embedding ``x`` (``k``) and the permutation embeddings ``y_root``, ``y_prev``,
+``y_next`` (``kp`` each); the edge threshold ``tau`` is one learned scalar. Padding
+vertices are masked out of attention. An optional distance prior adds
+``-s_h |p_i - p_j|^2`` to the logits of head ``h`` (learned ``s_h > 0``): relative and
+permutation-equivariant, so the network stays a function of the vertex *set*.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+from torch import Tensor, nn
+
+from spacemesh.nn.pvcnn import PointVoxelStack, sample_volumes
+from spacemesh.nn.transformer import Transformer, key_padding_bias
+
+
+def fourier_features(positions: Tensor, octaves: int) -> list[Tensor]:
+    """``sin`` and ``cos`` of ``pi 2^o p`` for ``o < octaves``: two ``(B, N, 3 octaves)``."""
+    if octaves == 0:
+        return []
+    freqs = math.pi * 2.0 ** torch.arange(octaves, dtype=positions.dtype, device=positions.device)
+    angles = (positions[..., None] * freqs).flatten(-2)  # (B, N, 3 octaves)
+    return [torch.sin(angles), torch.cos(angles)]
+
+
+class ConnectivityNet(nn.Module):
+    """Predicts ``x``, ``y_root``, ``y_prev``, ``y_next`` and ``tau``.
+
+    Parameters
+    ----------
+    width, layers, heads : int
+        Transformer size.
+    feature_channels : int
+        Sum of the encoder volumes' channels.
+    adjacency_dim, permutation_dim : int
+        ``k`` and ``kp``.
+    distance_bias : bool
+        Use the learned distance prior in attention.
+    fourier : int
+        Octaves of coordinate sine/cosine features.
+    point_voxel : tuple of (resolution, channels)
+        Optional PVConv layers on the tokens.
+    """
+
+    def __init__(
+        self, *, width: int, layers: int, heads: int, feature_channels: int,
+        adjacency_dim: int, permutation_dim: int, distance_bias: bool = True, fourier: int = 0,
+        point_voxel: tuple[tuple[int, int], ...] = (),
+    ) -> None:
+        super().__init__()
+        self.adjacency_dim = adjacency_dim
+        self.permutation_dim = permutation_dim
+        self.heads = heads
+        self.fourier = fourier
+        self.input_proj = nn.Linear(3 + 6 * fourier + feature_channels, width)
+        self.point_voxel = PointVoxelStack(width=width, layers=point_voxel)
+        self.ln_pre = nn.LayerNorm(width)
+        self.backbone = Transformer(width=width, layers=layers, heads=heads)
+        self.ln_post = nn.LayerNorm(width)
+        self.output_proj = nn.Linear(width, adjacency_dim + 3 * permutation_dim)
+        nn.init.normal_(self.output_proj.weight, std=1.0 / math.sqrt(width))
+        nn.init.zeros_(self.output_proj.bias)
+        self.tau = nn.Parameter(torch.zeros(()))
+        if distance_bias:
+            # slopes spread geometrically over two decades (edge lengths are ~0.1-0.5)
+            start = np.log(0.5) + np.arange(heads) * np.log(100.0) / max(heads - 1, 1)
+            self.log_slope = nn.Parameter(torch.tensor(start, dtype=torch.float32))
+        else:
+            self.log_slope = None
+
+    def attention_bias(self, vertices: Tensor, valid: Tensor) -> Tensor:
+        """Additive attention bias ``(B, H or 1, N, N)`` from padding and distances."""
+        bias = key_padding_bias(valid)  # (B, 1, 1, N)
+        if self.log_slope is None:
+            return bias
+        p = vertices.float()
+        d2 = (p[:, :, None, :] - p[:, None, :, :]).square().sum(-1)  # (B, N, N)
+        slope = torch.exp(self.log_slope).reshape(1, -1, 1, 1)  # (1, H, 1, 1)
+        return bias - slope * d2[:, None]
+
+    def forward(
+        self, vertices: Tensor, valid: Tensor, volumes: list[Tensor]
+    ) -> tuple[Tensor, Tensor, Tensor, Tensor, Tensor]:
+        """Per-vertex embeddings.
+
+        Parameters
+        ----------
+        vertices : (B, N, 3) tensor
+            Positions in [-1, 1] (padding anywhere).
+        valid : (B, N) bool tensor
+            Real vertices.
+        volumes : list of (B, C_r, R_r, R_r, R_r) tensors
+
+        Returns
+        -------
+        x : (B, N, k) tensor
+        root, prev, next : (B, N, kp) tensors
+        tau : (1,) tensor
+        """
+        features = sample_volumes(volumes, vertices)  # (B, N, F)
+        inputs = [vertices, *fourier_features(vertices, self.fourier), features]
+        h = self.input_proj(torch.cat(inputs, dim=-1))  # (B, N, W)
+        h = self.point_voxel(h, vertices)
+        h = self.ln_post(self.backbone(self.ln_pre(h), self.attention_bias(vertices, valid)))
+        out = self.output_proj(h).float()  # (B, N, k + 3 kp)
+        k, kp = self.adjacency_dim, self.permutation_dim
+        x = out[..., :k]
+        root = out[..., k : k + kp]
+        prev = out[..., k + kp : k + 2 * kp]
+        nxt = out[..., k + 2 * kp :]
+        return x, root, prev, nxt, self.tau.reshape(1)

@@ -1,0 +1,110 @@
+"""What the pipeline needs from a model: three functions on numpy arrays.
+
+:class:`OnnxBackend` runs the exported graphs in onnxruntime; the torch networks offer
+the same interface (:class:`spacemesh.nn.model.TorchBackend`), which is how the torch
+and onnxruntime pipelines are compared.
+
+Graph interface (names of the ONNX inputs and outputs):
+
+``encoder``
+    ``points`` (B, P, 3 or 6) float32 -> ``volume_0`` ... ``volume_{L-1}``
+    (B, C_r, R_r, R_r, R_r) float32.
+``denoiser``
+    ``x_t`` (B, N, 4) float32, ``t`` (B,) int64, ``volume_*`` -> ``eps`` (B, N, 4).
+``connectivity``
+    ``vertices`` (B, N, 3) float32, ``valid`` (B, N) bool, ``volume_*`` ->
+    ``x`` (B, N, k), ``root``, ``prev``, ``next`` (B, N, kp), ``tau`` (1,).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from spacemesh.typed import FloatArray
+
+ENCODER_INPUTS = ("points",)
+DENOISER_INPUTS = ("x_t", "t")
+CONNECTIVITY_INPUTS = ("vertices", "valid")
+CONNECTIVITY_OUTPUTS = ("x", "root", "prev", "next", "tau")
+
+
+def volume_names(count: int) -> list[str]:
+    """``["volume_0", ..., "volume_{count-1}"]``."""
+    return [f"volume_{i}" for i in range(count)]
+
+
+@dataclass(frozen=True)
+class ConnectivityOutputs:
+    """Per-vertex embeddings of a batch.
+
+    Attributes
+    ----------
+    x : (B, N, k) float32
+    root, prev, next : (B, N, kp) float32
+    tau : float
+    """
+
+    x: FloatArray
+    root: FloatArray
+    prev: FloatArray
+    next: FloatArray
+    tau: float
+
+
+class Backend(Protocol):
+    """The three networks, numpy in and numpy out."""
+
+    def encode(self, points: np.ndarray) -> list[np.ndarray]:
+        """Feature volumes of ``points`` ``(B, P, 3 or 6)``."""
+        ...
+
+    def denoise(self, x_t: np.ndarray, t: np.ndarray, volumes: list[np.ndarray]) -> np.ndarray:
+        """Predicted noise ``(B, N, 4)``."""
+        ...
+
+    def connect(
+        self, vertices: np.ndarray, valid: np.ndarray, volumes: list[np.ndarray]
+    ) -> ConnectivityOutputs:
+        """Per-vertex embeddings."""
+        ...
+
+
+class OnnxBackend:
+    """The three exported graphs in onnxruntime sessions.
+
+    Parameters
+    ----------
+    encoder, denoiser, connectivity : onnxruntime.InferenceSession
+    """
+
+    def __init__(self, *, encoder, denoiser, connectivity) -> None:
+        self.encoder = encoder
+        self.denoiser = denoiser
+        self.connectivity = connectivity
+        self.n_volumes = len(encoder.get_outputs())
+        self._volumes = volume_names(self.n_volumes)
+
+    def encode(self, points: np.ndarray) -> list[np.ndarray]:
+        """Feature volumes of ``points`` ``(B, P, 3 or 6)``."""
+        return self.encoder.run(self._volumes, {"points": np.ascontiguousarray(points, np.float32)})
+
+    def denoise(self, x_t: np.ndarray, t: np.ndarray, volumes: list[np.ndarray]) -> np.ndarray:
+        """Predicted noise ``(B, N, 4)``."""
+        feeds = {"x_t": np.ascontiguousarray(x_t, np.float32), "t": np.asarray(t, np.int64)}
+        feeds.update(zip(self._volumes, volumes, strict=True))
+        return self.denoiser.run(["eps"], feeds)[0]
+
+    def connect(
+        self, vertices: np.ndarray, valid: np.ndarray, volumes: list[np.ndarray]
+    ) -> ConnectivityOutputs:
+        """Per-vertex embeddings."""
+        feeds = {
+            "vertices": np.ascontiguousarray(vertices, np.float32),
+            "valid": np.asarray(valid, dtype=bool),
+        }
+        feeds.update(zip(self._volumes, volumes, strict=True))
+        x, root, prev, nxt, tau = self.connectivity.run(list(CONNECTIVITY_OUTPUTS), feeds)
+        return ConnectivityOutputs(x, root, prev, nxt, tau=float(np.asarray(tau).reshape(-1)[0]))

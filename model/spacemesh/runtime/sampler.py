@@ -1,0 +1,81 @@
+"""The seeded sampler loop over a denoiser, in numpy (the loop is not in any graph).
+
+The denoiser is any function ``(x_t (B, N, 4) float32, t (B,) int64) -> eps (B, N, 4)``:
+an onnxruntime session in the service, the torch network in tests and training.
+Each request of a batch draws its noise from its own ``numpy.random.Generator`` seeded
+with its seed, in a fixed order, so a request gives the same result alone or batched,
+and the same result whichever backend evaluates the denoiser.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from spacemesh.runtime.schedule import METHODS, SamplingSteps
+from spacemesh.typed import BoolArray, FloatArray
+
+#: ``denoise(x_t, t) -> eps``.
+DenoiseFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
+#: ``progress(done, total)``, called after every denoiser step.
+ProgressFn = Callable[[int, int], None]
+
+
+def sample(
+    denoise: DenoiseFn,
+    *,
+    seeds: Sequence[int],
+    n_vertices: int,
+    steps: SamplingSteps,
+    method: str = "ddim",
+    progress: ProgressFn | None = None,
+) -> FloatArray:
+    """Run the reverse process from pure noise to vertex tokens.
+
+    Parameters
+    ----------
+    denoise : callable
+        ``(x_t (B, N, 4) float32, t (B,) int64) -> eps (B, N, 4)``.
+    seeds : sequence of int
+        One seed per request; ``B = len(seeds)``.
+    n_vertices : int
+        Tokens per request ``N`` (the model's maximum vertex count).
+    steps : SamplingSteps
+        From :meth:`spacemesh.runtime.schedule.NoiseSchedule.respaced`.
+    method : {"ddim", "ddpm"}
+    progress : callable, optional
+        ``progress(done, total)`` after each step.
+
+    Returns
+    -------
+    (B, N, 4) float32
+        Positions and mask channel of each token.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown sampler {method!r}; choose from {', '.join(METHODS)}")
+    rngs = [np.random.default_rng(int(s)) for s in seeds]
+    shape = (n_vertices, 4)
+    x = np.stack([r.standard_normal(shape) for r in rngs]).astype(np.float32)  # (B, N, 4)
+    total = len(steps)
+    for done, i in enumerate(reversed(range(total)), start=1):
+        t = np.full(len(rngs), steps.timesteps[i], dtype=np.int64)  # (B,)
+        eps = np.asarray(denoise(x, t), dtype=np.float64)  # (B, N, 4)
+        if method == "ddim":
+            x_next = steps.ddim_step(i, x.astype(np.float64), eps)
+        else:
+            mean, std = steps.ddpm_mean_std(i, x.astype(np.float64), eps)
+            if i > 0:
+                noise = np.stack([r.standard_normal(shape) for r in rngs])
+                x_next = mean + std * noise
+            else:
+                x_next = mean
+        x = x_next.astype(np.float32)
+        if progress is not None:
+            progress(done, total)
+    return x
+
+
+def split_tokens(tokens: FloatArray) -> tuple[FloatArray, BoolArray]:
+    """Positions ``(B, N, 3)`` and alive mask ``(B, N)`` (mask channel > 0) of tokens."""
+    return tokens[..., :3], tokens[..., 3] > 0.0

@@ -1,0 +1,162 @@
+"""Held-out metrics of a trained model.
+
+Connectivity on ground-truth vertices (the paper's training setting): the network's
+embeddings are decoded with :func:`spacemesh.decode.decode` and compared with the truth
+by edge F1 and ``next`` accuracy (:mod:`spacemesh.fit`).
+
+Full pipeline (diffusion, then connectivity): the share of outputs that are valid closed
+oriented manifolds (:func:`spacemesh.topology.check_topology`) and the Chamfer distance
+to the ground truth, ``mean_a min_b |a - b| + mean_b min_a |a - b|`` over 10,000 points
+sampled on each surface, in the normalised frame (longest axis spans [-1, 1]).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+
+from spacemesh.decode import Embeddings, decode
+from spacemesh.fit import edge_f1_score, next_accuracy
+from spacemesh.mesh import PolygonMesh
+from spacemesh.nn.model import SpaceMeshModel
+from spacemesh.topology import check_topology
+from spacemesh.train.batching import Sample, collate
+
+#: Surface points per mesh for the Chamfer distance (the paper's count).
+CHAMFER_POINTS = 10_000
+
+
+@torch.no_grad()
+def connectivity_metrics(
+    model: SpaceMeshModel, samples: Sequence[Sample], *, batch_size: int = 8
+) -> dict[str, float]:
+    """Edge F1 and ``next`` accuracy of the connectivity network on ground-truth vertices.
+
+    Parameters
+    ----------
+    model : SpaceMeshModel
+    samples : sequence of Sample
+    batch_size : int
+
+    Returns
+    -------
+    dict
+        ``edge_f1``, ``next_accuracy`` (means over shapes), ``exact`` (share of shapes
+        whose decoded faces equal the truth) and ``shapes``.
+    """
+    was_training = model.training
+    model.eval()
+    device = next(model.parameters()).device
+    config = model.config
+    options = model.decode_options
+    f1s, accs, exact = [], [], []
+    for start in range(0, len(samples), batch_size):
+        chunk = list(samples[start : start + batch_size])
+        batch = collate(chunk, n_points=config.encoder.n_points, normals=config.encoder.normals,
+                        connectivity=False).to(device)
+        volumes = model.encoder(batch.points)
+        x, root, prev, nxt, tau = model.connectivity(batch.positions, batch.valid, volumes)
+        for i, s in enumerate(chunk):
+            n = s.n_vertices
+            row = [a[i, :n].double().cpu().numpy() for a in (x, root, prev, nxt)]
+            emb = Embeddings(row[0], float(tau.reshape(-1)[0]), row[1], row[2], row[3])
+            result = decode(s.positions, emb, options)
+            truth = s.connectivity
+            f1s.append(edge_f1_score(result.connectivity.edges, truth.edges, n))
+            accs.append(next_accuracy(result.connectivity, truth))
+            exact.append(
+                result.mesh.n_vertices == n
+                and result.connectivity.edges.shape == truth.edges.shape
+                and accs[-1] == 1.0 and f1s[-1] == 1.0
+            )
+    model.train(was_training)
+    return {
+        "edge_f1": float(np.mean(f1s)) if f1s else float("nan"),
+        "next_accuracy": float(np.mean(accs)) if accs else float("nan"),
+        "exact": float(np.mean(exact)) if exact else float("nan"),
+        "shapes": float(len(f1s)),
+    }
+
+
+def chamfer_distance(
+    a: PolygonMesh, b: PolygonMesh, *, count: int = CHAMFER_POINTS, seed: int = 0
+) -> float:
+    """Symmetric L1 Chamfer distance between two surfaces (inf if one has no faces).
+
+    Parameters
+    ----------
+    a, b : PolygonMesh
+    count : int
+        Points sampled uniformly on each surface.
+    seed : int
+
+    Returns
+    -------
+    float
+    """
+    from scipy.spatial import cKDTree
+
+    from spacemesh.data.sampling import sample_surface
+
+    if a.n_faces == 0 or b.n_faces == 0:
+        return float("inf")
+    rng = np.random.default_rng(seed)
+    pa, _ = sample_surface(a, count, rng)
+    pb, _ = sample_surface(b, count, rng)
+    da, _ = cKDTree(pb).query(pa)
+    db, _ = cKDTree(pa).query(pb)
+    return float(da.mean() + db.mean())
+
+
+def pipeline_metrics(
+    generator, records: Sequence, *, steps: int | None = None, method: str | None = None,
+    seed: int = 0, batch_size: int = 4,
+) -> dict[str, float]:
+    """Validity and Chamfer distance of the full pipeline on held-out shapes.
+
+    Parameters
+    ----------
+    generator : spacemesh.runtime.pipeline.MeshGenerator
+    records : sequence of MeshRecord
+        Shapes in the normalised frame; their point clouds condition the generation.
+    steps : int, optional
+    method : str, optional
+    seed : int
+        Request ``i`` uses ``seed + i``.
+    batch_size : int
+        Requests per onnxruntime batch.
+
+    Returns
+    -------
+    dict
+        ``valid`` (share of outputs that are closed oriented manifolds, empty outputs
+        counted invalid), ``empty`` (share without faces), ``chamfer_mean`` and
+        ``chamfer_median`` (over non-empty outputs), ``vertices_mean`` and ``shapes``.
+    """
+    from spacemesh.runtime.pipeline import GenerateRequest
+
+    valid, empty, chamfer, vertices = [], [], [], []
+    for start in range(0, len(records), batch_size):
+        chunk = list(records[start : start + batch_size])
+        requests = [
+            GenerateRequest(points=r.points, normals=r.normals, seed=seed + start + i,
+                            steps=steps, method=method)
+            for i, r in enumerate(chunk)
+        ]
+        for record, result in zip(chunk, generator.generate_batch(requests), strict=True):
+            mesh = result.mesh
+            empty.append(mesh.n_faces == 0)
+            valid.append(check_topology(mesh).is_closed_oriented_manifold)
+            vertices.append(mesh.n_vertices)
+            if mesh.n_faces:
+                chamfer.append(chamfer_distance(mesh, record.mesh))
+    return {
+        "valid": float(np.mean(valid)) if valid else float("nan"),
+        "empty": float(np.mean(empty)) if empty else float("nan"),
+        "chamfer_mean": float(np.mean(chamfer)) if chamfer else float("nan"),
+        "chamfer_median": float(np.median(chamfer)) if chamfer else float("nan"),
+        "vertices_mean": float(np.mean(vertices)) if vertices else float("nan"),
+        "shapes": float(len(valid)),
+    }

@@ -1,0 +1,395 @@
+"""The training loop: Adam over all three networks, the paper's 10:1 step schedule.
+
+One *diffusion step* trains the encoder and denoiser on a batch of shapes padded to
+``max_vertices`` tokens; it is followed by ``connectivity_steps`` *connectivity steps*
+that train the encoder and the connectivity network on ground-truth vertices (other
+batches, padded to their own largest shape). Steps are counted in diffusion steps.
+
+A run folder holds::
+
+    RUN/config.json              the ModelConfig
+    RUN/data.json                the data card (dataset manifest summary)
+    RUN/metrics.csv              one row per log / validation
+    RUN/curves.png               curves drawn from metrics.csv
+    RUN/checkpoints/last.pt      newest checkpoint (``--resume`` continues from it)
+    RUN/checkpoints/step-N.pt    periodic checkpoints
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import math
+import time
+from collections import defaultdict
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from spacemesh.data.shards import MANIFEST, open_dataset
+from spacemesh.nn.config import ModelConfig, model_from_config
+from spacemesh.nn.model import SpaceMeshModel
+from spacemesh.train.batching import Sample, collate, prepare_sample
+from spacemesh.train.checkpoint import (
+    LAST,
+    checkpoint_dir,
+    latest_checkpoint,
+    load_checkpoint,
+    restore_rng,
+    save_checkpoint,
+)
+from spacemesh.train.distributed import (
+    DistInfo,
+    any_rank,
+    barrier,
+    cleanup,
+    setup_distributed,
+    wrap_model,
+)
+from spacemesh.train.evaluate import connectivity_metrics
+from spacemesh.train.logging import MetricsLog, plot_curves
+
+
+@dataclass
+class TrainOptions:
+    """What to train, on what, and where to write it.
+
+    Attributes
+    ----------
+    config : ModelConfig
+    data : Path
+        Dataset folder (its ``train`` split is used).
+    out : Path
+        Run folder.
+    resume : bool
+        Continue from ``out/checkpoints/last.pt``.
+    steps : int, optional
+        Override ``config.train.steps``.
+    val_data : Path, optional
+        Held-out dataset for validation (default: the ``val`` split of ``data``).
+    device : str, optional
+        ``cpu`` or ``cuda`` (default CUDA when available).
+    threads : int, optional
+        Torch CPU threads.
+    seed : int
+    max_seconds : float, optional
+        Stop (with a checkpoint) once this much wall time has passed in this session.
+    progress : bool
+        Show a progress bar.
+    """
+
+    config: ModelConfig
+    data: Path
+    out: Path
+    resume: bool = False
+    steps: int | None = None
+    val_data: Path | None = None
+    device: str | None = None
+    threads: int | None = None
+    seed: int = 0
+    max_seconds: float | None = None
+    progress: bool = True
+
+
+@dataclass
+class TrainSummary:
+    """The outcome of :func:`train`."""
+
+    run: Path
+    steps: int
+    seconds: float
+    checkpoint: Path | None
+    metrics: dict[str, float] = field(default_factory=dict)
+
+
+def data_card(directory: str | Path, max_vertices: int, n_train: int, n_val: int) -> dict:
+    """What a model was trained on: the dataset manifest's header and counts.
+
+    Parameters
+    ----------
+    directory : path
+    max_vertices : int
+        Shapes with more vertices were skipped.
+    n_train, n_val : int
+        Shapes used.
+
+    Returns
+    -------
+    dict
+    """
+    path = Path(directory) / MANIFEST
+    manifest = json.loads(path.read_text())
+    keep = ("source", "generator_version", "seed", "style", "vertex_range", "points",
+            "count_requested", "counts", "splits")
+    card = {k: manifest[k] for k in keep if k in manifest}
+    card.update(
+        dataset=Path(directory).name,
+        manifest_sha256=hashlib.sha256(path.read_bytes()).hexdigest(),
+        max_vertices=max_vertices,
+        train_shapes_used=n_train,
+        val_shapes_used=n_val,
+    )
+    return card
+
+
+def load_samples(
+    directory: str | Path, split: str | None, max_vertices: int, limit: int | None = None,
+    log: Callable[[str], None] | None = None,
+) -> list[Sample]:
+    """Prepared shapes of one split with at most ``max_vertices`` vertices.
+
+    Parameters
+    ----------
+    directory : path
+    split : str or None
+    max_vertices : int
+    limit : int, optional
+        Stop after this many.
+    log : callable, optional
+
+    Returns
+    -------
+    list of Sample
+    """
+    dataset = open_dataset(directory, split=split, cache_shards=2)
+    samples: list[Sample] = []
+    skipped = 0
+    for record in dataset:
+        if record.mesh.n_vertices > max_vertices:
+            skipped += 1
+            continue
+        samples.append(prepare_sample(record))
+        if limit is not None and len(samples) >= limit:
+            break
+    if log is not None:
+        log(f"{directory} [{split}]: {len(samples)} shapes, {skipped} skipped (> {max_vertices} "
+            "vertices)")
+    return samples
+
+
+def _autocast(device: torch.device):
+    if device.type == "cuda":
+        return torch.autocast("cuda", dtype=torch.bfloat16)
+    return contextlib.nullcontext()
+
+
+class Trainer:
+    """State of one training process (see :func:`train`)."""
+
+    def __init__(self, options: TrainOptions, info: DistInfo, log: Callable[[str], None]):
+        self.options = options
+        self.info = info
+        self.log = log
+        config = options.config
+        if options.steps is not None:
+            config = config.with_train(steps=options.steps)
+        self.out = Path(options.out)
+        self.start_step = 0
+        self.elapsed_before = 0.0
+        state = None
+        if options.resume:
+            last = latest_checkpoint(self.out)
+            if last is None:
+                log(f"no checkpoint in {self.out}; starting from scratch")
+            else:
+                state = load_checkpoint(last, map_location="cpu")
+                # the stored architecture wins; the step budget may be extended
+                config = state["config"].with_train(steps=config.train.steps)
+        self.config = config
+        self.rng = np.random.default_rng(options.seed + 1000 * info.rank)
+        self.generator = torch.Generator().manual_seed(options.seed + 1000 * info.rank)
+        self.model: SpaceMeshModel = model_from_config(config).to(info.device)
+        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.train.lr)
+        if state is not None:
+            self.model.load_state_dict(state["model"])
+            self.optimizer.load_state_dict(state["optimizer"])
+            self.start_step = state["step"]
+            self.elapsed_before = float(state["extra"].get("train_seconds", 0.0))
+            if info.is_main:
+                restore_rng(self.rng, state["numpy_rng"])
+                self.generator.set_state(state["torch_rng"])
+            else:  # only rank 0's streams are stored; the others start fresh ones
+                self.rng = np.random.default_rng([options.seed, info.rank, self.start_step])
+                self.generator.manual_seed(options.seed + 1000 * info.rank + self.start_step)
+            log(f"resumed from {latest_checkpoint(self.out)} at step {self.start_step}")
+        self.ddp = wrap_model(self.model, info)
+        mv = config.max_vertices
+        self.train_samples = load_samples(options.data, "train", mv, log=log)
+        if not self.train_samples:
+            raise ValueError(f"no training shapes with at most {mv} vertices in {options.data}")
+        val_dir = options.val_data or options.data
+        val_split = None if options.val_data else "val"
+        self.val_samples = load_samples(val_dir, val_split, mv, config.train.val_shapes, log=log)
+        self.card = data_card(options.data, mv, len(self.train_samples), len(self.val_samples))
+        self.metrics = MetricsLog(self.out / "metrics.csv")
+        self.last_validation: dict[str, float] = (
+            dict(state["extra"].get("validation", {})) if state is not None else {}
+        )
+        if self.info.is_main:
+            self.metrics.truncate(self.start_step)
+            self.out.mkdir(parents=True, exist_ok=True)
+            (self.out / "config.json").write_text(json.dumps(config.to_dict(), indent=2))
+            (self.out / "data.json").write_text(json.dumps(self.card, indent=2))
+
+    def lr_at(self, step: int) -> float:
+        """Learning rate after a linear warm-up."""
+        train = self.config.train
+        return train.lr * min(1.0, (step + 1) / max(train.warmup, 1))
+
+    def _batch(self, diffusion: bool):
+        train = self.config.train
+        pick = self.rng.choice(len(self.train_samples), train.batch_size,
+                               replace=len(self.train_samples) < train.batch_size)
+        samples = [self.train_samples[i] for i in pick]
+        enc = self.config.encoder
+        batch = collate(
+            samples, n_points=enc.n_points, normals=enc.normals,
+            pad_to=self.config.max_vertices if diffusion else None,
+            connectivity=not diffusion, rng=self.rng, scale_range=train.scale_range,
+        )
+        return batch.to(self.info.device)
+
+    def _step(self, mode: str) -> dict[str, float]:
+        batch = self._batch(mode == "diffusion")
+        self.optimizer.zero_grad(set_to_none=True)
+        with _autocast(self.info.device):
+            out = self.ddp(mode, batch.points, batch.positions, batch.valid, batch.adjacency,
+                           batch.table, self.generator)
+        out["loss"].backward()
+        clip = self.config.train.grad_clip
+        if clip > 0:
+            torch.nn.utils.clip_grad_norm_(self.model.parameters(), clip)
+        self.optimizer.step()
+        return {k: float(v.detach()) for k, v in out.items()}
+
+    @torch.no_grad()
+    def validate(self) -> dict[str, float]:
+        """Held-out diffusion loss and connectivity metrics (on rank 0's model)."""
+        model = self.model.eval()
+        enc = self.config.encoder
+        rng = np.random.default_rng(1234)
+        gen = torch.Generator().manual_seed(1234)
+        sums: dict[str, list[float]] = defaultdict(list)
+        bs = self.config.train.batch_size
+        for start in range(0, len(self.val_samples), bs):
+            chunk = self.val_samples[start : start + bs]
+            b = collate(chunk, n_points=enc.n_points, normals=enc.normals,
+                        pad_to=self.config.max_vertices, connectivity=False, rng=rng)
+            b = b.to(self.info.device)
+            out = model("diffusion", b.points, b.positions, b.valid, generator=gen)
+            sums["val_epsilon"].append(float(out["epsilon"]))
+            sums["val_mask"].append(float(out["mask"]))
+            b = collate(chunk, n_points=enc.n_points, normals=enc.normals, rng=rng)
+            b = b.to(self.info.device)
+            out = model("connectivity", b.points, b.positions, b.valid, b.adjacency, b.table)
+            sums["val_edge"].append(float(out["edge"]))
+            sums["val_permutation"].append(float(out["permutation"]))
+        row = {k: float(np.mean(v)) for k, v in sums.items()}
+        conn = connectivity_metrics(model, self.val_samples, batch_size=bs)
+        row.update(val_edge_f1=conn["edge_f1"], val_next_accuracy=conn["next_accuracy"],
+                   val_exact=conn["exact"])
+        model.train()
+        return row
+
+    def save(self, step: int, seconds: float) -> Path:
+        """Write ``last.pt`` (and ``step-N.pt``); returns the last path."""
+        folder = checkpoint_dir(self.out)
+        validation = {k.removeprefix("val_"): v for k, v in self.last_validation.items()}
+        extra = {"train_seconds": seconds, "data": self.card, "world_size": self.info.world_size,
+                 "device": str(self.info.device), "validation": validation}
+        path = save_checkpoint(folder / LAST, model=self.model, optimizer=self.optimizer,
+                               step=step, config=self.config, rng=self.rng,
+                               torch_generator=self.generator, extra=extra)
+        save_checkpoint(folder / f"step-{step:07d}.pt", model=self.model, optimizer=None,
+                        step=step, config=self.config, extra=extra)
+        return path
+
+    def run(self) -> TrainSummary:
+        """Train until ``config.train.steps`` or ``max_seconds``."""
+        from tqdm import tqdm
+
+        train = self.config.train
+        start = time.perf_counter()
+        running: dict[str, list[float]] = defaultdict(list)
+        bar = tqdm(total=train.steps, initial=self.start_step, unit="step",
+                   disable=not (self.options.progress and self.info.is_main), dynamic_ncols=True)
+        step = self.start_step
+        last_path = latest_checkpoint(self.out)
+        last_row: dict[str, float] = {}
+        self.model.train()
+        while step < train.steps:
+            for group in self.optimizer.param_groups:
+                group["lr"] = self.lr_at(step)
+            for k, v in self._step("diffusion").items():
+                running[f"train_{k}" if k != "loss" else "train_diffusion_loss"].append(v)
+            for _ in range(train.connectivity_steps):
+                for k, v in self._step("connectivity").items():
+                    running[f"train_{k}" if k != "loss" else "train_connectivity_loss"].append(v)
+            step += 1
+            seconds = self.elapsed_before + time.perf_counter() - start
+            bar.update(1)
+            bar.set_postfix(eps=f"{np.mean(running['train_epsilon'][-20:]):.3f}",
+                            edge=f"{np.mean(running['train_edge'][-20:]):.4f}",
+                            perm=f"{np.mean(running['train_permutation'][-20:]):.3f}")
+            out_of_time = self.options.max_seconds is not None and (
+                time.perf_counter() - start > self.options.max_seconds
+            )
+            stop = any_rank(out_of_time, self.info) or step >= train.steps
+            if step % train.val_every == 0 or step % train.checkpoint_every == 0 or stop:
+                if self.info.is_main:
+                    row = {"step": step, "seconds": seconds, "lr": self.lr_at(step)}
+                    row.update({k: float(np.mean(v)) for k, v in running.items()})
+                    running.clear()
+                    if step % train.val_every == 0 or stop:
+                        self.last_validation = {"step": step, **self.validate()}
+                        row.update(self.last_validation)
+                        self.log(
+                            f"step {step}: val edge F1 {row['val_edge_f1']:.4f}, next "
+                            f"{row['val_next_accuracy']:.4f}, eps {row['val_epsilon']:.4f}"
+                        )
+                    self.metrics.append(row)
+                    plot_curves(self.metrics, self.out / "curves.png")
+                    last_row = row
+                    if step % train.checkpoint_every == 0 or stop:
+                        last_path = self.save(step, seconds)
+                barrier(self.info)
+            if stop:
+                break
+        bar.close()
+        seconds = self.elapsed_before + time.perf_counter() - start
+        return TrainSummary(self.out, step, seconds, last_path, last_row)
+
+
+def train(options: TrainOptions, log: Callable[[str], None] = print) -> TrainSummary:
+    """Train a model (single process, or one rank of a ``torchrun`` job).
+
+    Parameters
+    ----------
+    options : TrainOptions
+    log : callable
+        Receives progress messages (rank 0 only).
+
+    Returns
+    -------
+    TrainSummary
+    """
+    if options.threads:
+        torch.set_num_threads(options.threads)
+    info = setup_distributed(options.device)
+    torch.manual_seed(options.seed + info.rank)
+
+    def main_log(message: str) -> None:
+        if info.is_main:
+            log(message)
+
+    try:
+        summary = Trainer(options, info, main_log).run()
+    finally:
+        cleanup(info)
+    if not math.isfinite(summary.metrics.get("train_connectivity_loss", 0.0)):
+        main_log("warning: the connectivity loss is not finite")
+    return summary

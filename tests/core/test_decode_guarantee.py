@@ -1,0 +1,87 @@
+"""Property tests: ANY embedding decodes to a valid oriented manifold polygon mesh."""
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from spacemesh.decode import DecodeOptions, Embeddings, decode
+from spacemesh.halfedge import HalfedgeMesh
+from spacemesh.spacetime import pairwise_distance
+from spacemesh.topology import check_topology
+
+
+def assert_valid(result, n_input: int) -> None:
+    halfedges = HalfedgeMesh.from_connectivity(result.connectivity)
+    assert halfedges.problems() == []
+    mesh = result.mesh
+    assert len(result.vertex_ids) == mesh.n_vertices
+    assert np.all(result.vertex_ids < n_input)
+    if mesh.n_faces:
+        report = check_topology(mesh)
+        assert report.is_closed_oriented_manifold, report.defects()
+        assert report.n_unreferenced_vertices == 0
+        assert mesh.face_sizes.min() >= 3
+    else:
+        assert mesh.n_vertices == 0
+
+
+@st.composite
+def embeddings(draw):
+    n = draw(st.integers(0, 60))
+    k = draw(st.sampled_from([2, 4, 8, 16]))
+    kp = draw(st.integers(1, 8))
+    seed = draw(st.integers(0, 2**32 - 1))
+    scale = draw(st.sampled_from([1e-3, 0.1, 1.0, 10.0]))
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=(n, k)) * scale
+    distance = draw(st.sampled_from(["spacetime", "euclidean", "dot"]))
+    if n >= 2:  # a threshold that gives a sparse-to-moderate graph, or an extreme one
+        d = pairwise_distance(x, distance=distance)[np.triu_indices(n, 1)]
+        q = draw(st.sampled_from([0.0, 0.02, 0.08, 0.2, 0.5, 1.0]))
+        tau = float(np.quantile(d, q)) + draw(st.sampled_from([-1e-9, 0.0, 1e-9]))
+    else:
+        tau = draw(st.floats(-10, 10))
+    root, prev, nxt = (rng.normal(size=(n, kp)) * scale for _ in range(3))
+    if n and draw(st.booleans()):  # sprinkle non-finite values
+        bad = rng.random((n, k)) < 0.05
+        x[bad] = rng.choice([np.nan, np.inf, -np.inf], size=bad.sum())
+        root[rng.random((n, kp)) < 0.05] = np.nan
+    emb = Embeddings(x, tau, root, prev, nxt)
+    alive = rng.random(n) < 0.9 if draw(st.booleans()) else None
+    return emb, DecodeOptions(distance=distance), alive
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(embeddings())
+def test_any_embedding_decodes_to_valid_mesh(case):
+    emb, options, alive = case
+    positions = np.random.default_rng(0).normal(size=(emb.n_vertices, 3))
+    result = decode(positions, emb, options, alive)
+    assert_valid(result, emb.n_vertices)
+    if alive is not None:
+        assert alive[result.vertex_ids].all()
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(1, 40), st.floats(-5, 5), st.sampled_from(["product", "sum", "max"]))
+def test_degenerate_embeddings(n, tau, reduction):
+    """Identical embeddings: every pair is (or no pair is) an edge; ties everywhere."""
+    emb = Embeddings(np.zeros((n, 8)), tau, np.ones((n, 3)), np.ones((n, 3)), np.ones((n, 3)))
+    result = decode(np.zeros((n, 3)), emb, DecodeOptions(reduction=reduction))
+    assert_valid(result, n)
+
+
+def test_special_thresholds():
+    rng = np.random.default_rng(5)
+    for tau in [np.nan, np.inf, -np.inf, 1e300]:
+        emb = Embeddings(rng.normal(size=(30, 8)), tau, *(rng.normal(size=(30, 4)) for _ in range(3)))
+        assert_valid(decode(rng.normal(size=(30, 3)), emb), 30)
+
+
+def test_large_random_input_is_bounded():
+    """2,000 random vertices with a dense graph still decode (degree bound, fast rule)."""
+    rng = np.random.default_rng(6)
+    n = 2000
+    emb = Embeddings(rng.normal(size=(n, 16)), 2.0, *(rng.normal(size=(n, 6)) for _ in range(3)))
+    result = decode(rng.normal(size=(n, 3)), emb)
+    assert_valid(result, n)

@@ -1,0 +1,37 @@
+import pytest
+
+pytest.importorskip("torch")
+
+from spacemesh.decode import decode  # noqa: E402
+from spacemesh.fit import FitConfig, fit_mesh  # noqa: E402
+from spacemesh.halfedge import HalfedgeMesh  # noqa: E402
+from tests.factories import cube_quads, icosphere, prism, torus_grid  # noqa: E402
+
+
+@pytest.mark.parametrize(
+    "make", [lambda: icosphere(1), cube_quads, lambda: prism(6), lambda: torus_grid(8, 5, 3)]
+)
+def test_fit_recovers_mesh_exactly(make):
+    mesh = make()
+    result = fit_mesh(mesh, FitConfig(max_iters=400, threads=1))
+    assert result.exact, result.summary()
+    assert result.edge_f1 == 1.0 and result.next_accuracy == 1.0
+    assert result.decoded.mesh.face_key_set() == mesh.face_key_set()
+    # the stored embeddings decode to the same mesh again
+    again = decode(mesh.vertices, result.embeddings)
+    assert again.mesh.face_key_set() == mesh.face_key_set()
+    assert HalfedgeMesh.from_connectivity(again.connectivity).is_valid()
+
+
+def test_sparse_mode_recovers_mesh():
+    """The mined-negative edge loss (used above dense_limit) also gets exact."""
+    mesh = icosphere(2)
+    result = fit_mesh(mesh, FitConfig(max_iters=600, dense_limit=10, threads=1))
+    assert result.exact, result.summary()
+
+
+def test_budget_exhausted_reports_not_exact():
+    result = fit_mesh(icosphere(2), FitConfig(max_iters=2, threads=1))
+    assert not result.exact
+    assert result.iterations == 2
+    assert 0.0 <= result.edge_f1 < 1.0
