@@ -12,6 +12,7 @@ from spacemesh.cli.common import app
 
 #: Modules that add commands to ``app``; optional ones may be missing in slim installs.
 COMMAND_MODULES = (
+    "spacemesh.cli.example",
     "spacemesh.cli.fit",
     "spacemesh.cli.data",
     "spacemesh.cli.train",

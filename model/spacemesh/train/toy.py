@@ -1,10 +1,17 @@
 """A toy dataset made in seconds with numpy and scipy only: convex hulls of random points
-on ellipsoids (closed, outward triangle meshes). Tests and smoke runs use it; real
-training uses ``spacemesh data synth``.
+on ellipsoids (closed, outward triangle meshes), and a toy model trained and exported on
+it through the real command line. Tests and smoke runs use them; real training uses
+``spacemesh data synth``.
 """
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -86,3 +93,71 @@ def make_toy_dataset(
               "points": points, "count_requested": count}
     write_manifest(directory, header, [name])
     return directory
+
+
+def _run(command: list[str], env: dict[str, str]) -> None:
+    done = subprocess.run(command, env=env, capture_output=True, text=True)
+    if done.returncode:
+        raise RuntimeError(f"{' '.join(command[3:])} failed:\n{done.stderr[-4000:]}")
+
+
+@dataclass(frozen=True)
+class ToyModel:
+    """A tiny model trained and exported through the command line (for tests and demos).
+
+    Attributes
+    ----------
+    data : Path
+        The toy dataset.
+    run : Path
+        The training run folder.
+    repository : Path
+        The exported version folder (``.../spacemesh-tiny/1``).
+    seconds : float
+        Wall time of training plus export.
+    """
+
+    data: Path
+    run: Path
+    repository: Path
+    seconds: float
+
+
+def build_toy_model(directory: str | Path, *, steps: int = 4, threads: int = 2) -> ToyModel:
+    """Make a toy dataset, train ``tiny`` on it and export it, with the real CLI commands.
+
+    Reuses a previous build in ``directory`` (a ``toy-model.json`` marker).
+
+    Parameters
+    ----------
+    directory : path
+    steps : int
+        Diffusion steps of the training run.
+    threads : int
+        Torch threads of the subprocesses.
+
+    Returns
+    -------
+    ToyModel
+    """
+    directory = Path(directory)
+    marker = directory / "toy-model.json"
+    if marker.is_file():
+        info = json.loads(marker.read_text())
+        return ToyModel(Path(info["data"]), Path(info["run"]), Path(info["repository"]),
+                        info["seconds"])
+    directory.mkdir(parents=True, exist_ok=True)
+    data = make_toy_dataset(directory / "data", count=40, seed=0)
+    run, models = directory / "run", directory / "models"
+    cli = [sys.executable, "-c", "from spacemesh.cli import main; main()"]
+    env = {**os.environ, "OMP_NUM_THREADS": str(threads)}
+    start = time.perf_counter()
+    _run([*cli, "train", "--config", "tiny", "--data", str(data), "--out", str(run),
+          "--steps", str(steps), "--threads", str(threads), "--device", "cpu", "--no-progress"],
+         env)
+    _run([*cli, "export", str(run), "--out", str(models), "--threads", str(threads)], env)
+    seconds = time.perf_counter() - start
+    repository = models / "spacemesh-tiny" / "1"
+    marker.write_text(json.dumps({"data": str(data), "run": str(run),
+                                  "repository": str(repository), "seconds": seconds}))
+    return ToyModel(data, run, repository, seconds)

@@ -1,0 +1,1 @@
+"""SpaceMesh inference service (REST and gRPC over onnxruntime; never imports torch)."""
