@@ -25,6 +25,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import torch
+
 from spacemesh.examples import torus_grid
 from spacemesh.fit import FitConfig, fit_mesh
 from spacemesh.io import load_mesh

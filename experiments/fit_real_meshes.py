@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 import torch
+
 from spacemesh.fit import FitConfig, fit_mesh
 from spacemesh.io import load_mesh
 from spacemesh.topology import check_topology

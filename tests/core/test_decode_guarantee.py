@@ -74,7 +74,9 @@ def test_degenerate_embeddings(n, tau, reduction):
 def test_special_thresholds():
     rng = np.random.default_rng(5)
     for tau in [np.nan, np.inf, -np.inf, 1e300]:
-        emb = Embeddings(rng.normal(size=(30, 8)), tau, *(rng.normal(size=(30, 4)) for _ in range(3)))
+        emb = Embeddings(
+            rng.normal(size=(30, 8)), tau, *(rng.normal(size=(30, 4)) for _ in range(3))
+        )
         assert_valid(decode(rng.normal(size=(30, 3)), emb), 30)
 
 

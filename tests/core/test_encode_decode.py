@@ -26,7 +26,9 @@ def test_encode_round_trip(name):
     np.testing.assert_array_equal(conn.edges, mesh.edges)
     # every next relation (i, j, k): j -> i -> k appear consecutively in some face
     corners = {
-        (int(f[a - 1]), int(f[a]), int(f[(a + 1) % len(f)])) for f in mesh.faces for a in range(len(f))
+        (int(f[a - 1]), int(f[a]), int(f[(a + 1) % len(f)]))
+        for f in mesh.faces
+        for a in range(len(f))
     }
     trip = conn.next_triplets()
     assert {(int(j), int(i), int(k)) for i, j, k in trip} == corners

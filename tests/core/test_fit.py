@@ -2,10 +2,10 @@ import pytest
 
 pytest.importorskip("torch")
 
-from spacemesh.decode import decode  # noqa: E402
-from spacemesh.fit import FitConfig, fit_mesh  # noqa: E402
-from spacemesh.halfedge import HalfedgeMesh  # noqa: E402
-from tests.factories import cube_quads, icosphere, prism, torus_grid  # noqa: E402
+from spacemesh.decode import decode
+from spacemesh.fit import FitConfig, fit_mesh
+from spacemesh.halfedge import HalfedgeMesh
+from tests.factories import cube_quads, icosphere, prism, torus_grid
 
 
 @pytest.mark.parametrize(

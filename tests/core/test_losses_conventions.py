@@ -33,7 +33,11 @@ def test_reductions_agree(kind):
     torch.manual_seed(0)
     module = PermutationReduction(kind, dim=5).double()
     rng = np.random.default_rng(1)
-    root, prev, nxt = rng.normal(size=(3, 5)), rng.normal(size=(3, 4, 5)), rng.normal(size=(3, 4, 5))
+    root, prev, nxt = (
+        rng.normal(size=(3, 5)),
+        rng.normal(size=(3, 4, 5)),
+        rng.normal(size=(3, 4, 5)),
+    )
     expected = reduction_logits(root, prev, nxt, kind, module.numpy_params())
     got = module(*(torch.as_tensor(a) for a in (root, prev, nxt))).detach().numpy()
     np.testing.assert_allclose(got, expected, atol=1e-9)
@@ -76,13 +80,19 @@ def test_edge_loss_is_eq3_with_lambda():
     lam = 4 * len(edges) / n**2
     expected = (softplus[pos].sum() + lam * softplus_neg[neg].sum()) / len(edges)
     xt = torch.as_tensor(x)
-    got = edge_loss_dense(xt[None], torch.tensor(tau, dtype=torch.float64), torch.as_tensor(adj)[None])
+    got = edge_loss_dense(
+        xt[None], torch.tensor(tau, dtype=torch.float64), torch.as_tensor(adj)[None]
+    )
     assert float(got) == pytest.approx(expected, rel=1e-9)
     # the pair form with all negatives at weight 1 is the same number
     negatives = torch.as_tensor(np.stack(iu, 1)[neg])
     got_pairs = edge_loss_pairs(
-        xt, torch.tensor(tau, dtype=torch.float64), torch.as_tensor(edges), negatives,
-        torch.ones(len(negatives), dtype=torch.float64), lam,
+        xt,
+        torch.tensor(tau, dtype=torch.float64),
+        torch.as_tensor(edges),
+        negatives,
+        torch.ones(len(negatives), dtype=torch.float64),
+        lam,
     )
     assert float(got_pairs) == pytest.approx(expected, rel=1e-9)
     # and an edge is d < tau in both worlds

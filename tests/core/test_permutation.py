@@ -16,7 +16,11 @@ def test_sinkhorn_is_doubly_stochastic():
 
 def test_product_reduction_is_eq6():
     rng = np.random.default_rng(1)
-    root, prev, nxt = rng.normal(size=(2, 4)), rng.normal(size=(2, 3, 4)), rng.normal(size=(2, 3, 4))
+    root, prev, nxt = (
+        rng.normal(size=(2, 4)),
+        rng.normal(size=(2, 3, 4)),
+        rng.normal(size=(2, 3, 4)),
+    )
     logits = reduction_logits(root, prev, nxt, "product")
     expected = np.sum(root[1] * prev[1, 2] * nxt[1, 0])
     assert logits[1, 2, 0] == pytest.approx(expected)

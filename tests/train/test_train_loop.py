@@ -68,10 +68,8 @@ def test_ddp_on_cpu_with_two_processes(toy_data, tmp_path):
     command = [
         sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2",
         "--master_port", str(29500 + os.getpid() % 1000),
-        "-m", "spacemesh.train.loop",
+        str(Path(__file__).with_name("_ddp_entry.py")), str(toy_data), str(run),
     ]
-    script = Path(__file__).with_name("_ddp_entry.py")
-    command = [*command[:-2], str(script), str(toy_data), str(run)]
     done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-3000:]
     state = load_checkpoint(latest_checkpoint(run))

@@ -5,7 +5,8 @@ For each request:
 1. normalise the points (bounding-box centre to the origin, longest axis to [-1, 1]);
 2. subsample or pad them to the encoder's point count (deterministically);
 3. encoder, once -> feature volumes;
-4. sampler loop over the denoiser -> vertex tokens; the mask channel picks the vertices;
+4. sampler loop over the denoiser -> vertex tokens; the mask channel picks the vertices
+   (coincident ones are merged);
 5. connectivity network on those vertices -> SpaceMesh embeddings;
 6. :func:`spacemesh.decode.decode` -> a valid oriented manifold mesh; faces are flipped
    if its signed volume is negative, so they face outward;
@@ -36,6 +37,11 @@ from spacemesh.typed import FloatArray, IntArray
 
 #: Seed of the fixed generator that picks the encoder's points from a larger cloud.
 POINT_SUBSET_SEED = 0
+
+#: Sampled vertices closer than this (normalised units) are one vertex: coincident
+#: vertices (e.g. two tokens clipped to the same corner of the cube) would give the
+#: connectivity network identical inputs, hence exact ties in the decode.
+DUPLICATE_TOLERANCE = 1e-4
 
 
 @dataclass(frozen=True)
@@ -152,7 +158,8 @@ class GenerateResult:
         Seconds spent in ``encoder``, ``sampler``, ``connectivity``, ``extraction`` and
         ``total``. For a batch, the network stages are the whole batch's times.
     n_sampled_vertices : int
-        Tokens the mask channel kept (before the decode removed any).
+        Tokens the mask channel kept, coincident ones merged (before the decode
+        removed any).
     decode_stats : dict
         From :class:`spacemesh.decode.DecodeResult`.
     """
@@ -229,6 +236,32 @@ def check_points(points: Any, normals: Any = None) -> tuple[FloatArray, FloatArr
     if not np.isfinite(n).all():
         raise ValueError("the normals have non-finite values")
     return p, n
+
+
+def drop_duplicates(positions: FloatArray, alive: np.ndarray,
+                    tolerance: float = DUPLICATE_TOLERANCE) -> np.ndarray:
+    """``alive`` without the later vertex of every pair closer than ``tolerance``.
+
+    Parameters
+    ----------
+    positions : (N, 3)
+    alive : (N,) bool
+    tolerance : float
+
+    Returns
+    -------
+    (N,) bool
+    """
+    from scipy.spatial import cKDTree
+
+    alive = np.asarray(alive, dtype=bool).copy()
+    index = np.flatnonzero(alive)
+    if index.size < 2:
+        return alive
+    pairs = cKDTree(positions[index]).query_pairs(tolerance, output_type="ndarray")
+    if len(pairs):
+        alive[index[pairs.max(axis=1)]] = False
+    return alive
 
 
 def flip_faces(mesh: PolygonMesh) -> PolygonMesh:
@@ -394,6 +427,7 @@ class MeshGenerator:
             steps=self.spec.schedule.respaced(steps), method=method, progress=progress,
         )
         positions, alive = split_tokens(tokens)  # (B, N, 3), (B, N)
+        alive = np.stack([drop_duplicates(p, a) for p, a in zip(positions, alive, strict=True)])
         t2 = time.perf_counter()
         emb = self.backend.connect(positions, alive, volumes)
         t3 = time.perf_counter()

@@ -1,0 +1,299 @@
+"""Dynamic batching: concurrent requests share one onnxruntime batch.
+
+Requests wait in a bounded queue. One worker task takes the oldest, waits up to
+``max_delay_s`` for more requests with the same sampler settings (steps and method), up
+to ``max_batch_size``, and runs them as one :meth:`MeshGenerator.generate_batch` call in
+a dedicated inference thread (so the event loop never runs inference, and one batch runs
+at a time). Each request keeps its own seed, so batching never changes a mesh.
+
+A full queue raises :class:`QueueFull`. A caller that is cancelled (its timeout, or a
+client that went away) leaves the queue; when every request of a running batch has
+been cancelled the batch stops at the next sampler step.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import contextlib
+import logging
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+
+from spacemesh.runtime.pipeline import GenerateRequest, GenerateResult
+from spacemesh_service.metrics import BATCH_STAGES, Metrics
+
+log = logging.getLogger("spacemesh.service")
+
+#: ``progress(done, total)``.
+ProgressFn = Callable[[int, int], None]
+#: ``run(requests, progress) -> results``: :meth:`MeshGenerator.generate_batch`.
+RunBatch = Callable[..., list[GenerateResult]]
+
+
+class QueueFull(Exception):
+    """The queue holds ``queue_size`` requests already."""
+
+
+class ShuttingDown(Exception):
+    """The batcher no longer accepts requests."""
+
+
+class _AllCancelled(Exception):
+    """Raised inside the inference thread to stop a batch nobody waits for."""
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What a request gets back.
+
+    Attributes
+    ----------
+    result : GenerateResult
+    batch_size : int
+        Requests in the batch it ran in.
+    queue_seconds : float
+        Time between submission and the start of its batch.
+    """
+
+    result: GenerateResult
+    batch_size: int
+    queue_seconds: float
+
+
+@dataclass(eq=False)
+class _Job:
+    request: GenerateRequest
+    future: asyncio.Future
+    progress: ProgressFn | None
+    enqueued: float = field(default_factory=time.perf_counter)
+    cancelled: bool = False
+
+    @property
+    def key(self) -> tuple:
+        return (self.request.steps, self.request.method)
+
+
+class Batcher:
+    """An asyncio dynamic batcher in front of one generator.
+
+    Parameters
+    ----------
+    run : callable
+        ``run(requests, progress=fn) -> results`` (``MeshGenerator.generate_batch``).
+    max_batch_size : int
+    max_delay_s : float
+        How long the first request of a batch waits for others.
+    queue_size : int
+        Most requests waiting (not counting the running batch).
+    metrics : Metrics, optional
+    """
+
+    def __init__(self, run: RunBatch, *, max_batch_size: int, max_delay_s: float,
+                 queue_size: int, metrics: Metrics | None = None) -> None:
+        self._run_batch = run
+        self.max_batch_size = max_batch_size
+        self.max_delay_s = max_delay_s
+        self.queue_size = queue_size
+        self.metrics = metrics
+        self._pending: collections.deque[_Job] = collections.deque()
+        self._running: list[_Job] = []
+        self._arrived = asyncio.Event()
+        self._closing = False
+        self._worker: asyncio.Task | None = None
+        self._executor = ThreadPoolExecutor(1, thread_name_prefix="spacemesh-inference")
+        self._batch_seconds = 0.0  # moving average, for Retry-After
+
+    # ------------------------------------------------------------------ public
+    def start(self) -> None:
+        """Start the worker task (call from the event loop)."""
+        if self._worker is None:
+            self._worker = asyncio.get_running_loop().create_task(self._work(),
+                                                                   name="spacemesh-batcher")
+
+    @property
+    def depth(self) -> int:
+        """Requests waiting for a batch."""
+        return len(self._pending)
+
+    @property
+    def busy(self) -> bool:
+        """Whether any request waits or runs."""
+        return bool(self._pending or self._running)
+
+    def retry_after(self) -> int:
+        """Seconds a rejected client should wait: the expected time to drain the queue."""
+        batches = self.depth / self.max_batch_size + 1
+        return max(1, int(batches * self._batch_seconds + 0.999))
+
+    async def submit(self, request: GenerateRequest, *,
+                     progress: ProgressFn | None = None) -> Outcome:
+        """Queue a request and wait for its result.
+
+        Parameters
+        ----------
+        request : GenerateRequest
+            With explicit ``steps`` and ``method`` (they decide which requests batch).
+        progress : callable, optional
+            ``progress(done, total)``, called on the event loop after each sampler step.
+
+        Returns
+        -------
+        Outcome
+
+        Raises
+        ------
+        QueueFull, ShuttingDown
+        """
+        if self._closing:
+            raise ShuttingDown
+        if len(self._pending) >= self.queue_size:
+            raise QueueFull
+        job = _Job(request, asyncio.get_running_loop().create_future(), progress)
+        self._pending.append(job)
+        self._set_depth()
+        self._arrived.set()
+        try:
+            return await job.future
+        except asyncio.CancelledError:
+            job.cancelled = True
+            with contextlib.suppress(ValueError):
+                self._pending.remove(job)
+            self._set_depth()
+            raise
+
+    async def close(self, timeout: float) -> bool:
+        """Stop accepting requests, let waiting and running ones finish, stop the worker.
+
+        Parameters
+        ----------
+        timeout : float
+            Seconds to wait for the queue to empty.
+
+        Returns
+        -------
+        bool
+            True when every request finished in time.
+        """
+        self._closing = True
+        deadline = time.monotonic() + timeout
+        while self.busy and time.monotonic() < deadline:
+            await asyncio.sleep(0.02)
+        drained = not self.busy
+        if self._worker is not None:
+            self._worker.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._worker
+        self._executor.shutdown(wait=False, cancel_futures=True)
+        return drained
+
+    # ------------------------------------------------------------------ worker
+    def _set_depth(self) -> None:
+        if self.metrics is not None:
+            self.metrics.queue_depth.set(len(self._pending))
+
+    def _pop_first(self) -> _Job | None:
+        while self._pending:
+            job = self._pending.popleft()
+            if not job.cancelled and not job.future.done():
+                return job
+        return None
+
+    def _take_compatible(self, batch: list[_Job]) -> None:
+        key = batch[0].key
+        for job in list(self._pending):
+            if len(batch) >= self.max_batch_size:
+                break
+            if job.key == key and not job.cancelled:
+                self._pending.remove(job)
+                batch.append(job)
+        self._set_depth()
+
+    async def _collect(self) -> list[_Job]:
+        while True:
+            while not self._pending:
+                self._arrived.clear()
+                await self._arrived.wait()
+            first = self._pop_first()
+            if first is not None:
+                break
+        batch = [first]
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + self.max_delay_s
+        while True:
+            self._take_compatible(batch)
+            remaining = deadline - loop.time()
+            if len(batch) >= self.max_batch_size or remaining <= 0:
+                break
+            self._arrived.clear()
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(self._arrived.wait(), remaining)
+        self._set_depth()
+        return batch
+
+    async def _work(self) -> None:
+        while True:
+            batch = await self._collect()
+            self._running = batch
+            try:
+                await self._run(batch)
+            except Exception:  # pragma: no cover - _run settles every future
+                log.exception("batch failed")
+            finally:
+                self._running = []
+
+    async def _run(self, batch: list[_Job]) -> None:
+        loop = asyncio.get_running_loop()
+        start = time.perf_counter()
+        for job in batch:
+            job.queue_seconds = start - job.enqueued
+        if self.metrics is not None:
+            self.metrics.batch_size.observe(len(batch))
+            self.metrics.batches.inc()
+
+        def progress(done: int, total: int) -> None:  # in the inference thread
+            if all(job.cancelled for job in batch):
+                raise _AllCancelled
+            for job in batch:
+                if job.progress is not None and not job.cancelled:
+                    loop.call_soon_threadsafe(job.progress, done, total)
+
+        try:
+            results = await self._call(loop, [j.request for j in batch], progress)
+        except _AllCancelled:
+            log.info("stopped a batch of %d cancelled requests", len(batch))
+            return
+        except Exception as error:
+            if len(batch) > 1:  # find the request that fails; the others still succeed
+                for job in batch:
+                    if not job.cancelled:
+                        await self._run([job])
+                return
+            self._settle(batch[0], error=error)
+            return
+        elapsed = time.perf_counter() - start
+        self._batch_seconds = elapsed if not self._batch_seconds else (
+            0.8 * self._batch_seconds + 0.2 * elapsed)
+        if self.metrics is not None and results:
+            for stage in BATCH_STAGES:
+                if stage in results[0].timings:
+                    self.metrics.observe_stage(stage, results[0].timings[stage])
+        for job, result in zip(batch, results, strict=True):
+            self._settle(job, Outcome(result, len(batch), job.queue_seconds))
+
+    async def _call(self, loop: asyncio.AbstractEventLoop, requests: Sequence[GenerateRequest],
+                    progress: ProgressFn) -> list[GenerateResult]:
+        return await loop.run_in_executor(
+            self._executor, lambda: self._run_batch(list(requests), progress=progress))
+
+    @staticmethod
+    def _settle(job: _Job, outcome: Outcome | None = None,
+                error: BaseException | None = None) -> None:
+        if job.future.done():
+            return
+        if error is not None:
+            job.future.set_exception(error)
+        else:
+            job.future.set_result(outcome)

@@ -1,0 +1,297 @@
+"""Where a request becomes a point cloud: file uploads, JSON points, options, validation.
+
+Used by both the REST app and the gRPC server, so both accept and reject exactly the
+same inputs. Every rejection is a :class:`~spacemesh_service.problems.Problem`:
+
+- unreadable file or JSON: 400 ``malformed-input``; unknown format: 415;
+- too many points: 413; too few, NaN/Inf, or degenerate geometry (all points identical,
+  collinear or coplanar, from the singular values of the centred points): 422;
+- bad ``format``/``seed``/``steps``: 400 ``invalid-parameter``.
+"""
+
+from __future__ import annotations
+
+import json
+import secrets
+from dataclasses import dataclass
+from pathlib import PurePath
+from typing import Any
+
+import numpy as np
+
+from spacemesh.io.errors import MeshFormatError, UnsupportedFormatError
+from spacemesh.io.points import SUPPORTED_POINTS_READ, load_points
+from spacemesh_service import problems as P
+from spacemesh_service.outputs import OUTPUT_FORMATS
+from spacemesh_service.problems import Problem
+from spacemesh_service.settings import Settings
+
+#: Relative size of the smallest singular value (of the centred points, over the largest)
+#: below which a cloud counts as flat (and likewise for the middle one: a line).
+DEGENERACY_TOLERANCE = 1e-6
+#: Largest seed (seeds are int64 in the gRPC contract, and non-negative for numpy).
+MAX_SEED = 2**63 - 1
+#: Seeds picked by the server when a request gives none lie in ``[0, 2**31)``.
+RANDOM_SEED_BITS = 31
+#: How the readers phrase a non-finite coordinate (see spacemesh.io.errors.check_vertices).
+_NON_FINITE_MESSAGE = "NaN or infinite"
+#: Point-cloud upload formats (also reported by the model metadata).
+INPUT_FORMATS: tuple[str, ...] = SUPPORTED_POINTS_READ
+
+
+@dataclass(frozen=True)
+class PointCloud:
+    """A validated request input.
+
+    Attributes
+    ----------
+    points : (P, 3) float64
+    normals : (P, 3) float64 or None
+    source : str
+        ``json``, ``points`` (gRPC numbers) or the file format read.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray | None
+    source: str
+
+
+@dataclass(frozen=True)
+class Options:
+    """Validated request options.
+
+    Attributes
+    ----------
+    format : str
+        One of :data:`~spacemesh_service.outputs.OUTPUT_FORMATS`.
+    seed : int
+        The request's, or one picked at random.
+    steps : int or None
+        Sampler steps (None: the model's default).
+    """
+
+    format: str
+    seed: int
+    steps: int | None
+
+
+def _int_option(name: str, value: Any, low: int, high: int) -> int | None:
+    if value is None or value == "":
+        return None
+    if isinstance(value, bool):
+        raise Problem(P.INVALID_PARAMETER, f"{name} must be an integer, not {value!r}",
+                      parameter=name)
+    try:
+        number = int(value) if not isinstance(value, float) or value.is_integer() else None
+    except (TypeError, ValueError):
+        number = None
+    if number is None:
+        raise Problem(P.INVALID_PARAMETER, f"{name} must be an integer, not {value!r}",
+                      parameter=name)
+    if not low <= number <= high:
+        raise Problem(P.INVALID_PARAMETER, f"{name} must be in {low}..{high}, not {number}",
+                      parameter=name)
+    return number
+
+
+def parse_options(
+    raw: dict[str, Any], settings: Settings, *, max_model_steps: int
+) -> Options:
+    """Validate ``format``, ``seed`` and ``steps`` (strings or numbers).
+
+    Parameters
+    ----------
+    raw : dict
+        Option values as sent (missing or None: not given).
+    settings : Settings
+    max_model_steps : int
+        The model's timesteps (steps are capped by it and by ``settings.max_steps``).
+
+    Returns
+    -------
+    Options
+    """
+    fmt = raw.get("format")
+    fmt = "glb" if fmt is None or fmt == "" else str(fmt).strip().lower().lstrip(".")
+    if fmt not in OUTPUT_FORMATS:
+        raise Problem(P.INVALID_PARAMETER,
+                      f"format must be one of {', '.join(OUTPUT_FORMATS)}, not {fmt!r}",
+                      parameter="format")
+    seed = _int_option("seed", raw.get("seed"), 0, MAX_SEED)
+    if seed is None:
+        seed = secrets.randbits(RANDOM_SEED_BITS)
+    steps = _int_option("steps", raw.get("steps"), 1, min(settings.max_steps, max_model_steps))
+    if steps is None and settings.default_steps is not None:
+        steps = min(settings.default_steps, max_model_steps)
+    return Options(fmt, seed, steps)
+
+
+# ---------------------------------------------------------------------- reading
+def _file_type(filename: str | None) -> str | None:
+    """The format named by a file name's extension, when it is one we read."""
+    if not filename:
+        return None
+    suffix = PurePath(filename).suffix.lower().lstrip(".")
+    return suffix if suffix in INPUT_FORMATS else None
+
+
+def read_upload(data: bytes, filename: str | None) -> tuple[np.ndarray, np.ndarray | None, str]:
+    """Points (and normals) of an uploaded file.
+
+    The extension picks the format when it is one we read; otherwise the content is
+    sniffed (PLY, NPY, NPZ, OBJ, number columns...).
+
+    Parameters
+    ----------
+    data : bytes
+    filename : str, optional
+
+    Returns
+    -------
+    points : (P, 3) float64
+    normals : (P, 3) float64 or None
+    source : str
+        The format read.
+    """
+    from spacemesh.io import sniff_file_type
+
+    file_type = _file_type(filename)
+    if not data.strip():
+        raise Problem(P.MALFORMED_INPUT, "the uploaded file is empty")
+    source = file_type or sniff_file_type(data)
+    if source not in INPUT_FORMATS:
+        named = PurePath(filename).suffix if filename else ""
+        what = f"'{named}' files" if named else "this file (its content was not recognised)"
+        raise Problem(P.UNSUPPORTED_FORMAT,
+                      f"cannot read {what}; supported: {', '.join(INPUT_FORMATS)}",
+                      supported=list(INPUT_FORMATS))
+    try:
+        points, normals = load_points(data, file_type=source)
+    except UnsupportedFormatError as error:
+        raise Problem(P.UNSUPPORTED_FORMAT, str(error)) from None
+    except MeshFormatError as error:
+        if _NON_FINITE_MESSAGE in str(error):
+            raise Problem(P.NON_FINITE, str(error)) from None
+        raise Problem(P.MALFORMED_INPUT, str(error)) from None
+    return points, normals, source
+
+
+def _number_array(value: Any, name: str) -> np.ndarray:
+    """A float64 (P, 3) array from nested lists of numbers (400 otherwise)."""
+    try:
+        array = np.asarray(value)
+    except (ValueError, TypeError):
+        array = None
+    if array is not None and array.size == 0:
+        return np.zeros((0, 3))
+    if array is None or array.dtype.kind not in "iuf" or array.ndim != 2 or (
+        array.size and array.shape[1] != 3
+    ):
+        raise Problem(P.MALFORMED_INPUT, f"'{name}' must be a list of [x, y, z] number triples")
+    return array.astype(np.float64).reshape(-1, 3)
+
+
+def read_json(body: bytes) -> tuple[np.ndarray, np.ndarray | None, dict[str, Any]]:
+    """Points, normals and options of a JSON body ``{"points": [[x, y, z], ...], ...}``.
+
+    Parameters
+    ----------
+    body : bytes
+
+    Returns
+    -------
+    points : (P, 3) float64
+    normals : (P, 3) float64 or None
+    options : dict
+        ``format``, ``seed`` and ``steps`` when the body has them.
+    """
+    try:
+        data = json.loads(body)
+    except (ValueError, UnicodeDecodeError) as error:
+        raise Problem(P.MALFORMED_INPUT, f"the body is not valid JSON ({error})") from None
+    if not isinstance(data, dict) or "points" not in data:
+        raise Problem(P.MALFORMED_INPUT, "the JSON body must be an object with 'points'")
+    unknown = set(data) - {"points", "normals", "format", "seed", "steps"}
+    if unknown:
+        raise Problem(P.INVALID_PARAMETER, f"unknown JSON fields: {', '.join(sorted(unknown))}")
+    points = _number_array(data["points"], "points")
+    normals = None if data.get("normals") is None else _number_array(data["normals"], "normals")
+    options = {k: data[k] for k in ("format", "seed", "steps") if k in data}
+    return points, normals, options
+
+
+def points_from_flat(xyz: Any, normals: Any) -> tuple[np.ndarray, np.ndarray | None]:
+    """Points (and normals) from flat ``x0 y0 z0 x1 ...`` sequences (the gRPC form)."""
+    p = np.asarray(xyz, dtype=np.float64)
+    if p.size % 3:
+        raise Problem(P.MALFORMED_INPUT, f"xyz has {p.size} numbers, not a multiple of 3")
+    n = np.asarray(normals, dtype=np.float64) if len(normals) else None
+    if n is not None and n.size % 3:
+        raise Problem(P.MALFORMED_INPUT, f"normals has {n.size} numbers, not a multiple of 3")
+    return p.reshape(-1, 3), None if n is None else n.reshape(-1, 3)
+
+
+# ---------------------------------------------------------------------- validation
+def check_degenerate(points: np.ndarray) -> None:
+    """Raise 422 ``degenerate-geometry`` for identical, collinear or coplanar points.
+
+    Parameters
+    ----------
+    points : (P, 3) float64
+        Finite points.
+    """
+    centred = points - points.mean(axis=0)
+    s = np.linalg.svd(centred, compute_uv=False)  # (3,) descending
+    if not s[0] > 0:
+        shape = "all points are identical"
+    elif s[1] <= DEGENERACY_TOLERANCE * s[0]:
+        shape = "the points are collinear"
+    elif len(s) < 3 or s[2] <= DEGENERACY_TOLERANCE * s[0]:
+        shape = "the points are coplanar"
+    else:
+        return
+    raise Problem(P.DEGENERATE_GEOMETRY, f"{shape}; a surface needs a 3D point cloud",
+                  singular_values=[float(v) for v in s])
+
+
+def validate_cloud(
+    points: np.ndarray, normals: np.ndarray | None, settings: Settings, *,
+    source: str, needs_normals: bool = False,
+) -> PointCloud:
+    """Apply the limits and geometry checks to parsed points.
+
+    Parameters
+    ----------
+    points : (P, 3) float64
+    normals : (P, 3) float64 or None
+    settings : Settings
+    source : str
+    needs_normals : bool
+        The model's encoder reads normals.
+
+    Returns
+    -------
+    PointCloud
+    """
+    count = len(points)
+    if count > settings.max_points:
+        raise Problem(P.TOO_MANY_POINTS,
+                      f"{count} points; this server takes at most {settings.max_points}",
+                      limit=settings.max_points, points=count)
+    if count < settings.min_points:
+        raise Problem(P.TOO_FEW_POINTS,
+                      f"{count} points; this server needs at least {settings.min_points}",
+                      limit=settings.min_points, points=count)
+    if not np.isfinite(points).all():
+        bad = int(np.flatnonzero(~np.isfinite(points).all(axis=1))[0])
+        raise Problem(P.NON_FINITE, f"point {bad} has a NaN or infinite coordinate")
+    if normals is not None:
+        if normals.shape != points.shape:
+            raise Problem(P.INVALID_NORMALS,
+                          f"{len(normals)} normals for {count} points; give one per point")
+        if not np.isfinite(normals).all():
+            raise Problem(P.NON_FINITE, "the normals have NaN or infinite values")
+    if needs_normals and normals is None:
+        raise Problem(P.NORMALS_REQUIRED, "this model reads normals; send one per point")
+    check_degenerate(points)
+    return PointCloud(np.ascontiguousarray(points), normals, source)

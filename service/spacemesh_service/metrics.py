@@ -1,0 +1,75 @@
+"""Prometheus metrics of one service instance (its own registry, served at ``/metrics``).
+
+``spacemesh_requests_total{protocol,route,status}``
+    Requests by route and status (HTTP status code, or gRPC status name).
+``spacemesh_request_seconds{protocol,route}``
+    End-to-end latency.
+``spacemesh_stage_seconds{stage}``
+    Per stage: ``decode_input``, ``queue``, ``encoder``, ``sampler``, ``connectivity``,
+    ``extraction``, ``encode_output``. The network stages (encoder, sampler,
+    connectivity) are observed once per batch; the others once per request.
+``spacemesh_queue_depth``, ``spacemesh_inflight_requests``
+    Requests waiting for a batch; requests inside the engine (waiting or running).
+``spacemesh_batch_size``, ``spacemesh_batches_total``
+    Requests per onnxruntime batch, and batches run.
+``spacemesh_ready``, ``spacemesh_model_info{name,version}``
+"""
+
+from __future__ import annotations
+
+from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, generate_latest
+from prometheus_client import CONTENT_TYPE_LATEST as CONTENT_TYPE
+
+#: Stages of a generate request, in order.
+STAGES = ("decode_input", "queue", "encoder", "sampler", "connectivity", "extraction",
+          "encode_output")
+#: Network stages, timed once per batch.
+BATCH_STAGES = ("encoder", "sampler", "connectivity")
+
+_LATENCY_BUCKETS = (0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 0.75, 1.0, 1.5, 2.5, 5.0, 10.0,
+                    30.0, 60.0)
+_BATCH_BUCKETS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 64, 128, 256)
+
+
+class Metrics:
+    """The instruments, registered in a fresh :class:`CollectorRegistry`."""
+
+    def __init__(self) -> None:
+        self.registry = CollectorRegistry()
+        r = self.registry
+        self.requests = Counter("spacemesh_requests", "Requests by route and status",
+                                ["protocol", "route", "status"], registry=r)
+        self.request_seconds = Histogram("spacemesh_request_seconds", "End-to-end latency",
+                                         ["protocol", "route"], buckets=_LATENCY_BUCKETS,
+                                         registry=r)
+        self.stage_seconds = Histogram("spacemesh_stage_seconds", "Latency per stage",
+                                       ["stage"], buckets=_LATENCY_BUCKETS, registry=r)
+        self.queue_depth = Gauge("spacemesh_queue_depth", "Requests waiting for a batch",
+                                 registry=r)
+        self.inflight = Gauge("spacemesh_inflight_requests",
+                              "Generate requests inside the engine", registry=r)
+        self.batch_size = Histogram("spacemesh_batch_size", "Requests per onnxruntime batch",
+                                    buckets=_BATCH_BUCKETS, registry=r)
+        self.batches = Counter("spacemesh_batches", "Batches run", registry=r)
+        self.ready = Gauge("spacemesh_ready", "1 once the model is loaded and warm",
+                           registry=r)
+        self.model_info = Gauge("spacemesh_model_info", "The loaded model",
+                                ["name", "version"], registry=r)
+        for stage in STAGES:  # export every stage from the start
+            self.stage_seconds.labels(stage)
+
+    def observe_request(self, protocol: str, route: str, status: str, seconds: float) -> None:
+        """Count one finished request."""
+        self.requests.labels(protocol, route, status).inc()
+        self.request_seconds.labels(protocol, route).observe(seconds)
+
+    def observe_stage(self, stage: str, seconds: float) -> None:
+        """Record one stage's time."""
+        self.stage_seconds.labels(stage).observe(seconds)
+
+    def render(self) -> bytes:
+        """The text exposition format."""
+        return generate_latest(self.registry)
+
+
+__all__ = ["BATCH_STAGES", "CONTENT_TYPE", "STAGES", "Metrics"]

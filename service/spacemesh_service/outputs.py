@@ -1,0 +1,153 @@
+"""Where a generated mesh becomes a response: validation, bytes, media type, statistics.
+
+Formats: GLB and glTF (triangulated), OBJ, PLY and OFF (polygons kept) through
+:func:`spacemesh.io.export_mesh`, and ``json`` (vertices, polygon faces, statistics).
+The bytes depend only on the mesh, the seed, the steps and the model, so REST and gRPC
+answer byte-identical meshes for the same input and seed.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from spacemesh.io import export_mesh
+from spacemesh.mesh import PolygonMesh
+from spacemesh.topology import check_topology
+from spacemesh_service import problems as P
+from spacemesh_service.problems import Problem
+
+#: Output format -> media type.
+MEDIA_TYPES: dict[str, str] = {
+    "glb": "model/gltf-binary",
+    "gltf": "model/gltf+json",
+    "obj": "model/obj",
+    "ply": "model/x-ply",
+    "off": "model/x-off",
+    "json": "application/json",
+}
+#: Output formats, the default first.
+OUTPUT_FORMATS: tuple[str, ...] = tuple(MEDIA_TYPES)
+#: Prefix of the statistics headers.
+HEADER_PREFIX = "X-SpaceMesh-"
+
+
+@dataclass(frozen=True)
+class MeshStats:
+    """What the response headers (and the JSON body) say about a mesh."""
+
+    vertices: int
+    faces: int
+    edges: int
+    face_degrees: dict[int, int]
+    manifold: bool
+    closed: bool
+    oriented: bool
+    components: int
+    genus: int
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready (face degrees keyed by strings)."""
+        data = asdict(self)
+        data["face_degrees"] = {str(k): v for k, v in self.face_degrees.items()}
+        return data
+
+
+@dataclass(frozen=True)
+class EncodedMesh:
+    """A mesh ready to send.
+
+    Attributes
+    ----------
+    body : bytes
+    format : str
+    media_type : str
+    stats : MeshStats
+    """
+
+    body: bytes
+    format: str
+    media_type: str
+    stats: MeshStats
+
+
+def validate_mesh(mesh: PolygonMesh) -> tuple[PolygonMesh, MeshStats]:
+    """Check a generated mesh before it is sent.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+
+    Returns
+    -------
+    mesh : PolygonMesh
+        Without unreferenced vertices.
+    stats : MeshStats
+
+    Raises
+    ------
+    Problem
+        ``no-surface`` (422) for an empty mesh, ``invalid-output`` (500) when the mesh is
+        not a closed oriented manifold.
+    """
+    if mesh.n_faces == 0:
+        raise Problem(P.NO_SURFACE, "the model produced no faces for this input and seed; "
+                      "try another seed or more steps")
+    report = check_topology(mesh)
+    if report.n_unreferenced_vertices:
+        mesh, _ = mesh.remove_unreferenced_vertices()
+        report = check_topology(mesh)
+    if not report.is_closed_oriented_manifold:
+        raise Problem(P.INVALID_OUTPUT, "the generated mesh has "
+                      + ", ".join(report.defects()))
+    stats = MeshStats(
+        vertices=mesh.n_vertices, faces=mesh.n_faces, edges=report.n_edges,
+        face_degrees=mesh.degree_histogram(), manifold=report.is_manifold,
+        closed=report.is_closed, oriented=report.is_oriented,
+        components=report.n_components, genus=int(report.genus or 0),
+    )
+    return mesh, stats
+
+
+def mesh_json(mesh: PolygonMesh, stats: MeshStats, info: dict[str, Any]) -> bytes:
+    """The ``json`` format: ``vertices``, polygon ``faces``, ``stats`` and ``info`` keys."""
+    body = {
+        "vertices": mesh.vertices.tolist(),
+        "faces": [face.tolist() for face in mesh.faces],
+        "stats": stats.to_dict(),
+        **info,
+    }
+    return json.dumps(body, separators=(",", ":")).encode("utf-8")
+
+
+def encode_mesh(mesh: PolygonMesh, fmt: str, info: dict[str, Any]) -> EncodedMesh:
+    """Validate and serialise a mesh.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+    fmt : str
+        One of :data:`OUTPUT_FORMATS`.
+    info : dict
+        ``seed``, ``steps``, ``sampler`` and ``model`` (added to the JSON body).
+
+    Returns
+    -------
+    EncodedMesh
+    """
+    mesh, stats = validate_mesh(mesh)
+    body = mesh_json(mesh, stats, info) if fmt == "json" else export_mesh(mesh, fmt)
+    return EncodedMesh(body, fmt, MEDIA_TYPES[fmt], stats)
+
+
+def stats_headers(stats: MeshStats) -> dict[str, str]:
+    """``X-SpaceMesh-*`` headers of a mesh's statistics."""
+    degrees = ",".join(f"{k}:{v}" for k, v in sorted(stats.face_degrees.items()))
+    values = {
+        "Vertices": stats.vertices, "Faces": stats.faces, "Edges": stats.edges,
+        "Face-Degrees": degrees, "Manifold": stats.manifold, "Closed": stats.closed,
+        "Oriented": stats.oriented, "Components": stats.components, "Genus": stats.genus,
+    }
+    return {HEADER_PREFIX + k: str(v).lower() if isinstance(v, bool) else str(v)
+            for k, v in values.items()}

@@ -1,0 +1,143 @@
+"""Every error the service answers, in one place: RFC 9457 problem details.
+
+Each kind has a stable ``type`` URI (``https://spacemesh.dev/problems/<slug>``), a title,
+an HTTP status and the gRPC status code the gRPC server ends the call with. Code raises
+:class:`Problem`; the REST app renders it as ``application/problem+json`` and the gRPC
+server as a status with the type in trailing metadata (``problem-type``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import grpc
+
+#: Base of every problem type URI.
+TYPE_BASE = "https://spacemesh.dev/problems/"
+#: Media type of problem responses.
+PROBLEM_MEDIA_TYPE = "application/problem+json"
+
+
+@dataclass(frozen=True)
+class ProblemKind:
+    """One kind of error.
+
+    Attributes
+    ----------
+    slug : str
+        Last part of the type URI.
+    title : str
+        Short, human-readable summary (the same for every occurrence).
+    status : int
+        HTTP status.
+    grpc_code : grpc.StatusCode
+    """
+
+    slug: str
+    title: str
+    status: int
+    grpc_code: grpc.StatusCode
+
+    @property
+    def type(self) -> str:
+        """The stable type URI."""
+        return TYPE_BASE + self.slug
+
+
+def _kind(slug: str, title: str, status: int, code: grpc.StatusCode) -> ProblemKind:
+    return ProblemKind(slug, title, status, code)
+
+
+_C = grpc.StatusCode
+MALFORMED_INPUT = _kind("malformed-input", "The point cloud could not be read", 400,
+                        _C.INVALID_ARGUMENT)
+INVALID_PARAMETER = _kind("invalid-parameter", "A request parameter is invalid", 400,
+                          _C.INVALID_ARGUMENT)
+NOT_FOUND = _kind("not-found", "No such resource", 404, _C.NOT_FOUND)
+MODEL_NOT_FOUND = _kind("model-not-found", "No such model or version", 404, _C.NOT_FOUND)
+METHOD_NOT_ALLOWED = _kind("method-not-allowed", "Method not allowed", 405, _C.UNIMPLEMENTED)
+PAYLOAD_TOO_LARGE = _kind("payload-too-large", "The request body is too large", 413,
+                          _C.RESOURCE_EXHAUSTED)
+TOO_MANY_POINTS = _kind("too-many-points", "The point cloud has too many points", 413,
+                        _C.RESOURCE_EXHAUSTED)
+UNSUPPORTED_FORMAT = _kind("unsupported-format", "Unsupported input format", 415,
+                           _C.INVALID_ARGUMENT)
+TOO_FEW_POINTS = _kind("too-few-points", "The point cloud has too few points", 422,
+                       _C.INVALID_ARGUMENT)
+NON_FINITE = _kind("non-finite", "The point cloud has NaN or infinite values", 422,
+                   _C.INVALID_ARGUMENT)
+DEGENERATE_GEOMETRY = _kind("degenerate-geometry", "The point cloud is degenerate", 422,
+                            _C.INVALID_ARGUMENT)
+INVALID_NORMALS = _kind("invalid-normals", "The normals do not match the points", 422,
+                        _C.INVALID_ARGUMENT)
+NORMALS_REQUIRED = _kind("normals-required", "This model needs normals", 422,
+                         _C.INVALID_ARGUMENT)
+NO_SURFACE = _kind("no-surface", "No surface could be generated from this input", 422,
+                   _C.FAILED_PRECONDITION)
+INTERNAL = _kind("internal-error", "Internal server error", 500, _C.INTERNAL)
+INVALID_OUTPUT = _kind("invalid-output", "The generated mesh failed validation", 500,
+                       _C.INTERNAL)
+NOT_IMPLEMENTED = _kind("not-implemented", "Not implemented yet", 501, _C.UNIMPLEMENTED)
+QUEUE_FULL = _kind("queue-full", "The server is busy", 503, _C.UNAVAILABLE)
+NOT_READY = _kind("not-ready", "The model is not ready", 503, _C.UNAVAILABLE)
+SHUTTING_DOWN = _kind("shutting-down", "The server is shutting down", 503, _C.UNAVAILABLE)
+TIMEOUT = _kind("timeout", "The request took too long", 504, _C.DEADLINE_EXCEEDED)
+
+#: Every kind, by slug (documented in docs/SERVICE.md and the OpenAPI spec).
+KINDS: dict[str, ProblemKind] = {
+    k.slug: k for k in (
+        MALFORMED_INPUT, INVALID_PARAMETER, NOT_FOUND, MODEL_NOT_FOUND, METHOD_NOT_ALLOWED,
+        PAYLOAD_TOO_LARGE, TOO_MANY_POINTS, UNSUPPORTED_FORMAT, TOO_FEW_POINTS, NON_FINITE,
+        DEGENERATE_GEOMETRY, INVALID_NORMALS, NORMALS_REQUIRED, NO_SURFACE, INTERNAL,
+        INVALID_OUTPUT, NOT_IMPLEMENTED, QUEUE_FULL, NOT_READY, SHUTTING_DOWN, TIMEOUT,
+    )
+}
+
+
+class Problem(Exception):
+    """An error answered as problem details.
+
+    Parameters
+    ----------
+    kind : ProblemKind
+    detail : str
+        What went wrong with this request, for the person who sent it.
+    retry_after : int, optional
+        Seconds (sent as ``Retry-After``), for 503s.
+    **extra
+        Extension members of the problem object (e.g. ``limit``).
+    """
+
+    def __init__(self, kind: ProblemKind, detail: str, *, retry_after: int | None = None,
+                 **extra: Any) -> None:
+        super().__init__(detail)
+        self.kind = kind
+        self.detail = detail
+        self.retry_after = retry_after
+        self.extra = extra
+
+    def to_dict(self, instance: str | None = None) -> dict[str, Any]:
+        """The problem object (``type``, ``title``, ``status``, ``detail``, ...)."""
+        body: dict[str, Any] = {
+            "type": self.kind.type, "title": self.kind.title, "status": self.kind.status,
+            "detail": self.detail,
+        }
+        if instance:
+            body["instance"] = instance
+        body.update(self.extra)
+        return body
+
+    def headers(self) -> dict[str, str]:
+        """Response headers (``Retry-After`` when set)."""
+        return {"Retry-After": str(self.retry_after)} if self.retry_after is not None else {}
+
+    def grpc_metadata(self) -> tuple[tuple[str, str], ...]:
+        """Trailing metadata of the gRPC status."""
+        items = [("problem-type", self.kind.type), ("problem-status", str(self.kind.status))]
+        if self.retry_after is not None:
+            items.append(("retry-after", str(self.retry_after)))
+        return tuple(items)
+
+    def __repr__(self) -> str:
+        return f"Problem({self.kind.slug!r}, {self.detail!r})"

@@ -1,0 +1,123 @@
+"""Service configuration: one field per ``spacemesh serve`` flag, each with an environment
+variable of the same name (``--max-batch-size`` is ``SPACEMESH_MAX_BATCH_SIZE``).
+
+Precedence: an explicit value (a command-line flag, or a keyword of
+:meth:`Settings.from_env`) over the environment over the default below. The command line
+is built from these fields (:mod:`spacemesh.cli.serve`), so a new field is a new flag.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+#: Prefix of every environment variable.
+ENV_PREFIX = "SPACEMESH_"
+
+
+def _cpu_count() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+class Settings(BaseModel):
+    """Everything the service can be told. See the module docstring for the env vars."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    model: Path | None = Field(
+        None, description="Model repository (version folder, model folder or root); "
+        "default: the shipped models/spacemesh-small.")
+    host: str = Field("127.0.0.1", description="Interface to listen on (0.0.0.0 for all).")
+    port: int = Field(8000, ge=0, le=65535, description="REST port (0: any free port).")
+    grpc_port: int = Field(8001, ge=0, le=65535, description="gRPC port (0: any free port).")
+    grpc: bool = Field(True, description="Serve gRPC besides REST.")
+    max_batch_size: int = Field(4, ge=1, le=256,
+                                description="Most requests in one onnxruntime batch.")
+    max_batch_delay_ms: float = Field(
+        5.0, ge=0, le=10_000,
+        description="How long the first request of a batch waits for others (ms).")
+    queue_size: int = Field(32, ge=1, description="Requests that may wait; beyond: 503.")
+    request_timeout_s: float = Field(
+        30.0, gt=0, description="Per-request limit (queue + inference) before a 504.")
+    max_points: int = Field(200_000, ge=1, description="Most points per request (413 above).")
+    min_points: int = Field(16, ge=1, description="Fewest points per request (422 below).")
+    max_upload_bytes: int = Field(
+        32 * 1024 * 1024, ge=1, description="Largest request body (413 above).")
+    default_steps: int | None = Field(
+        None, ge=1, description="Sampler steps when a request gives none (default: the "
+        "model's).")
+    max_steps: int = Field(
+        1024, ge=1, description="Most sampler steps a request may ask for (also capped by "
+        "the model's timesteps).")
+    ort_threads: int = Field(
+        0, ge=0, description="onnxruntime intra-op threads (0: one per available core).")
+    warmup: bool = Field(True, description="Run a warm-up inference before reporting ready.")
+    drain_timeout_s: float = Field(
+        30.0, ge=0, description="On SIGTERM, how long in-flight requests may still run.")
+    log_level: str = Field("info", description="Log level (debug, info, warning, error).")
+
+    @classmethod
+    def env_name(cls, field: str) -> str:
+        """The environment variable of a field (``port`` -> ``SPACEMESH_PORT``)."""
+        return ENV_PREFIX + field.upper()
+
+    @classmethod
+    def from_env(cls, environ: dict[str, str] | None = None, **overrides: Any) -> Settings:
+        """Settings from explicit values, then ``SPACEMESH_*`` variables, then defaults.
+
+        Parameters
+        ----------
+        environ : dict, optional
+            The environment (default ``os.environ``).
+        **overrides
+            Explicit values; None means "not given".
+
+        Returns
+        -------
+        Settings
+
+        Raises
+        ------
+        ValueError
+            A value does not parse or is out of range (the message names the variable).
+        """
+        environ = os.environ if environ is None else environ
+        values: dict[str, Any] = {}
+        for name in cls.model_fields:
+            raw = environ.get(cls.env_name(name))
+            if raw is not None and raw != "":
+                values[name] = raw
+        values.update({k: v for k, v in overrides.items() if v is not None})
+        try:
+            return cls.model_validate(values, strict=False)
+        except ValidationError as error:
+            first = error.errors()[0]
+            field = str(first["loc"][0]) if first["loc"] else "?"
+            raise ValueError(
+                f"invalid setting {field} (--{field.replace('_', '-')} / "
+                f"{cls.env_name(field)}): {first['msg']}"
+            ) from None
+
+    @property
+    def intra_op_threads(self) -> int:
+        """The onnxruntime intra-op thread count, always explicit (never 0)."""
+        return self.ort_threads or _cpu_count()
+
+    def limits(self) -> dict[str, Any]:
+        """The request limits, as reported by the model metadata."""
+        return {
+            "min_points": self.min_points,
+            "max_points": self.max_points,
+            "max_upload_bytes": self.max_upload_bytes,
+            "max_steps": self.max_steps,
+            "request_timeout_s": self.request_timeout_s,
+            "max_batch_size": self.max_batch_size,
+            "max_batch_delay_ms": self.max_batch_delay_ms,
+            "queue_size": self.queue_size,
+        }

@@ -1,0 +1,53 @@
+"""The model repository: layout, manifest, and integrity checks."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+pytest.importorskip("onnxruntime")
+
+from spacemesh.runtime.repository import (  # noqa: E402
+    ModelRepository,
+    ModelRepositoryError,
+    resolve_version_dir,
+)
+
+
+def test_layout_and_manifest(toy_model):
+    version = toy_model.repository
+    assert version.name == "1" and version.parent.name == "spacemesh-tiny"
+    manifest = json.loads((version / "manifest.json").read_text())
+    for key in ("config", "inputs", "schedule", "sampler", "embedding", "graphs", "files",
+                "onnx", "data", "training", "metrics"):
+        assert key in manifest, key
+    assert set(manifest["files"]) == {"encoder.onnx", "denoiser.onnx", "connectivity.onnx"}
+    assert manifest["onnx"]["opset"] >= 20
+    assert len(manifest["schedule"]["betas"]) == manifest["schedule"]["timesteps"]
+    assert manifest["embedding"]["adjacency_dim"] == manifest["config"]["connectivity"][
+        "adjacency_dim"]
+    assert manifest["data"]["source"] == "toy" and manifest["training"]["steps"] > 0
+    assert "edge_f1" in manifest["metrics"]["validation"]
+    assert not list(version.glob("*.data"))  # weights are inside the .onnx files
+    assert resolve_version_dir(version.parent) == version
+    assert resolve_version_dir(version.parent.parent) == version
+
+
+def test_sha256_mismatch_and_missing_files_are_refused(toy_model, tmp_path):
+    copy = tmp_path / "copy"
+    shutil.copytree(toy_model.repository, copy)
+    ModelRepository.load(copy, intra_op_threads=1)
+    with open(copy / "denoiser.onnx", "ab") as handle:
+        handle.write(b"\0")
+    with pytest.raises(ModelRepositoryError, match="denoiser.onnx.*sha256"):
+        ModelRepository.load(copy)
+    (copy / "denoiser.onnx").unlink()
+    with pytest.raises(ModelRepositoryError, match="missing"):
+        ModelRepository.load(copy)
+    with pytest.raises(ModelRepositoryError, match="does not exist"):
+        ModelRepository.load(tmp_path / "nowhere")
+    (copy / "manifest.json").write_text("{}")
+    with pytest.raises(ModelRepositoryError, match="not a spacemesh-model"):
+        ModelRepository.load(copy)
