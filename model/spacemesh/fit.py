@@ -55,6 +55,7 @@ class FitConfig:
     margin: float = 6.0
     random_negatives: int = 4  # per edge, in sparse mode
     max_hard: int = 8  # mined non-edges kept per edge, in sparse mode
+    false_positive_weight: float | None = 1.0  # non-edges below tau; None: lambda for all (paper)
     threads: int | None = None
 
 
@@ -278,7 +279,13 @@ def fit_mesh(
         optimizer.zero_grad(set_to_none=True)
         if dense:
             e_loss = edge_loss_dense(
-                params.x[None], params.tau, adjacency, None, config.distance, config.n_space
+                params.x[None],
+                params.tau,
+                adjacency,
+                None,
+                config.distance,
+                config.n_space,
+                config.false_positive_weight,
             )
         else:
             if (iteration - 1) % config.mine_every == 0:
@@ -309,6 +316,7 @@ def fit_mesh(
                 lam,
                 config.distance,
                 config.n_space,
+                config.false_positive_weight,
             )
         p_loss, correct = permutation_loss(
             groups, params.root, params.prev, params.next, params.reduction, config.sinkhorn_iters

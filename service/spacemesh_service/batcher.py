@@ -69,6 +69,7 @@ class _Job:
     future: asyncio.Future
     progress: ProgressFn | None
     enqueued: float = field(default_factory=time.perf_counter)
+    queue_seconds: float = 0.0
     cancelled: bool = False
 
     @property
@@ -99,7 +100,7 @@ class Batcher:
         self.queue_size = queue_size
         self.metrics = metrics
         self._pending: collections.deque[_Job] = collections.deque()
-        self._running: list[_Job] = []
+        self._open: set[_Job] = set()  # submitted and not yet answered
         self._arrived = asyncio.Event()
         self._closing = False
         self._worker: asyncio.Task | None = None
@@ -120,8 +121,8 @@ class Batcher:
 
     @property
     def busy(self) -> bool:
-        """Whether any request waits or runs."""
-        return bool(self._pending or self._running)
+        """Whether any request waits, is being batched, or runs."""
+        return bool(self._open)
 
     def retry_after(self) -> int:
         """Seconds a rejected client should wait: the expected time to drain the queue."""
@@ -152,6 +153,8 @@ class Batcher:
         if len(self._pending) >= self.queue_size:
             raise QueueFull
         job = _Job(request, asyncio.get_running_loop().create_future(), progress)
+        self._open.add(job)
+        job.future.add_done_callback(lambda _: self._open.discard(job))
         self._pending.append(job)
         self._set_depth()
         self._arrived.set()
@@ -159,6 +162,8 @@ class Batcher:
             return await job.future
         except asyncio.CancelledError:
             job.cancelled = True
+            if self.metrics is not None:
+                self.metrics.cancelled.inc()
             with contextlib.suppress(ValueError):
                 self._pending.remove(job)
             self._set_depth()
@@ -166,6 +171,8 @@ class Batcher:
 
     async def close(self, timeout: float) -> bool:
         """Stop accepting requests, let waiting and running ones finish, stop the worker.
+
+        Requests still open after ``timeout`` fail with :class:`ShuttingDown`.
 
         Parameters
         ----------
@@ -182,6 +189,9 @@ class Batcher:
         while self.busy and time.monotonic() < deadline:
             await asyncio.sleep(0.02)
         drained = not self.busy
+        for job in list(self._open):
+            job.cancelled = True
+            self._settle(job, error=ShuttingDown())
         if self._worker is not None:
             self._worker.cancel()
             with contextlib.suppress(asyncio.CancelledError):
@@ -236,15 +246,13 @@ class Batcher:
     async def _work(self) -> None:
         while True:
             batch = await self._collect()
-            self._running = batch
             try:
                 await self._run(batch)
             except Exception:  # pragma: no cover - _run settles every future
                 log.exception("batch failed")
-            finally:
-                self._running = []
 
     async def _run(self, batch: list[_Job]) -> None:
+        log.debug("running a batch of %d", len(batch))
         loop = asyncio.get_running_loop()
         start = time.perf_counter()
         for job in batch:
@@ -264,6 +272,8 @@ class Batcher:
             results = await self._call(loop, [j.request for j in batch], progress)
         except _AllCancelled:
             log.info("stopped a batch of %d cancelled requests", len(batch))
+            if self.metrics is not None:
+                self.metrics.stopped_batches.inc()
             return
         except Exception as error:
             if len(batch) > 1:  # find the request that fails; the others still succeed

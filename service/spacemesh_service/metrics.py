@@ -12,13 +12,16 @@
     Requests waiting for a batch; requests inside the engine (waiting or running).
 ``spacemesh_batch_size``, ``spacemesh_batches_total``
     Requests per onnxruntime batch, and batches run.
+``spacemesh_cancelled_requests_total``, ``spacemesh_stopped_batches_total``
+    Requests given up by their caller (timeout, disconnect) before their result, and
+    batches stopped early because all their requests were given up.
 ``spacemesh_ready``, ``spacemesh_model_info{name,version}``
 """
 
 from __future__ import annotations
 
-from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, generate_latest
 from prometheus_client import CONTENT_TYPE_LATEST as CONTENT_TYPE
+from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, generate_latest
 
 #: Stages of a generate request, in order.
 STAGES = ("decode_input", "queue", "encoder", "sampler", "connectivity", "extraction",
@@ -51,6 +54,10 @@ class Metrics:
         self.batch_size = Histogram("spacemesh_batch_size", "Requests per onnxruntime batch",
                                     buckets=_BATCH_BUCKETS, registry=r)
         self.batches = Counter("spacemesh_batches", "Batches run", registry=r)
+        self.cancelled = Counter("spacemesh_cancelled_requests",
+                                 "Requests given up before their result", registry=r)
+        self.stopped_batches = Counter("spacemesh_stopped_batches",
+                                       "Batches stopped because nobody waited", registry=r)
         self.ready = Gauge("spacemesh_ready", "1 once the model is loaded and warm",
                            registry=r)
         self.model_info = Gauge("spacemesh_model_info", "The loaded model",

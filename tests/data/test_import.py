@@ -6,6 +6,8 @@ import json
 
 import numpy as np
 import pytest
+from typer.testing import CliRunner
+
 import spacemesh.cli.data  # noqa: F401  (registers the ``data`` commands)
 from spacemesh.cli.common import app
 from spacemesh.data.importer import flip_caps, import_folder, weld_close_vertices
@@ -13,7 +15,6 @@ from spacemesh.data.shards import open_dataset
 from spacemesh.data.validate import validate_mesh
 from spacemesh.io import save_mesh
 from spacemesh.mesh import PolygonMesh
-from typer.testing import CliRunner
 
 trimesh = pytest.importorskip("trimesh")
 

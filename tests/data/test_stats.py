@@ -5,10 +5,11 @@ from __future__ import annotations
 import json
 
 import pytest
+from typer.testing import CliRunner
+
 import spacemesh.cli.data  # noqa: F401  (registers the ``data`` commands)
 from spacemesh.cli.common import app
 from spacemesh.data.stats import collect_stats, plot_stats
-from typer.testing import CliRunner
 
 
 @pytest.fixture(scope="module")
@@ -64,6 +65,7 @@ def test_stats_cli(planar_dir):
         (["--vertices", "12"], "MIN:MAX"),
         (["--vertices", "64:8"], "MIN <= MAX"),
         (["--style", "voxel"], "unknown --style"),
+        (["--workers", "0"], "--workers must be at least 1"),
     ],
 )
 def test_synth_cli_bad_input_is_one_line(tmp_path, args, message):

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from spacemesh.data.shards import SPLITS, MeshRecord, open_dataset
 from spacemesh.data.synth import SynthConfig, make_shape, synthesize
 from spacemesh.data.validate import validate_mesh
@@ -18,13 +19,29 @@ SMALL = {"vertex_min": 32, "vertex_max": 96, "points": 64, "shard_size": 4}
 
 
 def independent_check(record: MeshRecord) -> None:
-    """Closed, manifold, outward: checked with trimesh on the triangulated mesh."""
+    """Closed, manifold, outward: trimesh and a vertex-link walk on the triangulated mesh."""
     triangles, _ = record.mesh.triangulate()
     tm = trimesh.Trimesh(record.mesh.vertices, triangles, process=False)
     assert tm.is_watertight
     assert tm.is_winding_consistent
     assert tm.volume > 0
     assert len(tm.split(only_watertight=False)) == 1
+    # Vertex-manifold: the link of every vertex (the far sides of its triangles) is one cycle.
+    link: dict[int, dict[int, int]] = {}
+    for a, b, c in triangles.tolist():
+        for v, x, y in ((a, b, c), (b, c, a), (c, a, b)):
+            assert x not in link.setdefault(v, {})
+            link[v][x] = y
+    for ring in link.values():
+        start = cur = next(iter(ring))
+        for _ in range(len(ring)):
+            cur = ring[cur]
+        assert cur == start and len({*ring}) == len(ring)
+        seen, cur = set(), start
+        while cur not in seen:
+            seen.add(cur)
+            cur = ring[cur]
+        assert len(seen) == len(ring)
 
 
 @pytest.mark.parametrize(

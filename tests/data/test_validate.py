@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from spacemesh.data.validate import triangles_intersect, validate_mesh
 from spacemesh.mesh import PolygonMesh
 

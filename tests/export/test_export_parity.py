@@ -46,7 +46,7 @@ def test_each_graph_matches_torch_at_any_size(backends, b, p, n):
 
 
 def test_pipeline_gives_the_same_mesh_in_torch_and_onnxruntime(backends):
-    model, torch_backend, repo = backends
+    _model, torch_backend, repo = backends
     spec = ModelSpec.from_manifest(repo.manifest)
     in_torch = MeshGenerator(torch_backend, spec)
     in_ort = MeshGenerator(repo.backend, spec)

@@ -9,7 +9,7 @@ import pytest
 
 pytest.importorskip("onnxruntime")
 
-from spacemesh.runtime.repository import (  # noqa: E402
+from spacemesh.runtime.repository import (
     ModelRepository,
     ModelRepositoryError,
     resolve_version_dir,
@@ -41,7 +41,7 @@ def test_sha256_mismatch_and_missing_files_are_refused(toy_model, tmp_path):
     ModelRepository.load(copy, intra_op_threads=1)
     with open(copy / "denoiser.onnx", "ab") as handle:
         handle.write(b"\0")
-    with pytest.raises(ModelRepositoryError, match="denoiser.onnx.*sha256"):
+    with pytest.raises(ModelRepositoryError, match=r"denoiser\.onnx.*sha256"):
         ModelRepository.load(copy)
     (copy / "denoiser.onnx").unlink()
     with pytest.raises(ModelRepositoryError, match="missing"):

@@ -88,7 +88,7 @@ def test_padding_does_not_change_real_vertices(tiny):
 
 def test_output_sizes_follow_the_config(tiny):
     volumes, vertices = _inputs(tiny)
-    x, root, prev, nxt, tau = tiny.connectivity(vertices, torch.ones(2, 20, dtype=torch.bool),
+    x, root, prev, nxt, _tau = tiny.connectivity(vertices, torch.ones(2, 20, dtype=torch.bool),
                                                 volumes)
     con = tiny.config.connectivity
     assert x.shape == (2, 20, con.adjacency_dim)
@@ -97,9 +97,8 @@ def test_output_sizes_follow_the_config(tiny):
 
 @pytest.mark.parametrize("kind", ["product", "concat"])
 def test_padded_permutation_loss_equals_the_reference(kind):
-    from tests.factories import prism, torus_grid
-
     from spacemesh.encode import encode_connectivity
+    from tests.factories import prism, torus_grid
 
     conns = [encode_connectivity(m) for m in (torus_grid(6, 5, triangulate_every=3), prism(7))]
     n = max(c.n_vertices for c in conns) + 3

@@ -59,7 +59,7 @@ def test_random_scaling_renormalises():
     v = rng.uniform(-1, 1, (20, 3)).astype(np.float32)
     p = rng.uniform(-1, 1, (30, 3)).astype(np.float32)
     n = rng.normal(size=(30, 3)).astype(np.float32)
-    v2, p2, n2 = random_scaling(v, p, n, np.array([2.0, 0.5, 1.0]))
+    v2, _p2, n2 = random_scaling(v, p, n, np.array([2.0, 0.5, 1.0]))
     extent = v2.max(0) - v2.min(0)
     assert extent.max() == pytest.approx(2.0, abs=1e-5)
     assert np.allclose((v2.max(0) + v2.min(0)) / 2, 0, atol=1e-5)

@@ -41,6 +41,13 @@ def parse_vertex_range(text: str) -> tuple[int, int]:
     return low, high
 
 
+def _positive(**values: int | None) -> None:
+    """Raise a one-line UserError for the first option that is not a positive int."""
+    for name, value in values.items():
+        if value is not None and value < 1:
+            raise UserError(f"--{name.replace('_', '-')} must be at least 1, not {value}")
+
+
 def _echo(text: str) -> None:
     typer.echo(text)
 
@@ -49,15 +56,15 @@ def _echo(text: str) -> None:
 @user_errors(ValueError, FileNotFoundError)
 def synth(
     out: Annotated[Path, typer.Option("--out", help="Dataset folder (resumed if it exists).")],
-    count: Annotated[int, typer.Option("--count", min=1, help="Number of shapes.")],
+    count: Annotated[int, typer.Option("--count", help="Number of shapes.")],
     seed: Annotated[int, typer.Option("--seed", help="The same seed gives the same bytes.")] = 0,
     style: Annotated[str, typer.Option("--style", help="qem, planar, isotropic or quad.")] = "qem",
     vertices: Annotated[
         str, typer.Option("--vertices", help="Vertex count range MIN:MAX.")
     ] = "128:512",
-    points: Annotated[int, typer.Option("--points", min=1, help="Points per shape.")] = 2048,
-    workers: Annotated[int, typer.Option("--workers", min=1, help="Worker processes.")] = 1,
-    shard_size: Annotated[int, typer.Option("--shard-size", min=1, help="Shapes per shard.")] = 256,
+    points: Annotated[int, typer.Option("--points", help="Points per shape.")] = 2048,
+    workers: Annotated[int, typer.Option("--workers", help="Worker processes.")] = 1,
+    shard_size: Annotated[int, typer.Option("--shard-size", help="Shapes per shard.")] = 256,
     progress: Annotated[
         bool, typer.Option("--progress/--no-progress", help="Progress bar.")
     ] = True,
@@ -68,6 +75,7 @@ def synth(
 
     if style not in STYLES:
         raise UserError(f"unknown --style {style!r}; choose from {', '.join(STYLES)}")
+    _positive(count=count, points=points, workers=workers, shard_size=shard_size)
     low, high = parse_vertex_range(vertices)
     config = SynthConfig(
         count=count,
@@ -97,9 +105,9 @@ def import_(
     out: Annotated[Path, typer.Option("--out", help="Dataset folder.")],
     decimate_to: Annotated[
         int | None,
-        typer.Option("--decimate-to", min=4, help="QEM-decimate meshes with more vertices."),
+        typer.Option("--decimate-to", help="QEM-decimate meshes with more vertices."),
     ] = None,
-    points: Annotated[int, typer.Option("--points", min=1, help="Points per shape.")] = 2048,
+    points: Annotated[int, typer.Option("--points", help="Points per shape.")] = 2048,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the point sampling.")] = 0,
     progress: Annotated[
         bool, typer.Option("--progress/--no-progress", help="Progress bar.")
@@ -108,6 +116,9 @@ def import_(
     """Import a folder of meshes; report every skipped file and why."""
     from spacemesh.data.importer import import_folder
 
+    _positive(points=points)
+    if decimate_to is not None and decimate_to < 4:
+        raise UserError(f"--decimate-to must be at least 4, not {decimate_to}")
     if not src_dir.is_dir():
         raise UserError(f"{src_dir} is not a folder")
     manifest = import_folder(

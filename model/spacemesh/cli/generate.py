@@ -33,9 +33,13 @@ def generate(
     sampler: Annotated[
         str | None, typer.Option("--sampler", help="ddim or ddpm (default: the model's).")
     ] = None,
-    threads: Annotated[int, typer.Option("--threads", min=0, help="onnxruntime threads (0: all).")] = 0,
+    threads: Annotated[
+        int, typer.Option("--threads", min=0, help="onnxruntime threads (0: all).")
+    ] = 0,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
-    progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Progress bar.")] = True,
+    progress: Annotated[
+        bool, typer.Option("--progress/--no-progress", help="Progress bar.")
+    ] = True,
 ) -> None:
     """Generate a mesh of the surface sampled by POINTS."""
     from tqdm import tqdm
@@ -74,10 +78,13 @@ def generate(
     finally:
         bar.close()
     save_mesh(result.mesh, output)
+    if result.mesh.n_faces == 0:
+        typer.echo("spacemesh: warning: the model produced an empty mesh", err=True)
     summary = {
         "output": str(output), "model": generator.name, "seed": result.seed,
         "steps": result.steps, "sampler": result.method, "vertices": result.mesh.n_vertices,
-        "faces": result.mesh.n_faces, "timings": {k: round(v, 4) for k, v in result.timings.items()},
+        "faces": result.mesh.n_faces,
+        "timings": {k: round(v, 4) for k, v in result.timings.items()},
     }
     if as_json:
         typer.echo(json.dumps(summary))

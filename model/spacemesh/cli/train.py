@@ -17,7 +17,8 @@ def _require_torch() -> None:
     try:
         import torch  # noqa: F401
     except ModuleNotFoundError:
-        fail("training needs the training extra (torch is missing): pip install 'spacemesh[train]'")
+        fail("training needs the training extra (torch is missing): "
+             "pip install 'spacemesh[train]'")
 
 
 @app.command()
@@ -27,20 +28,29 @@ def train(
         "data"
     ),
     out: Annotated[Path, typer.Option("--out", help="Run folder.")] = Path("runs/small"),
-    resume: Annotated[bool, typer.Option("--resume", help="Continue from the run's last checkpoint.")] = False,
+    resume: Annotated[
+        bool, typer.Option("--resume", help="Continue from the run's last checkpoint.")
+    ] = False,
     steps: Annotated[
         int | None, typer.Option("--steps", min=1, help="Diffusion steps (overrides the config).")
     ] = None,
     val_data: Annotated[
         Path | None, typer.Option("--val-data", help="Held-out dataset (default: the val split).")
     ] = None,
-    device: Annotated[str | None, typer.Option("--device", help="cpu or cuda (default: cuda if available).")] = None,
-    threads: Annotated[int, typer.Option("--threads", min=0, help="Torch CPU threads (0: default).")] = 0,
+    device: Annotated[
+        str | None, typer.Option("--device", help="cpu or cuda (default: cuda if available).")
+    ] = None,
+    threads: Annotated[
+        int, typer.Option("--threads", min=0, help="Torch CPU threads (0: default).")
+    ] = 0,
     seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
     max_minutes: Annotated[
-        float | None, typer.Option("--max-minutes", min=0, help="Stop (with a checkpoint) after this long.")
+        float | None,
+        typer.Option("--max-minutes", min=0, help="Stop (with a checkpoint) after this long."),
     ] = None,
-    progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Progress bar.")] = True,
+    progress: Annotated[
+        bool, typer.Option("--progress/--no-progress", help="Progress bar.")
+    ] = True,
 ) -> None:
     """Train the encoder, denoiser and connectivity network on a dataset."""
     _require_torch()
@@ -78,13 +88,18 @@ def export_(
     ] = None,
     version: Annotated[int, typer.Option("--version", min=1, help="Model version.")] = 1,
     eval_data: Annotated[
-        Path | None, typer.Option("--eval-data", help="Held-out dataset to measure into the manifest.")
+        Path | None,
+        typer.Option("--eval-data", help="Held-out dataset to measure into the manifest."),
     ] = None,
-    eval_shapes: Annotated[int, typer.Option("--eval-shapes", min=1, help="Shapes for connectivity metrics.")] = 100,
+    eval_shapes: Annotated[
+        int, typer.Option("--eval-shapes", min=1, help="Shapes for connectivity metrics.")
+    ] = 100,
     pipeline_shapes: Annotated[
         int, typer.Option("--pipeline-shapes", min=1, help="Shapes for full-pipeline metrics.")
     ] = 16,
-    threads: Annotated[int, typer.Option("--threads", min=0, help="Torch and onnxruntime threads.")] = 0,
+    threads: Annotated[
+        int, typer.Option("--threads", min=0, help="Torch and onnxruntime threads.")
+    ] = 0,
 ) -> None:
     """Export a run as a model repository: OUT/NAME/VERSION/{*.onnx, manifest.json}."""
     _require_torch()

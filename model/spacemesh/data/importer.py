@@ -232,15 +232,19 @@ def import_file(
     mesh, _ = mesh.remove_unreferenced_vertices()
     style = "import-qem" if decimate_to is not None else "import"
     rng = _file_rng(relative, seed)
-    attempts = []
-    for weld in (True, False):  # the weld can pinch meshes whose twin vertices are apart
+    # The weld can pinch meshes whose twin vertices are apart, and a QEM result can
+    # fold: try the cleaned mesh first, then without the weld, then smaller targets.
+    targets = [None] if decimate_to is None else [decimate_to, decimate_to * 9 // 10]
+    plans = [(weld, target) for target in targets for weld in (True, False)]
+    causes: list[str] = []
+    for weld, target in plans:
         try:
             cleaned = flip_caps(weld_close_vertices(mesh) if weld else mesh)
-            if decimate_to is not None:
-                cleaned = decimate(cleaned, decimate_to)
+            if target is not None:
+                cleaned = decimate(cleaned, target)
         except Exception as error:  # pymeshlab raises its own types
             return None, [f"processing_error: {error}"]
-        shape, causes = prepare_shape(
+        shape, attempt_causes = prepare_shape(
             cleaned,
             shape_id=relative,
             style=style,
@@ -250,8 +254,9 @@ def import_file(
         )
         if shape is not None:
             return shape, []
-        attempts.append(causes)
-    return None, attempts[-1]
+        if not causes or (not weld and target == targets[0]):  # report the file as it is
+            causes = attempt_causes
+    return None, causes
 
 
 def import_folder(

@@ -21,26 +21,29 @@ in any other frame are measured relative to half their longest bounding-box side
     about a degree, and its area is numerically zero at the scale of the shape.
     This is deliberately a *numerical* test, not a quality test: real CAD
     tessellations (e.g. ../shared/meshes ADIS16480.STL, 1002_tray_bottom.STL) have
-    legitimate 0.01-0.03 degree needles along long cylinder flanks, with altitudes
-    1e-4 and more, and those are kept; exactly collinear caps (altitude 0) are not.
+    legitimate 0.007-0.03 degree needles along long cylinder flanks, with altitudes
+    of 1e-4 (smallest altitude of any triangle: 1.2e-4 and 7.5e-5), and those are
+    kept; collinear caps (altitude 0, as in gear_spur2.stl) are not.
 ``MIN_EDGE = 1e-5``
     Polygon sides shorter than this are degenerate (the polygon analogue).
 ``MAX_NONPLANARITY = 0.2``
     Half the spread of a polygon's corners along its Newell normal, relative to the
     polygon's diameter. A square folded along its diagonal by an angle t scores
-    0.5 sin(t / 2), so 0.2 is a fold of about 47 degrees. Quad remeshes of smooth
-    surfaces stay below 0.1 (../shared/meshes: fandisk_quads 0.097, horse_quad
-    0.143) but subdivision control meshes are bent by design (fish_control_mesh
-    0.185), and these are real training data; beyond 0.2 a "face" is really two.
-``FOLD_DEGREES = 0.5``
-    Two faces meeting at an edge with an opening angle below this fold onto each
-    other, which is a self-intersection that face-pair tests skip (they share an edge).
+    0.5 sin(t / 2), so 0.2 is a fold of about 47 degrees. Real quad meshes reach
+    0.1-0.15 (../shared/meshes: fandisk_quads 0.097, horse_quad 0.143) and
+    subdivision control meshes are bent by design (fish_control_mesh 0.185); these
+    are real training data. Beyond 0.2 a "face" is really two.
+``FOLD_DEGREES = 0.01``
+    Two faces meeting at an edge with an opening angle below this lie on top of each
+    other: at 1e-3 from the edge they are within 2e-7, so float32 rounding can make
+    them cross. Face-pair intersection tests skip such pairs (they share an edge).
 
 Self-intersections: pymeshlab's ``compute_selection_by_self_intersections_per_face``
-selects candidates, and every candidate pair is confirmed with an exact-arithmetic
-free but tolerance-controlled triangle-triangle test here. The confirmation is
-needed: on coplanar faces VCG's test reports separated triangles as intersecting
-(about 10% of QEM-decimated CAD shapes had such false positives in a trial of 100).
+selects candidates, and every candidate pair is confirmed by our own triangle-triangle
+test (segment-triangle tests, plus a separating-axis test for coplanar pairs; touching
+within 1e-9 counts). The confirmation is needed because VCG's test reports separated
+coplanar triangles as intersecting: in a trial of 100 QEM-decimated CAD shapes it
+flagged 10, of which 8 were such false positives.
 """
 
 from __future__ import annotations

@@ -102,7 +102,9 @@ def _export(module: nn.Module, args: tuple, path: Path, input_names, output_name
     program.save(str(path), external_data=False)
 
 
-def export_onnx(model: SpaceMeshModel, directory: str | Path, *, opset: int = OPSET) -> dict[str, Path]:
+def export_onnx(
+    model: SpaceMeshModel, directory: str | Path, *, opset: int = OPSET
+) -> dict[str, Path]:
     """Write ``encoder.onnx``, ``denoiser.onnx`` and ``connectivity.onnx``.
 
     Parameters

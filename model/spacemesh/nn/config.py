@@ -6,7 +6,7 @@ Three named configurations:
     For tests: trains in seconds, exports in seconds (width 32, one block, 64 vertices).
 ``small``
     The shipped default: trainable on a 2-core CPU in about an hour, fast at inference
-    (width 128, volumes 16/8, 256 vertices).
+    (denoiser width 128, connectivity width 64, volumes 16/8, 256 vertices).
 ``paper``
     The sizes of the paper's Supplement C: embeddings 32 and 12, ten blocks of width 256,
     PVConv resolutions 32/16/8 with 64/128/256 channels, 1024 timesteps, 512 vertices.
@@ -258,12 +258,12 @@ SMALL = ModelConfig(
     encoder=EncoderConfig(n_points=2048, stem=32, resolutions=(16, 8), channels=(32, 64)),
     denoiser=DenoiserConfig(width=128, layers=4, heads=4),
     connectivity=ConnectivityConfig(
-        width=128, layers=4, heads=4, adjacency_dim=32, n_space=16, permutation_dim=12,
+        width=64, layers=4, heads=4, adjacency_dim=32, n_space=16, permutation_dim=12,
         fourier=4,
     ),
     diffusion=DiffusionConfig(timesteps=1024, schedule="cosine", sampler="ddim", steps=50),
-    train=TrainConfig(batch_size=8, lr=5e-4, warmup=50, steps=600, connectivity_steps=10,
-                      connectivity_trains_encoder=False, val_every=25, checkpoint_every=25,
+    train=TrainConfig(batch_size=6, lr=7e-4, warmup=20, steps=600, connectivity_steps=10,
+                      connectivity_trains_encoder=False, val_every=20, checkpoint_every=20,
                       val_shapes=24),
 )
 

@@ -87,6 +87,7 @@ def edge_loss_dense(
     valid: Tensor | None = None,
     distance: Distance = "spacetime",
     n_space: int | None = None,
+    false_positive_weight: float | None = None,
 ) -> Tensor:
     """Eq. 3 over every pair of valid vertices, averaged over the batch.
 
@@ -102,6 +103,10 @@ def edge_loss_dense(
         Real (non-padding) vertices.
     distance, n_space
         See :func:`distance_operands`.
+    false_positive_weight : float, optional
+        Weight of the non-edges currently below the threshold (instead of ``lambda``),
+        scaled down so that together they weigh at most as much as the edges; None
+        keeps the paper's loss exactly.
 
     Returns
     -------
@@ -122,8 +127,15 @@ def edge_loss_dense(
     n_vertices = valid.sum(1).clamp_min(1).to(x.dtype)
     lam = edge_weight(n_edges, n_vertices)
     pos_term = (F.softplus(-logit) * pos).sum((1, 2))
-    neg_term = (F.softplus(logit) * neg).sum((1, 2))
-    return ((pos_term + lam * neg_term) / n_edges).mean()
+    neg_weight = lam.reshape(-1, 1, 1) * neg
+    if false_positive_weight is not None:
+        false_pos = neg & (logit > 0)
+        # together the false positives weigh at most as much as the edges
+        share = (n_edges / false_pos.sum((1, 2)).clamp_min(1)).clamp(max=1.0)
+        fp_weight = (false_positive_weight * share).reshape(-1, 1, 1).detach()
+        neg_weight = torch.where(false_pos, torch.maximum(fp_weight, neg_weight), neg_weight)
+    neg_term = (F.softplus(logit) * neg_weight).sum((1, 2))
+    return ((pos_term + neg_term) / n_edges).mean()
 
 
 def edge_loss_pairs(
@@ -135,6 +147,7 @@ def edge_loss_pairs(
     lam: float,
     distance: Distance = "spacetime",
     n_space: int | None = None,
+    false_positive_weight: float | None = None,
 ) -> Tensor:
     """Eq. 3 on explicit pairs: all positives, a weighted subset of negatives.
 
@@ -148,6 +161,8 @@ def edge_loss_pairs(
         How many negatives each sampled one stands for (1 for mined hard negatives).
     lam : float
         ``4 E / V^2``.
+    false_positive_weight : float, optional
+        See :func:`edge_loss_dense`; applies to the negatives of weight 1 (mined ones).
 
     Returns
     -------
@@ -158,8 +173,15 @@ def edge_loss_pairs(
     d_pos = (a[positives[:, 0]] * b[positives[:, 1]]).sum(-1)
     d_neg = (a[negatives[:, 0]] * b[negatives[:, 1]]).sum(-1)
     pos_term = F.softplus(d_pos - tau).sum()
-    neg_term = (F.softplus(tau - d_neg) * negative_weights).sum()
-    return (pos_term + lam * neg_term) / max(len(positives), 1)
+    weights = lam * negative_weights
+    if false_positive_weight is not None:
+        # only pairs that stand for themselves: sampled stand-ins stay unbiased
+        hard = (d_neg < tau) & (negative_weights <= 1)
+        share = min(1.0, len(positives) / max(int(hard.sum()), 1))
+        fp_weight = torch.full_like(weights, false_positive_weight * share)
+        weights = torch.where(hard, torch.maximum(fp_weight, weights), weights)
+    neg_term = (F.softplus(tau - d_neg) * weights).sum()
+    return (pos_term + neg_term) / max(len(positives), 1)
 
 
 class PermutationReduction(nn.Module):

@@ -38,7 +38,7 @@ def voxelize(features: Tensor, positions: Tensor, resolution: int) -> Tensor:
     (B, C, R, R, R) tensor
         Mean feature of the points in each voxel (zero where there are none).
     """
-    b, n, c = features.shape
+    b, _n, c = features.shape
     r = resolution
     ijk = torch.round(grid_coordinates(positions, r)).long()  # (B, N, 3)
     flat = (ijk[..., 0] * r + ijk[..., 1]) * r + ijk[..., 2]  # (B, N)

@@ -406,7 +406,8 @@ class MeshGenerator:
         if self.spec.normals and n is None:
             raise ValueError("this model needs normals with the points")
         unit, centre, scale = normalize_points(p)
-        pick = choose_points(len(unit), self.spec.n_points, np.random.default_rng(POINT_SUBSET_SEED))
+        rng = np.random.default_rng(POINT_SUBSET_SEED)
+        pick = choose_points(len(unit), self.spec.n_points, rng)
         columns = [unit[pick]]
         if self.spec.normals:
             length = np.linalg.norm(n, axis=1, keepdims=True)

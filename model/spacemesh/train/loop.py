@@ -2,8 +2,9 @@
 
 One *diffusion step* trains the encoder and denoiser on a batch of shapes padded to
 ``max_vertices`` tokens; it is followed by ``connectivity_steps`` *connectivity steps*
-that train the encoder and the connectivity network on ground-truth vertices (other
-batches, padded to their own largest shape). Steps are counted in diffusion steps.
+that train the connectivity network (and, if configured, the encoder) on ground-truth
+vertices: other batches, of shapes of similar size, padded to their own largest shape.
+Steps are counted in diffusion steps.
 
 A run folder holds::
 
@@ -221,6 +222,7 @@ class Trainer:
         self.train_samples = load_samples(options.data, "train", mv, log=log)
         if not self.train_samples:
             raise ValueError(f"no training shapes with at most {mv} vertices in {options.data}")
+        self.by_size = np.argsort([s.n_vertices for s in self.train_samples], kind="stable")
         val_dir = options.val_data or options.data
         val_split = None if options.val_data else "val"
         self.val_samples = load_samples(val_dir, val_split, mv, config.train.val_shapes, log=log)
@@ -240,11 +242,20 @@ class Trainer:
         train = self.config.train
         return train.lr * min(1.0, (step + 1) / max(train.warmup, 1))
 
+    def _pick(self, diffusion: bool) -> np.ndarray:
+        """Indices of one batch; connectivity batches take shapes of similar size (a random
+        window of the size order), so that little of each batch is padding."""
+        size = self.config.train.batch_size
+        total = len(self.train_samples)
+        if diffusion or total <= 4 * size:
+            return self.rng.choice(total, size, replace=total < size)
+        window = 4 * size
+        start = self.rng.integers(0, total - window + 1)
+        return self.by_size[start + self.rng.choice(window, size, replace=False)]
+
     def _batch(self, diffusion: bool):
         train = self.config.train
-        pick = self.rng.choice(len(self.train_samples), train.batch_size,
-                               replace=len(self.train_samples) < train.batch_size)
-        samples = [self.train_samples[i] for i in pick]
+        samples = [self.train_samples[i] for i in self._pick(diffusion)]
         enc = self.config.encoder
         batch = collate(
             samples, n_points=enc.n_points, normals=enc.normals,

@@ -1,0 +1,387 @@
+"""Run our model and the baselines on the same inputs, score them, and write the report.
+
+For every shape (a dataset record, or a mesh file normalised and sampled):
+
+1. the ground truth is put in its [-1, 1] frame and sampled once
+   (:class:`spacemesh.metrics.Reference`); the input points are the shape's 2048
+   conditioning points, in the same frame;
+2. normals are *estimated* from the points (:func:`spacemesh.baselines.estimate_normals`),
+   as a user would; the baselines get them, and so does our model if it reads normals;
+3. ours (``MeshGenerator.generate``), then PSR, PSR* (PSR decimated to our vertex count
+   for that shape, or the ground truth's when ours failed) and BPA;
+4. each mesh is scored with :func:`spacemesh.metrics.score_mesh`; the ground truth itself,
+   sampled with another seed, is scored too (the ``gt`` row: the best any method can get
+   with 10,000 samples).
+
+Threads are pinned (:func:`pin_threads`) so that timings compare like with like: the
+BLAS/OpenMP variables are set before pymeshlab or onnxruntime is imported, Poisson runs
+with ``threads=1``, and onnxruntime gets the same count (the CLI passes it).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spacemesh.evaluate.gallery import GalleryRow, render_gallery
+from spacemesh.mesh import PolygonMesh
+from spacemesh.metrics.compare import METRIC_KEYS, MetricOptions, Reference, score_mesh
+from spacemesh.metrics.quality import corner_angles, edge_lengths
+from spacemesh.metrics.report import (
+    markdown_tables,
+    method_label,
+    plot_histograms,
+    summarise,
+    write_csv,
+)
+from spacemesh.metrics.sampling import apply_normalisation, normalisation
+from spacemesh.typed import FloatArray
+
+#: Environment variables that cap BLAS/OpenMP thread pools (read when a library loads).
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                    "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+#: Baselines the runner knows, in table order.
+BASELINES = ("psr", "psr_star", "bpa")
+#: Conditioning points sampled on a mesh file (as in the datasets).
+N_POINTS = 2048
+
+
+def pin_threads(threads: int) -> None:
+    """Cap BLAS/OpenMP threads (call before pymeshlab/onnxruntime are imported).
+
+    Sets the variables of :data:`THREAD_VARIABLES` and, when threadpoolctl is
+    installed, also limits the pools of libraries that are already loaded.
+
+    Parameters
+    ----------
+    threads : int
+        At least 1.
+    """
+    for name in THREAD_VARIABLES:
+        os.environ[name] = str(threads)
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return
+    threadpool_limits(threads)
+
+
+@dataclass(frozen=True)
+class EvalShape:
+    """One evaluation input.
+
+    Attributes
+    ----------
+    shape_id : str
+    mesh : PolygonMesh
+        The ground truth (any frame; scored in its own [-1, 1] frame).
+    points : (P, 3) float
+        Conditioning points on the ground truth, in the mesh's frame.
+    category : str
+        e.g. the dataset style or the mesh's category.
+    """
+
+    shape_id: str
+    mesh: PolygonMesh
+    points: FloatArray
+    category: str = ""
+
+
+def dataset_shapes(directory: str | Path, split: str = "test", limit: int | None = None
+                   ) -> list[EvalShape]:
+    """The shapes of a shard dataset (``spacemesh data synth`` / ``data import``).
+
+    Parameters
+    ----------
+    directory : path
+    split : {"train", "val", "test", "all"}
+    limit : int, optional
+        At most this many shapes (the first ones).
+
+    Returns
+    -------
+    list of EvalShape
+    """
+    from spacemesh.data.shards import open_dataset
+
+    dataset = open_dataset(directory, None if split == "all" else split)
+    count = len(dataset) if limit is None else min(limit, len(dataset))
+    return [EvalShape(r.shape_id, r.mesh, r.points, r.style) for r in dataset[:count]]
+
+
+def mesh_shapes(paths: Sequence[str | Path], *, categories: Sequence[str] | None = None,
+                points: int = N_POINTS, seed: int = 0) -> list[EvalShape]:
+    """Mesh files as evaluation shapes: normalised, with ``points`` sampled points each.
+
+    Parameters
+    ----------
+    paths : sequence of path
+    categories : sequence of str, optional
+        One per path.
+    points : int
+    seed : int
+        Sampling seed (combined with the file's position in ``paths``).
+
+    Returns
+    -------
+    list of EvalShape
+    """
+    from spacemesh.data.normalize import normalize
+    from spacemesh.data.sampling import sample_surface
+    from spacemesh.io import load_mesh
+
+    shapes = []
+    for i, path in enumerate(paths):
+        mesh, _, _ = normalize(load_mesh(path))
+        cloud, _ = sample_surface(mesh, points, np.random.default_rng([seed, i]))
+        category = categories[i] if categories is not None else ""
+        shapes.append(EvalShape(Path(path).name, mesh, cloud, category))
+    return shapes
+
+
+def load_shapes(source: str | Path, *, split: str = "test", limit: int | None = None
+                ) -> list[EvalShape]:
+    """A dataset folder (with ``manifest.json``) or a folder of mesh files, as shapes."""
+    from spacemesh.data.importer import find_mesh_files
+    from spacemesh.data.shards import MANIFEST
+
+    source = Path(source)
+    if (source / MANIFEST).is_file():
+        return dataset_shapes(source, split, limit)
+    if not source.is_dir():
+        raise FileNotFoundError(f"{source}: no such dataset or mesh folder")
+    files = find_mesh_files(source)
+    if not files:
+        raise FileNotFoundError(f"{source} has neither {MANIFEST} nor mesh files")
+    return mesh_shapes(files[:limit] if limit else files)
+
+
+@dataclass
+class EvalResult:
+    """Everything one evaluation run produced.
+
+    Attributes
+    ----------
+    rows : list of dict
+        One per (shape, method); see :mod:`spacemesh.metrics.report`.
+    distributions : dict
+        Method -> ``{"edge_lengths": [...], "corner_angles": [...]}`` (one array per shape).
+    gallery : list of GalleryRow
+    config : dict
+        How the run was made (model, baselines, seeds, metric options, threads).
+    """
+
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    distributions: dict[str, dict[str, list[np.ndarray]]] = field(default_factory=dict)
+    gallery: list[GalleryRow] = field(default_factory=list)
+    config: dict[str, Any] = field(default_factory=dict)
+
+    def summary(self) -> dict[str, dict[str, Any]]:
+        """Per-method aggregates (:func:`spacemesh.metrics.report.summarise`)."""
+        return summarise(self.rows)
+
+
+def gallery_indices(count: int, wanted: int) -> set[int]:
+    """``wanted`` shape indices spread evenly over ``count`` shapes."""
+    if wanted <= 0 or count == 0:
+        return set()
+    return {int(i) for i in np.linspace(0, count - 1, min(wanted, count)).round()}
+
+
+def _timed(make: Callable[..., PolygonMesh], *args: Any, **kwargs: Any
+           ) -> tuple[PolygonMesh | None, str, float]:
+    """Run one method: (mesh or None, ``"ok"`` or why it failed, seconds)."""
+    start = time.perf_counter()
+    try:
+        mesh = make(*args, **kwargs)
+    except Exception as error:  # a method failing is a result, not a crash
+        return None, f"failed: {type(error).__name__}: {error}"[:200], time.perf_counter() - start
+    status = "ok" if mesh.n_faces else "failed: empty mesh"
+    return mesh, status, time.perf_counter() - start
+
+
+def _generate(generator: Any, points: FloatArray, normals: FloatArray | None, *, seed: int,
+              steps: int | None) -> PolygonMesh:
+    return generator.generate(points, normals, seed=seed, steps=steps).mesh
+
+
+def _row(shape: EvalShape, method: str, mesh: PolygonMesh | None, status: str, seconds: float,
+         reference: Reference, seed: list[int]) -> dict[str, Any]:
+    row: dict[str, Any] = {"shape_id": shape.shape_id, "method": method,
+                           "category": shape.category, "status": status, "seconds": seconds}
+    if mesh is not None and mesh.n_faces:
+        row.update(score_mesh(mesh, reference, seed=seed))
+        if math.isnan(row["cd"]):
+            row["status"] = "failed: no surface"
+    else:
+        row.update({k: math.nan for k in METRIC_KEYS})
+        row.update(n_vertices=0, n_faces=0, manifold=False, watertight=False, oriented=False,
+                   valid=False, components=0, degrees="")
+    return row
+
+
+def run_evaluation(
+    shapes: Sequence[EvalShape],
+    *,
+    generator: Any = None,
+    baselines: Sequence[str] = BASELINES,
+    seed: int = 0,
+    steps: int | None = None,
+    gallery: int = 4,
+    threads: int = 1,
+    options: MetricOptions | None = None,
+    progress: bool = True,
+) -> EvalResult:
+    """Run ours and the baselines on every shape and score them (see the module doc).
+
+    Parameters
+    ----------
+    shapes : sequence of EvalShape
+    generator : MeshGenerator, optional
+        Our model (:class:`spacemesh.runtime.MeshGenerator`); without it only the
+        baselines run.
+    baselines : sequence of str
+        Any of :data:`BASELINES`.
+    seed : int
+        Seed of our sampler and of the metric samples.
+    steps : int, optional
+        Sampler steps (default: the model's).
+    gallery : int
+        Shapes kept for the gallery.
+    threads : int
+        Solver threads of the baselines (Poisson).
+    options : MetricOptions, optional
+    progress : bool
+        Show a tqdm progress bar.
+
+    Returns
+    -------
+    EvalResult
+    """
+    from tqdm import tqdm
+
+    from spacemesh.baselines import ball_pivoting, estimate_normals, psr_star, screened_poisson
+
+    unknown = [b for b in baselines if b not in BASELINES]
+    if unknown:
+        raise ValueError(f"unknown baselines {unknown}; choose from {', '.join(BASELINES)}")
+    options = options or MetricOptions()
+    methods = (["ours"] if generator is not None else []) + list(baselines) + ["gt"]
+    result = EvalResult(
+        distributions={m: {"edge_lengths": [], "corner_angles": []} for m in methods},
+        config={"seed": seed, "steps": steps, "baselines": list(baselines), "threads": threads,
+                "shapes": len(shapes), "metrics": options.__dict__.copy(),
+                "model": getattr(generator, "name", None)},
+    )
+    keep = gallery_indices(len(shapes), gallery)
+    bar = tqdm(shapes, desc="eval", unit="shape", disable=not progress, dynamic_ncols=True)
+    for index, shape in enumerate(bar):
+        centre, scale = normalisation(shape.mesh)
+        gt = apply_normalisation(shape.mesh, centre, scale)
+        points = (np.asarray(shape.points, np.float64) - centre) / scale  # (P, 3)
+        reference = Reference.from_mesh(gt, seed=[seed, index, 0], options=options)
+        normals = estimate_normals(points)  # (P, 3), what every method may use
+        meshes: dict[str, tuple[PolygonMesh | None, str, float]] = {}
+        if generator is not None:
+            bar.set_postfix_str("ours")
+            wants_normals = bool(getattr(getattr(generator, "spec", None), "normals", False))
+            meshes["ours"] = _timed(_generate, generator, points,
+                                    normals if wants_normals else None, seed=seed, steps=steps)
+        if "psr" in baselines or "psr_star" in baselines:
+            bar.set_postfix_str("psr")
+            psr = _timed(screened_poisson, points, normals, threads=threads)
+            if "psr" in baselines:
+                meshes["psr"] = psr
+            if "psr_star" in baselines:
+                ours = meshes.get("ours", (None,))[0]
+                target = ours.n_vertices if ours is not None and ours.n_faces else gt.n_vertices
+                if psr[0] is None:
+                    meshes["psr_star"] = psr
+                else:
+                    star = _timed(psr_star, psr[0], target)
+                    meshes["psr_star"] = (star[0], star[1], star[2] + psr[2])
+        if "bpa" in baselines:
+            bar.set_postfix_str("bpa")
+            meshes["bpa"] = _timed(ball_pivoting, points, normals)
+        meshes["gt"] = (gt, "ok", 0.0)
+        bar.set_postfix_str("metrics")
+        for k, method in enumerate(methods):
+            mesh, status, seconds = meshes[method]
+            result.rows.append(_row(shape, method, mesh, status, seconds, reference,
+                                    [seed, index, k + 1]))
+            if mesh is not None and mesh.n_faces:
+                result.distributions[method]["edge_lengths"].append(edge_lengths(mesh))
+                result.distributions[method]["corner_angles"].append(corner_angles(mesh))
+        if index in keep:
+            result.gallery.append(GalleryRow(shape.shape_id, points,
+                                             {m: v[0] for m, v in meshes.items()}))
+    bar.close()
+    return result
+
+
+def write_report(result: EvalResult, out: str | Path, *, title: str = "SpaceMesh evaluation",
+                 command: str | None = None) -> dict[str, Path]:
+    """Write the tables, the per-shape CSV, the histograms and the gallery.
+
+    Parameters
+    ----------
+    result : EvalResult
+    out : path
+        Report folder (created).
+    title : str
+    command : str, optional
+        The command that made the run, recorded in the markdown.
+
+    Returns
+    -------
+    dict of str to Path
+        ``table`` (``table.md``), ``csv`` (``per_shape.csv``), ``summary``
+        (``summary.json``), ``histograms`` (``histograms.png``) and ``gallery``
+        (``gallery.png``).
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = result.summary()
+    paths = {"csv": write_csv(result.rows, out / "per_shape.csv")}
+    text = [f"# {title}", ""]
+    if command:
+        text += ["```", command, "```", ""]
+    text += [markdown_tables(summary)]
+    paths["table"] = out / "table.md"
+    paths["table"].write_text("\n".join(text))
+    paths["summary"] = out / "summary.json"
+    paths["summary"].write_text(json.dumps(
+        _finite({"config": result.config, "summary": summary}), indent=2,
+        default=_json_default) + "\n")
+    paths["histograms"] = plot_histograms(result.distributions, summary,
+                                          out / "histograms.png", title=title)
+    labels = {"points": "input points", "gt": "ground truth"}
+    labels.update({m: method_label(m) for m in ("ours", "psr", "psr_star", "bpa")})
+    paths["gallery"] = render_gallery(result.gallery, out / "gallery.png", labels=labels,
+                                      title=title)
+    return paths
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    return str(value)
+
+
+def _finite(value: Any) -> Any:
+    """``value`` with every NaN float replaced by None (strict JSON)."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    if isinstance(value, float) and math.isnan(value):
+        return None
+    return value

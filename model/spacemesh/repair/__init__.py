@@ -1,0 +1,29 @@
+"""Mesh repair by diffusion inpainting (paper Sec. 5.5 and Supplement D).
+
+- :mod:`~spacemesh.repair.region`: the region a user marks (:class:`Region`,
+  :func:`parse_region`) and :class:`RegionError` with its stable ``kind``.
+- :mod:`~spacemesh.repair.cut`: cutting the region out, growth, boundary loops, and
+  the defects left outside.
+- :mod:`~spacemesh.repair.patch`: the local patch the model sees, and its point sets.
+- :mod:`~spacemesh.repair.inpaint`: the inpainting sampler over the runtime backend.
+- :mod:`~spacemesh.repair.splice`: new faces from the predicted connectivity, spliced
+  into the boundary fans.
+- :mod:`~spacemesh.repair.api`: :func:`repair_mesh` and :func:`plan_repair`.
+
+numpy, scipy and onnxruntime only (never torch). See docs/REPAIR.md.
+"""
+
+from spacemesh.repair.api import RepairPlan, RepairResult, RepairStats, plan_repair, repair_mesh
+from spacemesh.repair.region import ERROR_KINDS, Region, RegionError, parse_region
+
+__all__ = [
+    "ERROR_KINDS",
+    "Region",
+    "RegionError",
+    "RepairPlan",
+    "RepairResult",
+    "RepairStats",
+    "parse_region",
+    "plan_repair",
+    "repair_mesh",
+]

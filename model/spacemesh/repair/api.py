@@ -1,0 +1,339 @@
+"""``repair_mesh``: re-generate the vertices and faces of a marked region of a mesh.
+
+The data flow (docs/REPAIR.md)::
+
+    mesh + region
+      -> cut (grow until no pinched hole; defects outside -> 422)     spacemesh.repair.cut
+      -> patch: region + rings of kept faces, renormalised            spacemesh.repair.patch
+      -> conditioning points on the patch's original surface -> encoder
+      -> inpainting sampler, known vertices held                      spacemesh.repair.inpaint
+      -> new vertices: free tokens alive by the mask, in the hole
+      -> connectivity network on known + new vertices
+      -> fill: edges new-new and new-boundary, fans spliced           spacemesh.repair.splice
+      -> mesh: kept faces unchanged, new faces appended
+
+The same three networks as generation (numpy + onnxruntime; no torch, no retraining).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from spacemesh.decode import Embeddings
+from spacemesh.mesh import PolygonMesh
+from spacemesh.repair.cut import Cut, cut_region
+from spacemesh.repair.inpaint import inpaint_tokens
+from spacemesh.repair.patch import MAX_RINGS, Patch, hole_surface, in_hole, plan_patch, sample_patch
+from spacemesh.repair.region import Region
+from spacemesh.repair.splice import fill_hole, splice
+from spacemesh.runtime.backend import Backend
+from spacemesh.runtime.pipeline import MeshGenerator, ModelSpec, drop_duplicates
+from spacemesh.runtime.sampler import ProgressFn
+from spacemesh.runtime.schedule import METHODS
+from spacemesh.typed import BoolArray, IntArray
+
+#: Hole points sampled per free token (the first ``N - K`` pad the alignment; all of
+#: them decide which generated vertices are in the hole).
+HOLE_POINTS_PER_TOKEN = 4
+
+
+@dataclass(frozen=True)
+class RepairPlan:
+    """The model-independent part of a repair: the cut and the patch.
+
+    :func:`plan_repair` raises every :class:`spacemesh.repair.region.RegionError` a
+    repair can raise, without running a network, so a service can answer 422 before
+    queueing the request.
+    """
+
+    cut: Cut
+    patch: Patch
+    hole: PolygonMesh
+    seconds: float = 0.0
+
+
+@dataclass
+class RepairStats:
+    """What a repair did (all JSON-serialisable through :meth:`to_dict`).
+
+    Attributes
+    ----------
+    requested_faces, region_faces, grown_faces : int
+        Faces the region selected, faces removed, and the difference (growth).
+    removed_vertices, boundary_vertices, loops : int
+    new_vertices, new_faces : int
+    new_face_degrees : dict of int to int
+    patch_faces, patch_rings, known_vertices, tokens : int
+        The patch the model saw: faces, rings of context, held vertices, tokens.
+    candidates : int
+        Generated vertices offered to the connectivity network.
+    fallback : {"none", "removed-new-vertices", "polygon"}
+        ``removed-new-vertices`` when faces visiting a vertex twice or detached groups
+        cost new vertices; ``polygon`` when at least one loop was closed by one polygon.
+    fill : dict
+        :attr:`spacemesh.repair.splice.Fill.stats`.
+    inpaint : dict
+        ``alive`` (free tokens alive by the mask), ``outside_hole`` and
+        ``duplicates`` (of those, dropped).
+    flipped_orientation : bool
+        The input's faces wind clockwise (negative volume), so the network's cyclic
+        orders were read reversed.
+    seed, steps : int
+    method : str
+    timings : dict of str to float
+        Seconds: ``cut``, ``patch``, ``encoder``, ``sampler``, ``connectivity``,
+        ``splice``, ``total``.
+    """
+
+    requested_faces: int = 0
+    region_faces: int = 0
+    grown_faces: int = 0
+    removed_vertices: int = 0
+    boundary_vertices: int = 0
+    loops: int = 0
+    new_vertices: int = 0
+    new_faces: int = 0
+    new_face_degrees: dict[int, int] = field(default_factory=dict)
+    patch_faces: int = 0
+    patch_rings: int = 0
+    known_vertices: int = 0
+    tokens: int = 0
+    candidates: int = 0
+    fallback: str = "none"
+    fill: dict[str, int] = field(default_factory=dict)
+    inpaint: dict[str, int] = field(default_factory=dict)
+    flipped_orientation: bool = False
+    seed: int = 0
+    steps: int = 0
+    method: str = ""
+    timings: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict (JSON keys are strings)."""
+        data = asdict(self)
+        data["new_face_degrees"] = {str(k): v for k, v in self.new_face_degrees.items()}
+        return data
+
+
+@dataclass(frozen=True)
+class RepairResult:
+    """A repaired mesh.
+
+    Attributes
+    ----------
+    mesh : PolygonMesh
+        Kept vertices in input order, then new vertices; kept faces in input order
+        (each identical to its input face up to the vertex renumbering), then new faces.
+    vertex_map : (V,) int64
+        Output index of each input vertex, -1 for removed ones.
+    face_source : (F_out,) int64
+        Input face of each output face, -1 for new faces.
+    region : (F,) bool
+        Input faces that were re-generated (the region after growth).
+    stats : RepairStats
+    """
+
+    mesh: PolygonMesh
+    vertex_map: IntArray
+    face_source: IntArray
+    region: BoolArray
+    stats: RepairStats
+
+
+def plan_repair(mesh: PolygonMesh, region: Region | Mapping[str, Any] | BoolArray,
+                n_tokens: int, *, max_rings: int = MAX_RINGS) -> RepairPlan:
+    """Cut the region and choose the patch (no network runs).
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+    region : Region, dict (JSON form) or (F,) bool face mask
+    n_tokens : int
+        The model's vertex tokens (``ModelSpec.max_vertices``).
+    max_rings : int
+        Most rings of kept faces around the region.
+
+    Returns
+    -------
+    RepairPlan
+
+    Raises
+    ------
+    RegionError
+        With ``kind`` one of ``invalid-region``, ``empty-region``,
+        ``whole-mesh-region``, ``defects-outside-region``, ``region-too-large``.
+    """
+    start = time.perf_counter()
+    cut = cut_region(mesh, region)
+    hole = hole_surface(cut)
+    patch = plan_patch(cut, n_tokens, max_rings=max_rings, hole=hole)
+    return RepairPlan(cut, patch, hole, time.perf_counter() - start)
+
+
+def enclosed_volume(mesh: PolygonMesh) -> float:
+    """Signed volume of the faces, each fanned from its first corner (O(corners)).
+
+    Positive when the faces wind counter-clockwise seen from outside. Exact for planar
+    polygons of any shape; for open meshes it still tells the dominant orientation.
+    """
+    v = mesh.vertices
+    first = v[np.repeat(mesh.face_indices[mesh.face_offsets[:-1]], mesh.face_sizes)]  # (S, 3)
+    a, b = v[mesh.face_indices], v[mesh.face_indices[mesh.next_corner]]
+    return float(np.einsum("ij,ij->", first, np.cross(a, b)) / 6.0)
+
+
+def _resolve(generator: MeshGenerator | None, backend: Backend | None,
+             spec: ModelSpec | None) -> tuple[Backend, ModelSpec]:
+    if generator is not None:
+        return generator.backend, generator.spec
+    if backend is not None and spec is not None:
+        return backend, spec
+    if backend is not None or spec is not None:
+        raise ValueError("pass both backend and spec, or a MeshGenerator")
+    default = MeshGenerator.from_repository()
+    return default.backend, default.spec
+
+
+def _sampler_options(spec: ModelSpec, steps: int | None, method: str | None) -> tuple[int, str]:
+    steps = spec.steps if steps is None else int(steps)
+    method = spec.method if method is None else str(method)
+    if method not in METHODS:
+        raise ValueError(f"unknown sampler {method!r}; choose from {', '.join(METHODS)}")
+    if not 1 <= steps <= spec.schedule.timesteps:
+        raise ValueError(f"steps must be in 1..{spec.schedule.timesteps}, not {steps}")
+    return steps, method
+
+
+def repair_mesh(
+    mesh: PolygonMesh,
+    region: Region | Mapping[str, Any] | BoolArray,
+    generator: MeshGenerator | None = None,
+    *,
+    backend: Backend | None = None,
+    spec: ModelSpec | None = None,
+    seed: int = 0,
+    steps: int | None = None,
+    method: str | None = None,
+    progress: ProgressFn | None = None,
+    plan: RepairPlan | None = None,
+) -> RepairResult:
+    """Re-generate the vertices and faces of ``region`` (paper Sec. 5.5, Supplement D).
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+        Any polygon mesh; its defects (open boundaries, non-manifold edges, pinched
+        vertices) must lie in the region.
+    region : Region, dict or (F,) bool
+        See :mod:`spacemesh.repair.region`.
+    generator : MeshGenerator, optional
+        The model; or pass ``backend`` and ``spec``; default: the shipped model.
+    backend : Backend, optional
+    spec : ModelSpec, optional
+    seed : int
+        The same seed gives the same mesh.
+    steps : int, optional
+        Sampler steps (default: the model's).
+    method : {"ddim", "ddpm"}, optional
+        Sampler (default: the model's).
+    progress : callable, optional
+        ``progress(done, total)`` after each denoiser step.
+    plan : RepairPlan, optional
+        From :func:`plan_repair` (computed when None).
+
+    Returns
+    -------
+    RepairResult
+        Faces outside the region are unchanged; a closed manifold input gives a closed
+        manifold output.
+
+    Raises
+    ------
+    RegionError
+        See :func:`plan_repair`.
+    ValueError
+        Bad ``steps`` or ``method``.
+    """
+    t_start = time.perf_counter()
+    plan_given = plan is not None
+    backend, spec = _resolve(generator, backend, spec)
+    steps, method = _sampler_options(spec, steps, method)
+    if plan is None:
+        plan = plan_repair(mesh, region, spec.max_vertices)
+    elif plan.cut.mesh is not mesh:
+        raise ValueError("the plan was made for another mesh")
+    cut, patch = plan.cut, plan.patch
+    timings = {"cut": plan.seconds}
+
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(int(seed))
+    n_pad = patch.n_tokens - len(patch.known)
+    samples = sample_patch(cut, patch, n_points=spec.n_points, normals=spec.normals,
+                           n_hole=max(HOLE_POINTS_PER_TOKEN * n_pad, 64), rng=rng,
+                           hole=plan.hole)
+    known_unit = patch.to_unit(mesh.vertices[patch.known])  # (K, 3)
+    timings["patch"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    volumes = backend.encode(samples.condition[None])
+    timings["encoder"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    result = inpaint_tokens(backend, volumes, known_unit, samples.hole[:n_pad],
+                            spec.schedule.respaced(steps), method=method, rng=rng,
+                            progress=progress)
+    positions = result.tokens[:, :3].astype(np.float64)  # (N, 3)
+    alive_free = np.flatnonzero(result.alive)
+    hole_ok = in_hole(positions[alive_free], samples)
+    inside = alive_free[hole_ok]
+    valid = ~result.free
+    valid[inside] = True
+    order = np.concatenate([result.known_token, inside])  # known first: duplicates drop new
+    kept = drop_duplicates(positions[order], np.ones(len(order), dtype=bool))
+    candidates = inside[kept[len(result.known_token):]]
+    valid[np.setdiff1d(inside, candidates)] = False
+    timings["sampler"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    out = backend.connect(positions[None].astype(np.float32), valid[None], volumes)
+    timings["connectivity"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    boundary_tokens = result.known_token[np.searchsorted(patch.known, cut.boundary)]
+    rows = np.concatenate([boundary_tokens, candidates])
+    flipped = bool(enclosed_volume(mesh) < 0)
+    prev, nxt = (out.next, out.prev) if flipped else (out.prev, out.next)
+    emb = Embeddings(np.asarray(out.x[0][rows], np.float64), out.tau,
+                     np.asarray(out.root[0][rows], np.float64),
+                     np.asarray(prev[0][rows], np.float64),
+                     np.asarray(nxt[0][rows], np.float64))
+    fill = fill_hole(emb, len(cut.boundary), cut.loop_next, cut.loop_prev, spec.decode)
+    spliced = splice(cut, patch.from_unit(positions[candidates]), fill)
+    timings["splice"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_start + (plan.seconds if plan_given else 0.0)
+
+    fs = fill.stats
+    fallback = ("polygon" if fs["polygon_loops"] else
+                "removed-new-vertices" if fs["n_unpinched"] or fs["n_detached"] else "none")
+    sizes, counts = np.unique(np.diff(fill.face_offsets), return_counts=True)
+    stats = RepairStats(
+        requested_faces=int(cut.requested.sum()), region_faces=int(cut.region.sum()),
+        grown_faces=cut.n_grown, removed_vertices=len(cut.removed_vertices),
+        boundary_vertices=len(cut.boundary), loops=len(cut.loops),
+        new_vertices=spliced.n_new_vertices, new_faces=spliced.n_new_faces,
+        new_face_degrees={int(s): int(c) for s, c in zip(sizes, counts, strict=True)},
+        patch_faces=len(patch.faces), patch_rings=patch.rings,
+        known_vertices=len(patch.known), tokens=patch.n_tokens, candidates=len(candidates),
+        fallback=fallback, fill=dict(fs),
+        inpaint={"alive": len(alive_free), "outside_hole": int((~hole_ok).sum()),
+                 "duplicates": len(inside) - len(candidates)},
+        flipped_orientation=flipped, seed=int(seed), steps=steps, method=method,
+        timings=timings,
+    )
+    return RepairResult(spliced.mesh, spliced.vertex_map, spliced.face_source, cut.region,
+                        stats)

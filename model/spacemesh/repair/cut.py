@@ -1,0 +1,390 @@
+"""Cutting the region out of a mesh: growth, boundary loops, and the defects left outside.
+
+Rules (see docs/REPAIR.md):
+
+1. The region is a set of faces. Its faces are removed; vertices used only by removed
+   faces are removed with them. Every other face is *kept* and comes back unchanged.
+2. The region grows until no hole is pinched: a kept vertex that touches a removed face
+   must have a single fan of kept faces with a single gap (one incoming and one outgoing
+   hole halfedge). A vertex that breaks this loses all its faces to the region, and the
+   test repeats. Growing to the whole mesh is a ``whole-mesh-region`` error.
+3. The kept faces must form an oriented manifold whose only boundary is the hole: a
+   kept edge with one face is part of the hole when both its vertices are vertices of
+   region faces (so a region around an existing hole covers it). Any other open
+   boundary edge, non-manifold or
+   misoriented edge, pinched vertex, or face with fewer than three distinct vertices
+   among the kept faces is a defect outside the region (``defects-outside-region``,
+   with the defects listed). Defects inside the region are simply removed with it.
+4. The hole's boundary is a set of simple loops. A loop lists its vertices in the order
+   the filling faces traverse them: the hole halfedge ``i -> loop_next[i]`` is the twin
+   of the kept boundary halfedge ``loop_next[i] -> i``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from spacemesh.mesh import PolygonMesh
+from spacemesh.repair.region import (
+    DEFECTS_OUTSIDE_REGION,
+    WHOLE_MESH_REGION,
+    Region,
+    RegionError,
+    region_faces,
+)
+from spacemesh.typed import BoolArray, IntArray
+
+#: Indices listed per defect kind in a ``defects-outside-region`` error.
+MAX_LISTED = 20
+
+# ---------------------------------------------------------------------- halfedge tables
+@dataclass(frozen=True)
+class FaceSubset:
+    """The halfedges of a subset of a mesh's faces and how they pair up.
+
+    Attributes
+    ----------
+    faces : (F',) int64
+        Original indices of the faces in the subset.
+    halfedges : (S, 2) int64
+        ``(origin, target)`` of every face side, in face order.
+    face : (S,) int64
+        Original face of each halfedge.
+    edge : (S,) int64
+        Undirected edge id of each halfedge (0 .. E-1).
+    edge_count : (E,) int64
+        Face sides on each undirected edge.
+    twin : (S,) int64
+        The opposite halfedge when the edge has exactly two sides in opposite
+        directions, else -1.
+    next : (S,) int64
+        Next halfedge in the same face.
+    """
+
+    faces: IntArray
+    halfedges: IntArray
+    face: IntArray
+    edge: IntArray
+    edge_count: IntArray
+    twin: IntArray
+    next: IntArray
+
+    @classmethod
+    def of(cls, mesh: PolygonMesh, faces: IntArray) -> FaceSubset:
+        """Build the tables of ``mesh``'s faces ``faces``."""
+        faces = np.asarray(faces, dtype=np.int64)
+        sizes = mesh.face_sizes[faces]
+        starts = mesh.face_offsets[faces]
+        total = int(sizes.sum())
+        first = np.repeat(np.cumsum(sizes) - sizes, sizes)
+        local = np.arange(total, dtype=np.int64) - first
+        corner = np.repeat(starts, sizes) + local
+        size_rep = np.repeat(sizes, sizes)
+        nxt = first + (local + 1) % np.maximum(size_rep, 1)
+        origin = mesh.face_indices[corner]
+        halfedges = np.stack([origin, origin[nxt]], axis=1) if total else np.zeros((0, 2), np.int64)
+        n = max(mesh.n_vertices, 1)
+        key = np.minimum(halfedges[:, 0], halfedges[:, 1]) * n + np.maximum(
+            halfedges[:, 0], halfedges[:, 1]
+        )
+        _, edge, count = np.unique(key, return_inverse=True, return_counts=True)
+        edge = edge.reshape(-1).astype(np.int64)
+        count = count.astype(np.int64)
+        twin = np.full(total, -1, dtype=np.int64)
+        pair = count[edge] == 2
+        idx = np.flatnonzero(pair)
+        if idx.size:
+            order = idx[np.argsort(edge[idx], kind="stable")]
+            a, b = order[0::2], order[1::2]
+            opposite = halfedges[a, 0] == halfedges[b, 1]
+            twin[a[opposite]] = b[opposite]
+            twin[b[opposite]] = a[opposite]
+        return cls(faces, halfedges, np.repeat(faces, sizes), edge, count, twin, nxt)
+
+    def fan_counts(self, n_vertices: int) -> IntArray:
+        """(V,) fans of faces around each vertex (0 when unused).
+
+        An outgoing halfedge ``h`` and ``next(twin(h))`` leave the same vertex in two
+        faces that share an edge; fans are the connected components of this relation.
+        Only edges with a proper twin join faces (non-manifold edges split fans).
+        """
+        total = len(self.halfedges)
+        if total == 0:
+            return np.zeros(n_vertices, dtype=np.int64)
+        has = np.flatnonzero(self.twin >= 0)
+        rot = self.next[self.twin[has]]  # next(twin(h)) leaves the origin of h
+        graph = coo_matrix((np.ones(len(has)), (has, rot)), shape=(total, total))
+        n_comp, label = connected_components(graph, directed=False)
+        origin_of = np.zeros(n_comp, dtype=np.int64)
+        origin_of[label] = self.halfedges[:, 0]
+        return np.bincount(origin_of, minlength=n_vertices).astype(np.int64)
+
+
+def _region_vertices(mesh: PolygonMesh, region: BoolArray) -> BoolArray:
+    """(V,) vertices used by a region face."""
+    used = np.zeros(mesh.n_vertices, dtype=bool)
+    used[mesh.face_indices[region[mesh.face_of_corner]]] = True
+    return used
+
+
+def _faces_touching(mesh: PolygonMesh, vertices: BoolArray) -> BoolArray:
+    """(F,) faces with at least one vertex in ``vertices``."""
+    mask = np.zeros(mesh.n_faces, dtype=bool)
+    mask[mesh.face_of_corner[vertices[mesh.face_indices]]] = True
+    return mask
+
+
+def _hole_halfedges(sub: FaceSubset, touched: BoolArray) -> IntArray:
+    """(H, 2) hole halfedges: twins of the kept one-sided edges between region vertices."""
+    one_sided = sub.edge_count[sub.edge] == 1
+    he = sub.halfedges[one_sided]
+    on_hole = touched[he[:, 0]] & touched[he[:, 1]]
+    return he[on_hole][:, ::-1]
+
+
+# ---------------------------------------------------------------------- growth
+def grow_region(mesh: PolygonMesh, region: BoolArray) -> BoolArray:
+    """Grow ``region`` until every kept vertex on its border has a single-gap fan.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+    region : (F,) bool
+
+    Returns
+    -------
+    (F,) bool
+        The grown region (a superset of ``region``; possibly every face).
+    """
+    region = np.asarray(region, dtype=bool).copy()
+    while True:  # each round adds at least one face, so this ends
+        touched = _region_vertices(mesh, region)
+        local = np.flatnonzero(_faces_touching(mesh, touched) & ~region)
+        if local.size == 0:
+            return region
+        sub = FaceSubset.of(mesh, local)
+        fans = sub.fan_counts(mesh.n_vertices)
+        hole = _hole_halfedges(sub, touched)
+        out_count = np.bincount(hole[:, 0], minlength=mesh.n_vertices)
+        in_count = np.bincount(hole[:, 1], minlength=mesh.n_vertices)
+        bad = touched & ((fans > 1) | (out_count > 1) | (in_count > 1))
+        if not bad.any():
+            return region
+        region |= _faces_touching(mesh, bad)
+        if region.all():
+            return region
+
+
+# ---------------------------------------------------------------------- defects
+def _listed(values: IntArray) -> list[int]:
+    return [int(v) for v in np.unique(values)[:MAX_LISTED]]
+
+
+def outside_defects(mesh: PolygonMesh, region: BoolArray) -> list[dict]:
+    """The topological defects of the kept faces that the region does not cover.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+    region : (F,) bool
+        Faces removed.
+
+    Returns
+    -------
+    list of dict
+        One entry per kind present: ``kind`` (``open-boundary``,
+        ``non-manifold-edges``, ``misoriented-edges``, ``pinched-vertices``,
+        ``degenerate-faces``), ``count``, ``description``, and the first
+        :data:`MAX_LISTED` offending ``vertices`` or ``faces`` (original indices).
+        Empty when the kept faces are an oriented manifold bounded by the hole only.
+    """
+    kept = np.flatnonzero(~region)
+    sub = FaceSubset.of(mesh, kept)
+    he, count = sub.halfedges, sub.edge_count[sub.edge]
+    defects: list[dict] = []
+
+    n = max(mesh.n_vertices, 1)
+    sizes = mesh.face_sizes[kept]
+    fv = np.sort(sub.face * n + he[:, 0])
+    repeated = np.unique(fv[1:][fv[1:] == fv[:-1]] // n)
+    degenerate = np.union1d(kept[sizes < 3], repeated)
+    if degenerate.size:
+        defects.append({"kind": "degenerate-faces", "count": int(degenerate.size),
+                        "description": "degenerate faces (fewer than three distinct vertices)",
+                        "faces": _listed(degenerate)})
+
+    touched = _region_vertices(mesh, region)
+    open_side = (count == 1) & ~(touched[he[:, 0]] & touched[he[:, 1]])
+    if open_side.any():
+        defects.append({"kind": "open-boundary", "count": int(open_side.sum()),
+                        "description": "open boundary edges",
+                        "vertices": _listed(he[open_side].reshape(-1))})
+    nonmanifold = count > 2
+    if nonmanifold.any():
+        defects.append({"kind": "non-manifold-edges",
+                        "count": int(np.unique(sub.edge[nonmanifold]).size),
+                        "description": "non-manifold edges (more than two faces)",
+                        "vertices": _listed(he[nonmanifold].reshape(-1))})
+    misoriented = (count == 2) & (sub.twin < 0)
+    if misoriented.any():
+        defects.append({"kind": "misoriented-edges",
+                        "count": int(np.unique(sub.edge[misoriented]).size),
+                        "description": "misoriented edges (two faces traverse them the same way)",
+                        "vertices": _listed(he[misoriented].reshape(-1))})
+    fans = sub.fan_counts(mesh.n_vertices)
+    pinched = np.flatnonzero(fans > 1)
+    if pinched.size:
+        defects.append({"kind": "pinched-vertices", "count": int(pinched.size),
+                        "description": "pinched vertices (more than one fan of faces)",
+                        "vertices": _listed(pinched)})
+    return defects
+
+
+def defects_message(defects: list[dict]) -> str:
+    """One sentence naming the defects outside the region."""
+    parts = []
+    for d in defects:
+        where = d.get("vertices", d.get("faces", []))
+        noun = "vertices" if "vertices" in d else "faces"
+        parts.append(f"{d['count']} {d['description']} (e.g. {noun} "
+                     f"{', '.join(str(i) for i in where[:5])})")
+    return ("the mesh has defects outside the region; extend the region to cover them: "
+            + "; ".join(parts))
+
+
+# ---------------------------------------------------------------------- the cut
+@dataclass(frozen=True)
+class Cut:
+    """A mesh with its region cut out.
+
+    Attributes
+    ----------
+    mesh : PolygonMesh
+        The input mesh.
+    region : (F,) bool
+        Faces removed (after growth).
+    requested : (F,) bool
+        Faces the region selected before growth.
+    boundary : (B,) int64
+        Vertices on the hole's boundary (original indices, ascending).
+    loop_next, loop_prev : (B,) int64
+        Position in ``boundary`` of the next / previous vertex along the hole, in the
+        direction the filling faces traverse it.
+    removed_vertices : (R,) int64
+        Vertices used only by removed faces (they are not in the output).
+    loops : list of (L,) int64
+        Each hole loop as original vertex indices in traversal order.
+    """
+
+    mesh: PolygonMesh
+    region: BoolArray
+    requested: BoolArray
+    boundary: IntArray
+    loop_next: IntArray
+    loop_prev: IntArray
+    removed_vertices: IntArray
+    loops: list[IntArray] = field(default_factory=list)
+
+    @property
+    def kept_faces(self) -> IntArray:
+        """(F_k,) original indices of the kept faces."""
+        return np.flatnonzero(~self.region)
+
+    @property
+    def n_grown(self) -> int:
+        """Faces the growth added to the requested region."""
+        return int(self.region.sum() - self.requested.sum())
+
+    def kept_vertex_mask(self) -> BoolArray:
+        """(V,) vertices that stay (all but ``removed_vertices``)."""
+        keep = np.ones(self.mesh.n_vertices, dtype=bool)
+        keep[self.removed_vertices] = False
+        return keep
+
+
+def boundary_loops(hole: IntArray) -> tuple[IntArray, IntArray, IntArray, list[IntArray]]:
+    """Loops of hole halfedges that form a set of disjoint simple cycles.
+
+    Parameters
+    ----------
+    hole : (H, 2) int64
+        Hole halfedges; every vertex must have exactly one outgoing and one incoming.
+
+    Returns
+    -------
+    boundary : (B,) int64
+    loop_next, loop_prev : (B,) int64
+        Positions in ``boundary``.
+    loops : list of (L,) int64
+    """
+    boundary = np.unique(hole.reshape(-1))
+    src = np.searchsorted(boundary, hole[:, 0])
+    dst = np.searchsorted(boundary, hole[:, 1])
+    if (np.bincount(src, minlength=len(boundary)) != 1).any() or (
+        np.bincount(dst, minlength=len(boundary)) != 1
+    ).any():
+        raise ValueError("hole halfedges do not form disjoint simple loops")
+    loop_next = np.full(len(boundary), -1, dtype=np.int64)
+    loop_next[src] = dst
+    loop_prev = np.full(len(boundary), -1, dtype=np.int64)
+    loop_prev[dst] = src
+    seen = np.zeros(len(boundary), dtype=bool)
+    loops = []
+    for start in range(len(boundary)):
+        if seen[start]:
+            continue
+        cycle = []
+        i = start
+        while not seen[i]:
+            seen[i] = True
+            cycle.append(i)
+            i = int(loop_next[i])
+        loops.append(boundary[np.asarray(cycle, dtype=np.int64)])
+    return boundary, loop_next, loop_prev, loops
+
+
+def cut_region(mesh: PolygonMesh, region: Region | dict | BoolArray) -> Cut:
+    """Cut a region out of ``mesh`` (rules in the module docstring).
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+    region : Region, dict or (F,) bool
+        A region, its JSON form, or a face mask.
+
+    Returns
+    -------
+    Cut
+
+    Raises
+    ------
+    RegionError
+        ``invalid-region``, ``empty-region``, ``whole-mesh-region`` or
+        ``defects-outside-region`` (with ``details["defects"]``).
+    """
+    if isinstance(region, np.ndarray) and region.dtype == bool:
+        if region.shape != (mesh.n_faces,):
+            raise ValueError(f"a face mask must have shape ({mesh.n_faces},)")
+        requested = region_faces(mesh, Region.from_faces(np.flatnonzero(region)))
+    else:
+        requested = region_faces(mesh, region)
+    grown = grow_region(mesh, requested)
+    if grown.all():
+        raise RegionError(WHOLE_MESH_REGION, "the region grows to the whole mesh: every kept "
+                          "vertex next to it would be pinched; mark a smaller region")
+    defects = outside_defects(mesh, grown)
+    if defects:
+        raise RegionError(DEFECTS_OUTSIDE_REGION, defects_message(defects),
+                          {"defects": defects})
+    touched = _region_vertices(mesh, grown)
+    local = np.flatnonzero(_faces_touching(mesh, touched) & ~grown)
+    hole = _hole_halfedges(FaceSubset.of(mesh, local), touched)
+    boundary, loop_next, loop_prev, loops = boundary_loops(hole)
+    kept_used = np.zeros(mesh.n_vertices, dtype=bool)
+    kept_used[mesh.face_indices[~grown[mesh.face_of_corner]]] = True
+    removed = np.flatnonzero(touched & ~kept_used)
+    return Cut(mesh, grown, requested, boundary, loop_next, loop_prev, removed, loops)

@@ -1,0 +1,311 @@
+"""The REST API (FastAPI): routes, problem+json errors, request metrics.
+
+Routes: ``POST /generate``, ``POST /repair`` (501 until the repair issue lands),
+``GET /v2``, ``/v2/health/live``, ``/v2/health/ready``, ``/v2/models/{name}``,
+``/v2/models/{name}/ready``, ``/v2/models/{name}/versions/{version}``, ``/metrics``,
+and ``/docs`` + ``/openapi.json``.
+
+:func:`create_app` builds the app around an :class:`~spacemesh_service.engine.Engine`.
+Without one it makes its own and starts it in the app's lifespan, so
+``uvicorn --factory spacemesh_service.app:create_app`` works; ``spacemesh serve``
+(:mod:`spacemesh_service.server`) shares one engine between REST and gRPC.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import time
+from collections.abc import AsyncIterator, Awaitable, Callable
+from importlib.metadata import PackageNotFoundError, version
+from typing import Any
+
+from fastapi import FastAPI, Query, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.openapi.utils import get_openapi
+from fastapi.responses import JSONResponse, Response
+from starlette.datastructures import UploadFile
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from spacemesh_service import problems as P
+from spacemesh_service.engine import Engine, ParseFn
+from spacemesh_service.inputs import read_json, read_upload
+from spacemesh_service.metrics import CONTENT_TYPE as METRICS_CONTENT_TYPE
+from spacemesh_service.openapi import (
+    DESCRIPTION,
+    GENERATE_REQUEST_BODY,
+    GENERATE_RESPONSES,
+    LiveModel,
+    ModelReadyModel,
+    ReadyModel,
+    ServerMetadata,
+    add_schemas,
+    problem_response,
+)
+from spacemesh_service.outputs import OUTPUT_FORMATS
+from spacemesh_service.problems import Problem
+from spacemesh_service.settings import Settings
+
+log = logging.getLogger("spacemesh.service")
+
+try:
+    SERVICE_VERSION = version("spacemesh-service")
+except PackageNotFoundError:  # pragma: no cover - running from a source tree
+    SERVICE_VERSION = "0.0.0"
+
+_OPTION_NAMES = ("format", "seed", "steps")
+
+
+# ---------------------------------------------------------------------- errors
+def problem_response_of(problem: Problem, request: Request | None = None) -> JSONResponse:
+    """Render a :class:`Problem` as ``application/problem+json``."""
+    instance = request.url.path if request is not None else None
+    return JSONResponse(problem.to_dict(instance), status_code=problem.kind.status,
+                        media_type=P.PROBLEM_MEDIA_TYPE, headers=problem.headers())
+
+
+_HTTP_KINDS = {400: P.MALFORMED_INPUT, 404: P.NOT_FOUND, 405: P.METHOD_NOT_ALLOWED,
+               413: P.PAYLOAD_TOO_LARGE, 415: P.UNSUPPORTED_FORMAT}
+
+
+def _install_error_handlers(app: FastAPI) -> None:
+    @app.exception_handler(Problem)
+    async def _problem(request: Request, problem: Problem) -> JSONResponse:
+        return problem_response_of(problem, request)
+
+    @app.exception_handler(RequestValidationError)
+    async def _invalid(request: Request, error: RequestValidationError) -> JSONResponse:
+        errors = [{"loc": list(e.get("loc", ())), "msg": e.get("msg", "")}
+                  for e in error.errors()]
+        detail = "; ".join(f"{'.'.join(map(str, e['loc'][1:])) or 'request'}: {e['msg']}"
+                           for e in errors)
+        return problem_response_of(Problem(P.INVALID_PARAMETER, detail, errors=errors), request)
+
+    @app.exception_handler(StarletteHTTPException)
+    async def _http(request: Request, error: StarletteHTTPException) -> JSONResponse:
+        kind = _HTTP_KINDS.get(error.status_code) or (
+            P.INTERNAL if error.status_code >= 500 else P.INVALID_PARAMETER)
+        problem = Problem(kind, str(error.detail))
+        response = problem_response_of(problem, request)
+        response.status_code = error.status_code
+        return response
+
+    @app.exception_handler(Exception)
+    async def _internal(request: Request, error: Exception) -> JSONResponse:
+        log.exception("unhandled error on %s", request.url.path)
+        return problem_response_of(Problem(P.INTERNAL, "an unexpected error occurred"), request)
+
+
+class RequestMetrics:
+    """ASGI middleware: count requests by route template and status, time them."""
+
+    def __init__(self, app: Callable[..., Awaitable[None]], engine: Engine) -> None:
+        self.app = app
+        self.engine = engine
+
+    async def __call__(self, scope: dict[str, Any], receive: Callable, send: Callable) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        status = 500
+        started = time.perf_counter()
+
+        async def send_and_watch(message: dict[str, Any]) -> None:
+            nonlocal status
+            if message["type"] == "http.response.start":
+                status = message["status"]
+            await send(message)
+
+        try:
+            await self.app(scope, receive, send_and_watch)
+        finally:
+            route = scope.get("route")
+            path = getattr(route, "path", None) or "unmatched"
+            self.engine.metrics.observe_request("http", path, str(status),
+                                                time.perf_counter() - started)
+
+
+# ---------------------------------------------------------------------- bodies
+def _limited(request: Request, limit: int) -> Request:
+    """The same request, its body reads raising 413 beyond ``limit`` bytes."""
+    length = request.headers.get("content-length")
+    if length is not None and length.isdigit() and int(length) > limit:
+        raise Problem(P.PAYLOAD_TOO_LARGE, f"the body has {length} bytes; this server takes "
+                      f"at most {limit}", limit=limit)
+    received = 0
+    receive = request.receive
+
+    async def limited_receive() -> dict[str, Any]:
+        nonlocal received
+        message = await receive()
+        if message["type"] == "http.request":
+            received += len(message.get("body", b""))
+            if received > limit:
+                raise Problem(P.PAYLOAD_TOO_LARGE,
+                              f"the body exceeds {limit} bytes", limit=limit)
+        return message
+
+    return Request(request.scope, limited_receive)
+
+
+async def _read_request(request: Request, limit: int) -> tuple[ParseFn, dict[str, Any]]:
+    """A parser of the request's point cloud, and the options found in a form."""
+    content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    body_request = _limited(request, limit)
+    if content_type == "multipart/form-data":
+        form = await body_request.form(max_files=1, max_fields=len(_OPTION_NAMES) + 4)
+        try:
+            upload = form.get("file")
+            if not isinstance(upload, UploadFile):
+                raise Problem(P.MALFORMED_INPUT, "the multipart body has no file field 'file'")
+            data = await upload.read()
+            filename = upload.filename
+            options = {k: form.get(k) for k in _OPTION_NAMES if isinstance(form.get(k), str)}
+        finally:
+            await form.close()
+        return (lambda: (*read_upload(data, filename), {})), options
+    if content_type == "application/json" or content_type.endswith("+json"):
+        body = await body_request.body()
+
+        def parse() -> tuple[Any, Any, str, dict[str, Any]]:
+            points, normals, options = read_json(body)
+            return points, normals, "json", options
+
+        return parse, {}
+    shown = content_type or "no Content-Type"
+    raise Problem(P.UNSUPPORTED_FORMAT, f"cannot read a {shown} body; send multipart/form-data "
+                  "with a 'file' field, or application/json with 'points'")
+
+
+# ---------------------------------------------------------------------- app
+def create_app(settings: Settings | None = None, *, engine: Engine | None = None) -> FastAPI:
+    """The REST app.
+
+    Parameters
+    ----------
+    settings : Settings, optional
+        Default :meth:`Settings.from_env`.
+    engine : Engine, optional
+        Shared with the gRPC server and started by its owner; without one, the app makes
+        one and starts/drains it in its lifespan.
+
+    Returns
+    -------
+    FastAPI
+    """
+    settings = settings or (engine.settings if engine else Settings.from_env())
+    owns_engine = engine is None
+    engine = engine or Engine(settings)
+
+    @contextlib.asynccontextmanager
+    async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
+        if owns_engine:
+            await engine.start()
+        yield
+        if owns_engine:
+            await engine.stop(settings.drain_timeout_s)
+
+    app = FastAPI(title="SpaceMesh", version=SERVICE_VERSION, description=DESCRIPTION,
+                  lifespan=lifespan)
+    app.state.engine = engine
+    app.add_middleware(RequestMetrics, engine=engine)
+    _install_error_handlers(app)
+
+    @app.post("/generate", tags=["generate"], response_class=Response,
+              summary="Generate a mesh from a point cloud",
+              openapi_extra={"requestBody": GENERATE_REQUEST_BODY},
+              responses=GENERATE_RESPONSES)
+    async def generate(
+        request: Request,
+        format: str | None = Query(None, description=f"One of {', '.join(OUTPUT_FORMATS)} "
+                                   "(default glb).", examples=["obj"]),
+        seed: int | None = Query(None, description="Random seed (picked when absent).",
+                                 examples=[7]),
+        steps: int | None = Query(None, description="Sampler steps (the model's default "
+                                  "when absent).", examples=[25]),
+    ) -> Response:
+        """Point cloud in, oriented manifold polygon mesh out.
+
+        The body is a multipart upload (field `file`) or JSON `{"points": ...}`. Options
+        in the body take precedence over the query string.
+        """
+        with engine.admit():
+            parse, form_options = await _read_request(request, settings.max_upload_bytes)
+            options = {"format": format, "seed": seed, "steps": steps, **form_options}
+            reply = await engine.generate(parse, options)
+        headers = reply.headers()
+        headers["Content-Disposition"] = (
+            f'inline; filename="spacemesh-{reply.seed}.{reply.mesh.format}"')
+        return Response(reply.mesh.body, media_type=reply.mesh.media_type, headers=headers)
+
+    @app.post("/repair", tags=["repair"], summary="Regenerate a region of a mesh",
+              responses={501: problem_response("Not implemented yet", {
+                  "todo": (P.NOT_IMPLEMENTED, "repair is not implemented yet")})})
+    async def repair() -> Response:
+        """Not implemented yet: answers 501 ``not-implemented``."""
+        raise Problem(P.NOT_IMPLEMENTED, "repair is not implemented yet")
+
+    @app.get("/v2", tags=["health"], response_model=ServerMetadata)
+    async def server_metadata() -> dict[str, Any]:
+        """KServe v2 server metadata."""
+        return {"name": "spacemesh", "version": SERVICE_VERSION, "extensions": []}
+
+    @app.get("/v2/health/live", tags=["health"], response_model=LiveModel)
+    async def live() -> dict[str, bool]:
+        """The process is up."""
+        return {"live": True}
+
+    @app.get("/v2/health/ready", tags=["health"], response_model=ReadyModel,
+             responses={503: {"description": "Loading, warming up or draining",
+                              "model": ReadyModel}})
+    async def ready() -> JSONResponse:
+        """Models loaded and a warm-up inference passed (503 otherwise)."""
+        return JSONResponse({"ready": engine.ready}, status_code=200 if engine.ready else 503)
+
+    def _model(name: str, version: str | None = None) -> dict[str, Any]:
+        if engine.generator is None:
+            raise Problem(P.NOT_READY, "the model is loading", retry_after=1)
+        if name != engine.model_name or (version is not None
+                                         and version != engine.model_version):
+            wanted = name if version is None else f"{name} version {version}"
+            raise Problem(P.MODEL_NOT_FOUND, f"no model {wanted}; this server has "
+                          f"{engine.model_name} version {engine.model_version}")
+        return engine.metadata()
+
+    model_errors = {404: problem_response("No such model", {
+        "missing": (P.MODEL_NOT_FOUND, "no model foo")})}
+
+    @app.get("/v2/models/{name}", tags=["models"], responses=model_errors)
+    async def model_metadata(name: str) -> dict[str, Any]:
+        """Versions, limits, input formats, the training data card and metrics."""
+        return _model(name)
+
+    @app.get("/v2/models/{name}/versions/{version}", tags=["models"], responses=model_errors)
+    async def model_version_metadata(name: str, version: str) -> dict[str, Any]:
+        """The same, for one version."""
+        return _model(name, version)
+
+    @app.get("/v2/models/{name}/ready", tags=["models"], response_model=ModelReadyModel,
+             responses=model_errors)
+    async def model_ready(name: str) -> JSONResponse:
+        """Whether this model is ready (503 otherwise)."""
+        _model(name)
+        return JSONResponse({"name": name, "ready": engine.ready},
+                            status_code=200 if engine.ready else 503)
+
+    @app.get("/metrics", tags=["health"], response_class=Response,
+             responses={200: {"content": {METRICS_CONTENT_TYPE: {}},
+                              "description": "Prometheus text format"}})
+    async def metrics() -> Response:
+        """Prometheus metrics."""
+        return Response(engine.metrics.render(), media_type=METRICS_CONTENT_TYPE)
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            spec = get_openapi(title=app.title, version=app.version,
+                               description=app.description, routes=app.routes)
+            app.openapi_schema = add_schemas(spec)
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
+    return app

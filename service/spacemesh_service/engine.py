@@ -1,0 +1,326 @@
+"""The service's one implementation of "generate", shared by REST and gRPC.
+
+:class:`Engine` owns the model (a :class:`~spacemesh.runtime.MeshGenerator`), the
+:class:`~spacemesh_service.batcher.Batcher` and the metrics. A request goes through
+
+    decode input (thread) -> queue -> batch (inference thread) -> encode output (thread)
+
+and comes back as a :class:`Reply`, or raises a :class:`~spacemesh_service.problems.Problem`.
+Both servers are thin adapters around :meth:`Engine.generate`, which is why they accept
+the same inputs, raise the same errors and return the same bytes.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from spacemesh.runtime.pipeline import GenerateRequest, MeshGenerator
+from spacemesh_service import problems as P
+from spacemesh_service.batcher import Batcher, ProgressFn, QueueFull, ShuttingDown
+from spacemesh_service.inputs import INPUT_FORMATS, Options, parse_options, validate_cloud
+from spacemesh_service.metrics import Metrics
+from spacemesh_service.outputs import MEDIA_TYPES, EncodedMesh, encode_mesh, stats_headers
+from spacemesh_service.problems import Problem
+from spacemesh_service.settings import Settings
+
+log = logging.getLogger("spacemesh.service")
+
+#: ``parse() -> (points, normals, source, body_options)``, run in a worker thread.
+ParseFn = Callable[[], tuple[np.ndarray, "np.ndarray | None", str, dict[str, Any]]]
+
+
+@dataclass(frozen=True)
+class Reply:
+    """A generated, validated and encoded mesh and how it was made."""
+
+    mesh: EncodedMesh
+    seed: int
+    steps: int
+    sampler: str
+    model_name: str
+    model_version: str
+    timings: dict[str, float]
+    batch_size: int
+
+    def headers(self) -> dict[str, str]:
+        """Response headers: ``X-SpaceMesh-*`` statistics, seed, steps, and Server-Timing."""
+        headers = stats_headers(self.mesh.stats)
+        headers.update({
+            "X-SpaceMesh-Seed": str(self.seed),
+            "X-SpaceMesh-Steps": str(self.steps),
+            "X-SpaceMesh-Sampler": self.sampler,
+            "X-SpaceMesh-Model": f"{self.model_name}/{self.model_version}",
+            "X-SpaceMesh-Batch-Size": str(self.batch_size),
+            "Server-Timing": ", ".join(f"{k};dur={v * 1000:.1f}"
+                                       for k, v in self.timings.items()),
+        })
+        return headers
+
+
+def fibonacci_sphere(count: int) -> np.ndarray:
+    """``count`` evenly spread points on the unit sphere (the warm-up input)."""
+    i = np.arange(count) + 0.5
+    z = 1 - 2 * i / count
+    r = np.sqrt(1 - z * z)
+    phi = np.pi * (1 + 5**0.5) * i
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+class Engine:
+    """Model, batcher and metrics of one server process.
+
+    Parameters
+    ----------
+    settings : Settings
+    generator : MeshGenerator, optional
+        An already loaded generator (default: load ``settings.model`` in :meth:`start`).
+    """
+
+    def __init__(self, settings: Settings, *, generator: MeshGenerator | None = None) -> None:
+        self.settings = settings
+        self.metrics = Metrics()
+        self.generator = generator
+        self.batcher: Batcher | None = None
+        self.state = "loading"  # loading -> ready -> draining; or failed
+        self.error: str | None = None
+        self._inflight = 0  # requests inside generate()
+
+    # ------------------------------------------------------------------ lifecycle
+    @property
+    def ready(self) -> bool:
+        """Model loaded, warm-up passed, not draining."""
+        return self.state == "ready"
+
+    async def start(self) -> None:
+        """Load the model (unless given), run the warm-up, start the batcher.
+
+        Raises
+        ------
+        Exception
+            Whatever loading raised (``state`` becomes ``failed``).
+        """
+        if self.batcher is not None:
+            return
+        try:
+            if self.generator is None:
+                self.generator = await asyncio.to_thread(self._load)
+            if self.settings.warmup:
+                await asyncio.to_thread(self._warm_up)
+        except Exception as error:
+            self.state, self.error = "failed", f"{type(error).__name__}: {error}"
+            raise
+        s = self.settings
+        self.batcher = Batcher(self.generator.generate_batch, max_batch_size=s.max_batch_size,
+                               max_delay_s=s.max_batch_delay_ms / 1000, queue_size=s.queue_size,
+                               metrics=self.metrics)
+        self.batcher.start()
+        self.metrics.model_info.labels(self.model_name, self.model_version).set(1)
+        self.state = "ready"
+        self.metrics.ready.set(1)
+        log.info("model %s/%s ready", self.model_name, self.model_version)
+
+    def _load(self) -> MeshGenerator:
+        return MeshGenerator.from_repository(
+            self.settings.model, intra_op_threads=self.settings.intra_op_threads,
+            inter_op_threads=1,
+        )
+
+    def _warm_up(self) -> None:
+        spec = self.generator.spec
+        points = fibonacci_sphere(max(spec.n_points, self.settings.min_points))
+        normals = points.copy() if spec.normals else None
+        steps = min(self.default_steps, spec.schedule.timesteps)
+        started = time.perf_counter()
+        self.generator.generate_batch([GenerateRequest(points, normals, 0, steps)])
+        log.info("warm-up inference took %.2f s", time.perf_counter() - started)
+
+    def begin_drain(self) -> None:
+        """Report not ready and refuse new requests (SIGTERM)."""
+        if self.state == "ready":
+            self.state = "draining"
+            self.metrics.ready.set(0)
+
+    async def stop(self, timeout: float) -> bool:
+        """Drain: refuse new requests, let those already inside finish (up to
+        ``timeout`` s), then stop the batcher.
+
+        Returns
+        -------
+        bool
+            True when every request finished in time.
+        """
+        self.begin_drain()
+        deadline = time.monotonic() + timeout
+        while self._inflight and time.monotonic() < deadline:
+            await asyncio.sleep(0.02)
+        drained = not self._inflight
+        if self.batcher is not None:
+            drained = await self.batcher.close(max(0.0, deadline - time.monotonic())) and drained
+        return drained
+
+    # ------------------------------------------------------------------ model facts
+    @property
+    def manifest(self) -> dict[str, Any]:
+        repo = getattr(self.generator, "repository", None)
+        return repo.manifest if repo is not None else {}
+
+    @property
+    def model_name(self) -> str:
+        return str(self.manifest.get("name") or getattr(self.generator, "name", "spacemesh"))
+
+    @property
+    def model_version(self) -> str:
+        return str(self.manifest.get("version", 1))
+
+    @property
+    def default_steps(self) -> int:
+        """Steps of a request that names none."""
+        return self.settings.default_steps or self.generator.spec.steps
+
+    @property
+    def max_steps(self) -> int:
+        return min(self.settings.max_steps, self.generator.spec.schedule.timesteps)
+
+    def metadata(self) -> dict[str, Any]:
+        """KServe v2 model metadata, extended with limits, formats, data card and metrics."""
+        spec = self.generator.spec
+        manifest = self.manifest
+        return {
+            "name": self.model_name,
+            "versions": [self.model_version],
+            "platform": "onnxruntime_onnx",
+            "ready": self.ready,
+            "inputs": [
+                {"name": "points", "datatype": "FP64", "shape": [-1, 3]},
+                {"name": "normals", "datatype": "FP64", "shape": [-1, 3],
+                 "optional": not spec.normals},
+            ],
+            "outputs": [{"name": "mesh", "datatype": "BYTES", "shape": [1]}],
+            "limits": {**self.settings.limits(), "max_steps": self.max_steps,
+                       "max_vertices": spec.max_vertices},
+            "input_formats": {"upload": list(INPUT_FORMATS), "json": ["points", "normals"]},
+            "output_formats": dict(MEDIA_TYPES),
+            "sampler": {"method": spec.method, "default_steps": self.default_steps,
+                        "timesteps": spec.schedule.timesteps},
+            "encoder": {"n_points": spec.n_points, "normals": spec.normals},
+            "data": manifest.get("data", {}),
+            "metrics": manifest.get("metrics", {}),
+            "training": manifest.get("training", {}),
+            "files": manifest.get("files", {}),
+        }
+
+    # ------------------------------------------------------------------ generate
+    def require_ready(self) -> None:
+        if self.state == "draining":
+            raise Problem(P.SHUTTING_DOWN, "the server is draining before it exits",
+                          retry_after=1)
+        if not self.ready:
+            detail = ("the model failed to load: " + self.error) if self.error else (
+                "the model is loading")
+            raise Problem(P.NOT_READY, detail, retry_after=1)
+
+    def _decode(self, parse: ParseFn, options: dict[str, Any]) -> tuple[Any, Options]:
+        points, normals, source, body_options = parse()
+        merged = {**{k: v for k, v in options.items() if v is not None}, **body_options}
+        opts = parse_options(merged, self.settings, max_model_steps=self.max_steps)
+        cloud = validate_cloud(points, normals, self.settings, source=source,
+                               needs_normals=self.generator.spec.normals)
+        return cloud, opts
+
+    async def generate(self, parse: ParseFn, options: dict[str, Any], *,
+                       progress: ProgressFn | None = None) -> Reply:
+        """Generate one mesh.
+
+        Parameters
+        ----------
+        parse : callable
+            Reads the request body (in a worker thread); may raise :class:`Problem`.
+        options : dict
+            ``format``, ``seed``, ``steps`` from the query string or form; options in a
+            JSON body (returned by ``parse``) take precedence.
+        progress : callable, optional
+            ``progress(done, total)`` after each sampler step (on the event loop).
+
+        Returns
+        -------
+        Reply
+
+        Raises
+        ------
+        Problem
+        RuntimeError
+            Called outside :meth:`admit`.
+        """
+        if not self._inflight:
+            raise RuntimeError("call Engine.generate inside 'with engine.admit():'")
+        return await self._generate(parse, options, progress)
+
+    @contextlib.contextmanager
+    def admit(self) -> Iterator[None]:
+        """Admit one request (503 when not ready or draining); a drain waits for it.
+
+        Both servers wrap everything a generate request does, from reading its body to
+        sending its mesh, in this context.
+        """
+        self.require_ready()
+        self._inflight += 1
+        self.metrics.inflight.inc()
+        try:
+            yield
+        finally:
+            self._inflight -= 1
+            self.metrics.inflight.dec()
+
+    async def _generate(self, parse: ParseFn, options: dict[str, Any],
+                        progress: ProgressFn | None) -> Reply:
+        started = time.perf_counter()
+        cloud, opts = await asyncio.to_thread(self._decode, parse, options)
+        decode_s = time.perf_counter() - started
+        self.metrics.observe_stage("decode_input", decode_s)
+        spec = self.generator.spec
+        request = GenerateRequest(cloud.points, cloud.normals, seed=opts.seed,
+                                  steps=opts.steps or self.default_steps, method=spec.method)
+        remaining = self.settings.request_timeout_s - decode_s
+        try:
+            if remaining <= 0:
+                raise asyncio.TimeoutError
+            outcome = await asyncio.wait_for(
+                self.batcher.submit(request, progress=progress), remaining)
+        except asyncio.TimeoutError:
+            raise Problem(P.TIMEOUT, f"no result within {self.settings.request_timeout_s} s; "
+                          "the work was cancelled",
+                          timeout_s=self.settings.request_timeout_s) from None
+        except QueueFull:
+            raise Problem(P.QUEUE_FULL, f"{self.batcher.depth} requests are waiting already",
+                          retry_after=self.batcher.retry_after()) from None
+        except ShuttingDown:
+            raise Problem(P.SHUTTING_DOWN, "the server is draining before it exits",
+                          retry_after=1) from None
+        except ValueError as error:  # the pipeline's own input checks
+            raise Problem(P.INVALID_PARAMETER, str(error)) from None
+        result = outcome.result
+        self.metrics.observe_stage("queue", outcome.queue_seconds)
+        self.metrics.observe_stage("extraction", result.timings.get("extraction", 0.0))
+        info = {"seed": result.seed, "steps": result.steps, "sampler": result.method,
+                "model": {"name": self.model_name, "version": self.model_version}}
+        timings = {"decode_input": decode_s, "queue": outcome.queue_seconds}
+        timings.update({k: v for k, v in result.timings.items() if k != "total"})
+        t0 = time.perf_counter()
+        try:
+            encoded = await asyncio.to_thread(encode_mesh, result.mesh, opts.format, info)
+        except Problem as problem:  # no-surface: say how, so it can be replayed
+            problem.extra.update(seed=result.seed, steps=result.steps, timings=timings)
+            raise
+        timings["encode_output"] = time.perf_counter() - t0
+        timings["total"] = time.perf_counter() - started
+        self.metrics.observe_stage("encode_output", timings["encode_output"])
+        return Reply(encoded, result.seed, result.steps, result.method, self.model_name,
+                     self.model_version, timings, outcome.batch_size)

@@ -1,0 +1,193 @@
+"""The gRPC API (``proto/spacemesh.proto``), a thin adapter over the shared engine.
+
+``Generate`` and ``GenerateStream`` call :meth:`Engine.generate` exactly as
+``POST /generate`` does, so inputs, errors and mesh bytes are the same. A
+:class:`~spacemesh_service.problems.Problem` ends the call with its gRPC status code and
+trailing metadata ``problem-type`` / ``problem-status`` (and ``retry-after``).
+``grpc.health.v1`` reports SERVING for ``""`` and ``spacemesh.v1.SpaceMesh`` once the
+model is ready, and NOT_SERVING while loading or draining.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from collections.abc import AsyncIterator
+from typing import Any
+
+import grpc
+from grpc_health.v1 import health_pb2, health_pb2_grpc
+from grpc_health.v1.health import aio as health_aio
+
+from spacemesh_service import problems as P
+from spacemesh_service.engine import Engine, ParseFn, Reply
+from spacemesh_service.inputs import points_from_flat, read_upload
+from spacemesh_service.pb import spacemesh_pb2 as pb
+from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
+from spacemesh_service.problems import Problem
+
+log = logging.getLogger("spacemesh.service")
+
+#: Full name of the service (also its grpc.health.v1 service name).
+SERVICE_NAME = pb.DESCRIPTOR.services_by_name["SpaceMesh"].full_name
+#: Bytes a message may have beyond the upload limit (the other fields).
+_MESSAGE_SLACK = 1 << 20
+
+
+def reply_to_pb(reply: Reply) -> pb.MeshReply:
+    """The gRPC form of an engine reply."""
+    s = reply.mesh.stats
+    stats = pb.MeshStats(vertices=s.vertices, faces=s.faces, edges=s.edges,
+                         face_degrees=s.face_degrees, manifold=s.manifold, closed=s.closed,
+                         oriented=s.oriented, components=s.components, genus=s.genus)
+    return pb.MeshReply(
+        mesh=reply.mesh.body, format=reply.mesh.format, media_type=reply.mesh.media_type,
+        stats=stats, seed=reply.seed, steps=reply.steps, sampler=reply.sampler,
+        model_name=reply.model_name, model_version=reply.model_version,
+        timings=reply.timings, batch_size=reply.batch_size,
+    )
+
+
+def request_parser(request: pb.GenerateRequest, max_bytes: int) -> ParseFn:
+    """The engine's parse function for a GenerateRequest (file bytes or numbers)."""
+    which = request.WhichOneof("input")
+    if which == "file":
+        data, filename = request.file.data, request.file.filename or None
+        if len(data) > max_bytes:
+            raise Problem(P.PAYLOAD_TOO_LARGE, f"the file has {len(data)} bytes; this server "
+                          f"takes at most {max_bytes}", limit=max_bytes)
+        return lambda: (*read_upload(data, filename), {})
+    if which == "points":
+        xyz, normals = request.points.xyz, request.points.normals
+        return lambda: (*points_from_flat(xyz, normals), "points", {})
+    raise Problem(P.MALFORMED_INPUT, "the request has no input: set 'file' or 'points'")
+
+
+def request_options(request: Any) -> dict[str, Any]:
+    """``format``, ``seed``, ``steps`` of a request (unset fields: None)."""
+    return {
+        "format": request.format or None,
+        "seed": request.seed if request.HasField("seed") else None,
+        "steps": request.steps if request.HasField("steps") else None,
+    }
+
+
+class SpaceMeshServicer(pb_grpc.SpaceMeshServicer):
+    """``spacemesh.v1.SpaceMesh`` over an :class:`Engine`."""
+
+    def __init__(self, engine: Engine) -> None:
+        self.engine = engine
+
+    async def _fail(self, context: grpc.aio.ServicerContext, problem: Problem) -> None:
+        await context.abort(problem.kind.grpc_code, problem.detail,
+                            trailing_metadata=problem.grpc_metadata())
+
+    def _observe(self, method: str, code: grpc.StatusCode, started: float) -> None:
+        self.engine.metrics.observe_request("grpc", f"/{SERVICE_NAME}/{method}", code.name,
+                                            time.perf_counter() - started)
+
+    async def Generate(self, request: pb.GenerateRequest,
+                       context: grpc.aio.ServicerContext) -> pb.MeshReply:
+        started, code = time.perf_counter(), grpc.StatusCode.OK
+        try:
+            with self.engine.admit():
+                parse = request_parser(request, self.engine.settings.max_upload_bytes)
+                reply = await self.engine.generate(parse, request_options(request))
+            return reply_to_pb(reply)
+        except Problem as problem:
+            code = problem.kind.grpc_code
+            await self._fail(context, problem)
+            raise  # pragma: no cover - abort raises
+        except asyncio.CancelledError:
+            code = grpc.StatusCode.CANCELLED
+            raise
+        finally:
+            self._observe("Generate", code, started)
+
+    async def GenerateStream(self, request: pb.GenerateRequest,
+                             context: grpc.aio.ServicerContext) -> AsyncIterator[pb.GenerateEvent]:
+        started, code = time.perf_counter(), grpc.StatusCode.OK
+        events: asyncio.Queue[tuple[int, int]] = asyncio.Queue()
+        task: asyncio.Task | None = None
+        try:
+            with self.engine.admit():
+                parse = request_parser(request, self.engine.settings.max_upload_bytes)
+                task = asyncio.ensure_future(self.engine.generate(
+                    parse, request_options(request),
+                    progress=lambda done, total: events.put_nowait((done, total))))
+                while not task.done() or not events.empty():
+                    getter = asyncio.ensure_future(events.get())
+                    await asyncio.wait({getter, task}, return_when=asyncio.FIRST_COMPLETED)
+                    if getter.done():
+                        done, total = getter.result()
+                        yield pb.GenerateEvent(progress=pb.Progress(step=done, total=total))
+                    else:
+                        getter.cancel()
+                reply = task.result()  # raises the request's Problem
+                yield pb.GenerateEvent(mesh=reply_to_pb(reply))
+        except Problem as problem:
+            code = problem.kind.grpc_code
+            await self._fail(context, problem)
+        except asyncio.CancelledError:
+            code = grpc.StatusCode.CANCELLED
+            raise
+        finally:
+            if task is not None and not task.done():
+                task.cancel()
+                with contextlib.suppress(asyncio.CancelledError, Problem):
+                    await task
+            self._observe("GenerateStream", code, started)
+
+    async def Repair(self, request: pb.RepairRequest,
+                     context: grpc.aio.ServicerContext) -> pb.MeshReply:
+        started = time.perf_counter()
+        try:
+            await self._fail(context, Problem(P.NOT_IMPLEMENTED, "repair is not implemented yet"))
+        finally:
+            self._observe("Repair", P.NOT_IMPLEMENTED.grpc_code, started)
+        return pb.MeshReply()  # pragma: no cover - abort raises
+
+
+class GrpcServer:
+    """The gRPC server: SpaceMesh service and grpc.health.v1, on one port.
+
+    Parameters
+    ----------
+    engine : Engine
+    """
+
+    def __init__(self, engine: Engine) -> None:
+        settings = engine.settings
+        size = settings.max_upload_bytes + _MESSAGE_SLACK
+        self.server = grpc.aio.server(options=[
+            ("grpc.max_receive_message_length", size),
+            ("grpc.max_send_message_length", size),
+        ])
+        pb_grpc.add_SpaceMeshServicer_to_server(SpaceMeshServicer(engine), self.server)
+        self.health = health_aio.HealthServicer()
+        health_pb2_grpc.add_HealthServicer_to_server(self.health, self.server)
+        self.port: int | None = None
+        self._address = settings.host
+
+    async def start(self, port: int) -> int:
+        """Listen (port 0: any free port) and report NOT_SERVING; returns the port."""
+        for service in ("", SERVICE_NAME):
+            await self.health.set(service, health_pb2.HealthCheckResponse.NOT_SERVING)
+        host = f"[{self._address}]" if ":" in self._address else self._address
+        self.port = self.server.add_insecure_port(f"{host}:{port}")
+        if not self.port:
+            raise OSError(f"cannot listen for gRPC on {host}:{port}")
+        await self.server.start()
+        return self.port
+
+    async def set_serving(self) -> None:
+        """Report SERVING (the model is ready)."""
+        for service in ("", SERVICE_NAME):
+            await self.health.set(service, health_pb2.HealthCheckResponse.SERVING)
+
+    async def stop(self, grace: float) -> None:
+        """NOT_SERVING, refuse new calls, let running ones finish within ``grace`` s."""
+        await self.health.enter_graceful_shutdown()
+        await self.server.stop(grace)

@@ -1,0 +1,233 @@
+"""The OpenAPI description of the REST API: schemas and examples (served at ``/docs``).
+
+``POST /generate`` reads its body by hand (a multipart upload or JSON), so its request
+body, responses and headers are described here rather than inferred by FastAPI.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, Field
+
+from spacemesh_service import problems as P
+from spacemesh_service.outputs import HEADER_PREFIX, MEDIA_TYPES, OUTPUT_FORMATS
+
+DESCRIPTION = """\
+Point cloud in, oriented manifold polygon mesh out (SpaceMesh).
+
+* `POST /generate`: upload a point cloud (multipart field `file`: PLY, XYZ/PTS/TXT/CSV,
+  NPY/NPZ, or the vertices of an OBJ/OFF/STL/GLB) or send JSON `{"points": [[x, y, z], ...]}`.
+  Options `format`, `seed`, `steps` as query parameters or form/JSON fields.
+* Health and metadata in the KServe v2 shape under `/v2`; Prometheus metrics at `/metrics`.
+* Every error is RFC 9457 `application/problem+json` with a stable `type`.
+"""
+
+_TETRA = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+
+
+class PointsRequest(BaseModel):
+    """JSON body of ``POST /generate``."""
+
+    points: list[list[float]] = Field(
+        description="Point positions, one [x, y, z] per point, any frame and scale.",
+        examples=[_TETRA])
+    normals: list[list[float]] | None = Field(
+        None, description="Optional normals, one per point (used when the model reads them).")
+    format: str | None = Field(None, description=f"One of {', '.join(OUTPUT_FORMATS)}.")
+    seed: int | None = Field(None, ge=0, description="Random seed (picked when absent).")
+    steps: int | None = Field(None, ge=1, description="Sampler steps (model default).")
+
+
+class MeshStatsModel(BaseModel):
+    vertices: int
+    faces: int
+    edges: int
+    face_degrees: dict[str, int] = Field(description="Face degree -> number of faces.")
+    manifold: bool
+    closed: bool
+    oriented: bool
+    components: int
+    genus: int
+
+
+class ModelRef(BaseModel):
+    name: str
+    version: str
+
+
+class MeshJSON(BaseModel):
+    """The ``json`` output format."""
+
+    vertices: list[list[float]]
+    faces: list[list[int]] = Field(description="Polygons, counter-clockwise seen from outside.")
+    stats: MeshStatsModel
+    seed: int
+    steps: int
+    sampler: str
+    model: ModelRef
+
+
+class ProblemModel(BaseModel):
+    """RFC 9457 problem details."""
+
+    type: str = Field(description="Stable URI of the error kind.")
+    title: str
+    status: int
+    detail: str
+    instance: str | None = None
+
+
+class LiveModel(BaseModel):
+    live: bool
+
+
+class ReadyModel(BaseModel):
+    ready: bool
+
+
+class ModelReadyModel(BaseModel):
+    name: str
+    ready: bool
+
+
+class ServerMetadata(BaseModel):
+    name: str
+    version: str
+    extensions: list[str]
+
+
+_MESH_EXAMPLE = {
+    "vertices": [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+    "faces": [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+    "stats": {"vertices": 4, "faces": 4, "edges": 6, "face_degrees": {"3": 4},
+              "manifold": True, "closed": True, "oriented": True, "components": 1,
+              "genus": 0},
+    "seed": 7, "steps": 50, "sampler": "ddim",
+    "model": {"name": "spacemesh-small", "version": "1"},
+}
+
+_HEADERS = {
+    "Vertices": ("integer", "Vertex count."),
+    "Faces": ("integer", "Face count."),
+    "Edges": ("integer", "Edge count."),
+    "Face-Degrees": ("string", "Face degree counts, e.g. `3:120,4:8`."),
+    "Manifold": ("boolean", "Every edge has two faces and every vertex one fan."),
+    "Closed": ("boolean", "No boundary edges."),
+    "Oriented": ("boolean", "Neighbouring faces agree on orientation."),
+    "Components": ("integer", "Connected components."),
+    "Genus": ("integer", "Sum of the components' genera."),
+    "Seed": ("integer", "The seed used (the request's, or a random one)."),
+    "Steps": ("integer", "Sampler steps used."),
+    "Sampler": ("string", "Sampler (ddim or ddpm)."),
+    "Model": ("string", "Model name/version."),
+    "Batch-Size": ("integer", "Requests that shared this request's onnxruntime batch."),
+}
+
+
+def _problem_example(kind: P.ProblemKind, detail: str) -> dict[str, Any]:
+    return {"summary": kind.title, "value": {"type": kind.type, "title": kind.title,
+                                              "status": kind.status, "detail": detail,
+                                              "instance": "/generate"}}
+
+
+def problem_response(description: str, examples: dict[str, tuple[P.ProblemKind, str]],
+                     retry_after: bool = False) -> dict[str, Any]:
+    """An OpenAPI response of ``application/problem+json`` with named examples."""
+    response: dict[str, Any] = {
+        "description": description,
+        "content": {P.PROBLEM_MEDIA_TYPE: {
+            "schema": {"$ref": "#/components/schemas/ProblemModel"},
+            "examples": {name: _problem_example(k, d) for name, (k, d) in examples.items()},
+        }},
+    }
+    if retry_after:
+        response["headers"] = {"Retry-After": {"description": "Seconds to wait.",
+                                               "schema": {"type": "integer"}}}
+    return response
+
+
+GENERATE_RESPONSES: dict[int | str, dict[str, Any]] = {
+    200: {
+        "description": "The mesh, in the requested format. Statistics in the headers.",
+        "content": {
+            media: ({"schema": {"$ref": "#/components/schemas/MeshJSON"},
+                     "example": _MESH_EXAMPLE}
+                    if fmt == "json" else {"schema": {"type": "string", "format": "binary"}})
+            for fmt, media in MEDIA_TYPES.items()
+        },
+        "headers": {
+            **{HEADER_PREFIX + name: {"description": text, "schema": {"type": kind}}
+               for name, (kind, text) in _HEADERS.items()},
+            "Server-Timing": {"description": "Milliseconds per stage.",
+                              "schema": {"type": "string"}},
+        },
+    },
+    400: problem_response("Unreadable input or bad option", {
+        "malformed": (P.MALFORMED_INPUT, "PLY: the header ends before 'end_header'"),
+        "option": (P.INVALID_PARAMETER, "steps must be in 1..1024, not 0"),
+    }),
+    413: problem_response("Too many points or bytes", {
+        "points": (P.TOO_MANY_POINTS, "250000 points; this server takes at most 200000"),
+        "bytes": (P.PAYLOAD_TOO_LARGE, "the body exceeds 33554432 bytes"),
+    }),
+    415: problem_response("Unsupported format", {
+        "format": (P.UNSUPPORTED_FORMAT, "cannot read '.docx' files; supported: ..."),
+    }),
+    422: problem_response("Unusable geometry", {
+        "few": (P.TOO_FEW_POINTS, "3 points; this server needs at least 16"),
+        "nan": (P.NON_FINITE, "point 12 has a NaN or infinite coordinate"),
+        "flat": (P.DEGENERATE_GEOMETRY, "the points are coplanar; a surface needs a 3D "
+                                        "point cloud"),
+        "empty": (P.NO_SURFACE, "the model produced no faces for this input and seed"),
+    }),
+    503: problem_response("Queue full, loading or draining", {
+        "busy": (P.QUEUE_FULL, "32 requests are waiting already"),
+        "loading": (P.NOT_READY, "the model is loading"),
+    }, retry_after=True),
+    504: problem_response("Timed out", {"timeout": (P.TIMEOUT, "no result within 30.0 s")}),
+}
+
+_FORMAT_ENUM = {"type": "string", "enum": list(OUTPUT_FORMATS), "default": "glb"}
+
+GENERATE_REQUEST_BODY: dict[str, Any] = {
+    "required": True,
+    "content": {
+        "multipart/form-data": {
+            "schema": {
+                "type": "object", "required": ["file"],
+                "properties": {
+                    "file": {"type": "string", "format": "binary",
+                             "description": "The point cloud file."},
+                    "format": _FORMAT_ENUM,
+                    "seed": {"type": "integer", "minimum": 0},
+                    "steps": {"type": "integer", "minimum": 1},
+                },
+            },
+            "example": {"file": "(cloud.ply)", "format": "obj", "seed": 7},
+        },
+        "application/json": {
+            "schema": {"$ref": "#/components/schemas/PointsRequest"},
+            "examples": {
+                "points": {"summary": "Points only",
+                           "value": {"points": _TETRA * 8, "format": "obj", "seed": 7}},
+                "normals": {"summary": "With normals",
+                            "value": {"points": _TETRA, "normals": _TETRA, "steps": 25}},
+            },
+        },
+    },
+}
+
+#: Models whose schemas /generate's hand-written spec refers to.
+EXTRA_SCHEMAS = (PointsRequest, MeshJSON, ProblemModel)
+
+
+def add_schemas(spec: dict[str, Any]) -> dict[str, Any]:
+    """Put :data:`EXTRA_SCHEMAS` into an OpenAPI spec's components."""
+    schemas = spec.setdefault("components", {}).setdefault("schemas", {})
+    for model in EXTRA_SCHEMAS:
+        schema = model.model_json_schema(ref_template="#/components/schemas/{model}")
+        for name, sub in schema.pop("$defs", {}).items():
+            schemas.setdefault(name, sub)
+        schemas[model.__name__] = schema
+    return spec

@@ -1,0 +1,165 @@
+"""One process, one event loop: REST (uvicorn) and gRPC over one shared engine.
+
+Start-up: both servers listen first (``/v2/health/live`` answers at once), then the
+model loads and warms up in the background; ``/v2/health/ready`` and grpc.health.v1
+turn ready after that. A model that fails to load ends the process with exit code 1.
+
+SIGTERM (or SIGINT) drains: readiness turns false, both servers stop accepting, and
+requests already received (queued or running) finish, for up to ``drain_timeout_s``;
+then the process exits 0. A second SIGINT exits at once.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import signal
+import sys
+import threading
+from collections.abc import Iterator
+
+import uvicorn
+
+from spacemesh.runtime.pipeline import MeshGenerator
+from spacemesh_service.app import create_app
+from spacemesh_service.engine import Engine
+from spacemesh_service.grpc_server import GrpcServer
+from spacemesh_service.settings import Settings
+
+log = logging.getLogger("spacemesh.service")
+
+
+class _Uvicorn(uvicorn.Server):
+    """uvicorn without its own signal handlers (:class:`SpaceMeshServer` owns them)."""
+
+    @contextlib.contextmanager
+    def capture_signals(self) -> Iterator[None]:
+        yield
+
+
+class SpaceMeshServer:
+    """REST and gRPC servers sharing one :class:`Engine`.
+
+    Parameters
+    ----------
+    settings : Settings
+    generator : MeshGenerator, optional
+        An already loaded model (default: load ``settings.model``).
+
+    Attributes
+    ----------
+    http_port, grpc_port : int or None
+        The bound ports, once :attr:`listening` is set.
+    listening : threading.Event
+        Set when both servers accept connections.
+    exit_code : int
+    """
+
+    def __init__(self, settings: Settings, *, generator: MeshGenerator | None = None) -> None:
+        self.settings = settings
+        self.engine = Engine(settings, generator=generator)
+        self.app = create_app(settings, engine=self.engine)
+        self.http_port: int | None = None
+        self.grpc_port: int | None = None
+        self.listening = threading.Event()
+        self.exit_code = 0
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._stopping: asyncio.Task | None = None
+        self._uvicorn: _Uvicorn | None = None
+        self._grpc: GrpcServer | None = None
+
+    async def serve(self, *, handle_signals: bool = True) -> int:
+        """Run until shut down; returns the exit code.
+
+        Parameters
+        ----------
+        handle_signals : bool
+            Drain on SIGTERM/SIGINT (only possible in the main thread).
+        """
+        s = self.settings
+        self._loop = asyncio.get_running_loop()
+        if s.grpc:
+            self._grpc = GrpcServer(self.engine)
+            self.grpc_port = await self._grpc.start(s.grpc_port)
+        config = uvicorn.Config(self.app, host=s.host, port=s.port, log_level=s.log_level,
+                                lifespan="on", access_log=False,
+                                timeout_graceful_shutdown=max(1, int(s.drain_timeout_s)))
+        self._uvicorn = _Uvicorn(config)
+        http = asyncio.ensure_future(self._uvicorn.serve())
+        while not self._uvicorn.started:
+            if http.done():  # could not bind (uvicorn logged why)
+                await self._stop_grpc(0)
+                http.result()
+                return 1
+            await asyncio.sleep(0.01)
+        self.http_port = self._uvicorn.servers[0].sockets[0].getsockname()[1]
+        if handle_signals:
+            self._loop.add_signal_handler(signal.SIGTERM, self.shutdown)
+            self._loop.add_signal_handler(signal.SIGINT, self._interrupt)
+        log.info("listening: rest=http://%s:%s grpc=%s", s.host, self.http_port,
+                 f"{s.host}:{self.grpc_port}" if self.grpc_port else "off")
+        self.listening.set()
+        try:
+            await self.engine.start()
+        except Exception as error:
+            log.error("spacemesh serve: cannot load the model: %s", error)
+            self.exit_code = 1
+            self.shutdown()
+        else:
+            if self._grpc is not None and self.engine.ready:
+                await self._grpc.set_serving()
+        await http
+        if self._stopping is not None:
+            await self._stopping
+        if handle_signals:
+            for sig in (signal.SIGTERM, signal.SIGINT):
+                self._loop.remove_signal_handler(sig)
+        return self.exit_code
+
+    def shutdown(self) -> None:
+        """Start draining (call on the server's loop; see :meth:`shutdown_threadsafe`)."""
+        if self._stopping is None and self._loop is not None:
+            self._stopping = self._loop.create_task(self._drain())
+
+    def shutdown_threadsafe(self) -> None:
+        """:meth:`shutdown` from another thread."""
+        if self._loop is not None:
+            self._loop.call_soon_threadsafe(self.shutdown)
+
+    def _interrupt(self) -> None:
+        if self._stopping is not None and self._uvicorn is not None:
+            self._uvicorn.force_exit = True  # second Ctrl-C
+        self.shutdown()
+
+    async def _stop_grpc(self, grace: float) -> None:
+        if self._grpc is not None:
+            await self._grpc.stop(grace)
+
+    async def _drain(self) -> None:
+        grace = self.settings.drain_timeout_s
+        log.info("draining (up to %.0f s)", grace)
+        self.engine.begin_drain()
+        if self._uvicorn is not None:
+            self._uvicorn.should_exit = True  # stop accepting, finish open requests
+        grpc_stopped = asyncio.ensure_future(self._stop_grpc(grace))
+        drained = await self.engine.stop(grace)
+        await grpc_stopped
+        if not drained:
+            log.warning("drain timeout: some requests were cancelled")
+
+
+def configure_logging(level: str) -> None:
+    """Log the service's messages to stderr at ``level``."""
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("%(levelname)s:     %(message)s"))
+    logger = logging.getLogger("spacemesh.service")
+    logger.handlers[:] = [handler]
+    logger.setLevel(level.upper())
+    logger.propagate = False
+
+
+def run(settings: Settings) -> int:
+    """Serve until SIGTERM; returns the exit code (``spacemesh serve`` calls this)."""
+    configure_logging(settings.log_level)
+    return asyncio.run(SpaceMeshServer(settings).serve())

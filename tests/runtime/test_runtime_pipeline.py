@@ -1,0 +1,97 @@
+"""The onnxruntime pipeline: frames, orientation, batching, seeds, progress, errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("onnxruntime")
+
+from spacemesh.data.validate import signed_volume
+from spacemesh.mesh import PolygonMesh
+from spacemesh.runtime import GenerateRequest, MeshGenerator
+from spacemesh.runtime.pipeline import (
+    drop_duplicates,
+    flip_faces,
+    normalize_points,
+)
+from spacemesh.topology import check_topology
+
+
+@pytest.fixture(scope="module")
+def generator(toy_model):
+    return MeshGenerator.from_repository(toy_model.repository, intra_op_threads=1)
+
+
+@pytest.fixture(scope="module")
+def cloud():
+    rng = np.random.default_rng(0)
+    d = rng.normal(size=(400, 3))
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def test_results_are_valid_outward_meshes_with_timings(generator, cloud):
+    result = generator.generate(cloud, seed=3)
+    mesh = result.mesh
+    if mesh.n_faces:
+        assert check_topology(mesh).is_closed_oriented_manifold
+        assert signed_volume(mesh) >= 0
+    assert set(result.timings) == {"encoder", "sampler", "connectivity", "extraction", "total"}
+    assert result.steps == generator.spec.steps and result.method == generator.spec.method
+
+
+def test_output_is_in_the_input_frame(generator, cloud):
+    base = generator.generate(cloud, seed=2)
+    moved = generator.generate(cloud * 7.5 + [100.0, -3.0, 2.0], seed=2)
+    assert moved.mesh.face_key_set() == base.mesh.face_key_set()
+    assert np.allclose(moved.mesh.vertices, base.mesh.vertices * 7.5 + [100.0, -3.0, 2.0],
+                       atol=1e-4)
+
+
+def test_batch_equals_single_requests_and_seeds_matter(generator, cloud):
+    requests = [GenerateRequest(cloud, seed=s) for s in (0, 1)]
+    requests.append(GenerateRequest(cloud * 2, seed=0, steps=3, method="ddpm"))
+    batch = generator.generate_batch(requests)
+    for request, result in zip(requests, batch, strict=True):
+        alone = generator.generate(request.points, seed=request.seed, steps=request.steps,
+                                   method=request.method)
+        assert alone.mesh.face_key_set() == result.mesh.face_key_set()
+        assert np.allclose(alone.mesh.vertices, result.mesh.vertices, atol=1e-5)
+    assert batch[2].steps == 3 and batch[2].method == "ddpm"
+
+
+def test_progress_is_reported_for_every_step(generator, cloud):
+    seen = []
+    generator.generate(cloud, seed=0, steps=4, progress=lambda d, t: seen.append((d, t)))
+    assert seen == [(1, 4), (2, 4), (3, 4), (4, 4)]
+
+
+def test_bad_requests_are_refused(generator, cloud):
+    with pytest.raises(ValueError):
+        generator.generate(np.zeros((10, 2)))
+    with pytest.raises(ValueError):
+        generator.generate(np.zeros((0, 3)))
+    with pytest.raises(ValueError):
+        generator.generate(np.full((5, 3), np.nan))
+    with pytest.raises(ValueError):
+        generator.generate(cloud, steps=0)
+    with pytest.raises(ValueError):
+        generator.generate(cloud, method="euler")
+    with pytest.raises(ValueError):
+        generator.generate(cloud, normals=np.zeros((3, 3)))
+
+
+def test_helpers():
+    p = np.array([[0.0, 0, 0], [4, 2, 0], [2, 1, 1]])
+    unit, centre, scale = normalize_points(p)
+    assert scale == 2.0 and np.allclose(centre, [2, 1, 0.5])
+    assert np.allclose(unit.max(0) - unit.min(0), [2, 1, 0.5])
+    assert normalize_points(np.ones((3, 3)))[2] == 1.0
+    tetra = PolygonMesh.from_faces([*np.eye(3).tolist(), [0, 0, 0]],
+                                   [[0, 1, 2], [0, 3, 1], [1, 3, 2], [0, 2, 3]])
+    flipped = flip_faces(tetra)
+    assert signed_volume(flipped) == pytest.approx(-signed_volume(tetra))
+    assert flip_faces(flipped).face_key_set() == tetra.face_key_set()
+    positions = np.array([[0.0, 0, 0], [0, 0, 1e-6], [1, 1, 1], [0.5, 0, 0]])
+    alive = drop_duplicates(positions, np.array([True, True, True, False]))
+    assert alive.tolist() == [True, False, True, False]

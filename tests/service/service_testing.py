@@ -1,0 +1,152 @@
+"""Helpers of the service tests: inputs in every upload format, servers in threads."""
+
+from __future__ import annotations
+
+import asyncio
+import io
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Seeds tried to find one that gives a surface (and one that gives none).
+SEEDS_TO_TRY = 40
+
+
+def make_cloud(count: int = 300, seed: int = 0) -> np.ndarray:
+    """Points on an ellipsoid, exactly representable in float32 (so every file format,
+    text or binary, single or double precision, reads back the same numbers)."""
+    rng = np.random.default_rng(seed)
+    d = rng.standard_normal((count, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    points = d * np.array([1.5, 1.0, 0.75]) + np.array([10.0, -4.0, 2.0])
+    return points.astype(np.float32).astype(np.float64)
+
+
+# ---------------------------------------------------------------------- encoders
+def as_ply(points: np.ndarray, binary: bool = True) -> bytes:
+    header = (f"ply\nformat {'binary_little_endian' if binary else 'ascii'} 1.0\n"
+              f"element vertex {len(points)}\nproperty float x\nproperty float y\n"
+              "property float z\nend_header\n").encode()
+    if binary:
+        return header + points.astype("<f4").tobytes()
+    return header + "".join(f"{x!r} {y!r} {z!r}\n" for x, y, z in points.tolist()).encode()
+
+
+def as_text(points: np.ndarray, count_line: bool = False) -> bytes:
+    rows = [f"{x!r} {y!r} {z!r}" for x, y, z in points.tolist()]
+    if count_line:
+        rows.insert(0, str(len(points)))
+    return ("\n".join(rows) + "\n").encode()
+
+
+def as_obj(points: np.ndarray) -> bytes:
+    return ("# cloud\n" + "".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in points.tolist())
+            ).encode()
+
+
+def as_npy(points: np.ndarray) -> bytes:
+    buffer = io.BytesIO()
+    np.save(buffer, points)
+    return buffer.getvalue()
+
+
+def as_npz(points: np.ndarray) -> bytes:
+    buffer = io.BytesIO()
+    np.savez(buffer, points=points)
+    return buffer.getvalue()
+
+
+#: Upload format -> (file name, encoder).
+UPLOADS = {
+    "ply": ("cloud.ply", as_ply),
+    "ply-ascii": ("cloud.ply", lambda p: as_ply(p, binary=False)),
+    "xyz": ("cloud.xyz", as_text),
+    "txt": ("cloud.txt", as_text),
+    "pts": ("cloud.pts", lambda p: as_text(p, count_line=True)),
+    "npy": ("cloud.npy", as_npy),
+    "npz": ("cloud.npz", as_npz),
+    "obj": ("cloud.obj", as_obj),
+    "sniffed-ply": ("upload", as_ply),
+}
+
+
+
+@dataclass(frozen=True)
+class Case:
+    """The test input and seeds the tiny model turns into a surface, or into nothing."""
+
+    points: np.ndarray
+    good_seed: int
+    empty_seed: int | None
+
+
+class GatedGenerator:
+    """A generator whose batches wait for :attr:`gate`; records what each batch did."""
+
+    def __init__(self, inner) -> None:
+        self.inner = inner
+        self.spec = inner.spec
+        self.name = inner.name
+        self.repository = inner.repository
+        self.gate = threading.Event()
+        self.entered = threading.Event()
+        self.batches: list[int] = []
+        self.errors: list[str] = []
+
+    def generate_batch(self, requests, *, progress=None):
+        self.entered.set()
+        self.gate.wait(60)
+        self.batches.append(len(requests))
+        try:
+            return self.inner.generate_batch(requests, progress=progress)
+        except Exception as error:
+            self.errors.append(type(error).__name__)
+            raise
+
+
+class ServerThread:
+    """A :class:`SpaceMeshServer` running in a background thread."""
+
+    def __init__(self, settings, generator=None) -> None:
+        from spacemesh_service.server import SpaceMeshServer
+
+        self.server = SpaceMeshServer(settings, generator=generator)
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.exit_code: int | None = None
+
+    def _run(self) -> None:
+        self.exit_code = asyncio.run(self.server.serve(handle_signals=False))
+
+    def start(self, wait_ready: bool = True) -> ServerThread:
+        self.thread.start()
+        assert self.server.listening.wait(60), "the server did not start"
+        if wait_ready:
+            deadline = time.monotonic() + 60
+            while not self.server.engine.ready:
+                assert time.monotonic() < deadline, "the model did not become ready"
+                time.sleep(0.02)
+        return self
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.server.http_port}"
+
+    @property
+    def grpc_target(self) -> str:
+        return f"127.0.0.1:{self.server.grpc_port}"
+
+    def stop(self) -> None:
+        self.server.shutdown_threadsafe()
+        self.thread.join(60)
+
+
+def server_settings(repository, **changes):
+    from spacemesh_service.settings import Settings
+
+    values = dict(model=repository, host="127.0.0.1", port=0, grpc_port=0, ort_threads=1,
+                  min_points=16, max_points=5000, max_upload_bytes=2_000_000,
+                  max_batch_delay_ms=2, log_level="warning")
+    values.update(changes)
+    return Settings(**values)

@@ -1,0 +1,142 @@
+"""Concurrency on real servers: dynamic batching, queue full (503), timeouts (504), loading.
+
+The generator behind these servers waits on a gate, so each scenario is set up
+deterministically (no test depends on how fast anything runs).
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+import grpc
+import httpx
+import pytest
+from grpc_health.v1 import health_pb2, health_pb2_grpc
+from service_testing import GatedGenerator
+
+from spacemesh_service.pb import spacemesh_pb2 as pb
+from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
+
+pytestmark = pytest.mark.slow
+
+
+def metric(url: str, name: str) -> float:
+    text = httpx.get(url + "/metrics").text
+    match = re.search(rf"^{re.escape(name)} (\S+)$", text, re.M)
+    return float(match.group(1)) if match else 0.0
+
+
+def wait_for(condition, what: str, timeout: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.01)
+
+
+def post(url: str, case, **options) -> httpx.Response:
+    body = {"points": case.points.tolist(), "seed": case.good_seed, "format": "obj", **options}
+    return httpx.post(url + "/generate", json=body, timeout=60)
+
+
+def test_concurrent_requests_share_batches(start_server, generator, http, case):
+    gated = GatedGenerator(generator)
+    server = start_server(gated, warmup=False, max_batch_size=4, max_batch_delay_ms=20,
+                          queue_size=16, drain_timeout_s=1)
+    reference = post(str(http.base_url).rstrip("/"), case)  # unbatched, another server
+    assert reference.status_code == 200
+    with ThreadPoolExecutor(6) as pool:
+        first = pool.submit(post, server.url, case)
+        assert gated.entered.wait(30)  # the first batch holds the inference thread
+        rest = [pool.submit(post, server.url, case) for _ in range(5)]
+        wait_for(lambda: metric(server.url, "spacemesh_queue_depth") == 5, "5 queued")
+        gated.gate.set()
+        responses = [first.result(), *(f.result() for f in rest)]
+    assert all(r.status_code == 200 for r in responses)
+    assert all(r.content == reference.content for r in responses)  # batching changes nothing
+    sizes = sorted(int(r.headers["x-spacemesh-batch-size"]) for r in responses)
+    assert sorted(gated.batches) == [1, 1, 4] and sizes == [1, 1, 4, 4, 4, 4]
+    assert metric(server.url, "spacemesh_batch_size_count") == 3
+    assert metric(server.url, 'spacemesh_batch_size_bucket{le="1.0"}') == 2  # one batch of 4
+
+
+def test_full_queue_answers_503_with_retry_after(start_server, generator, case):
+    gated = GatedGenerator(generator)
+    server = start_server(gated, warmup=False, max_batch_size=1, queue_size=2,
+                          max_batch_delay_ms=0, drain_timeout_s=1)
+    try:
+        with ThreadPoolExecutor(3) as pool:
+            running = pool.submit(post, server.url, case)
+            assert gated.entered.wait(30)
+            queued = [pool.submit(post, server.url, case) for _ in range(2)]
+            wait_for(lambda: metric(server.url, "spacemesh_queue_depth") == 2, "2 queued")
+            rejected = post(server.url, case)
+            assert rejected.status_code == 503
+            assert rejected.headers["content-type"] == "application/problem+json"
+            assert rejected.json()["type"] == "https://spacemesh.dev/problems/queue-full"
+            assert int(rejected.headers["retry-after"]) >= 1
+            with grpc.insecure_channel(server.grpc_target) as channel:
+                request = pb.GenerateRequest(points=pb.Points(xyz=case.points.ravel().tolist()))
+                with pytest.raises(grpc.RpcError) as info:
+                    pb_grpc.SpaceMeshStub(channel).Generate(request)
+            assert info.value.code() == grpc.StatusCode.UNAVAILABLE
+            metadata = dict(info.value.trailing_metadata())
+            assert metadata["problem-type"].endswith("/queue-full") and metadata["retry-after"]
+            gated.gate.set()
+            assert running.result().status_code == 200
+            assert all(f.result().status_code == 200 for f in queued)
+    finally:
+        gated.gate.set()
+
+
+def test_timeout_answers_504_and_cancels_the_work(start_server, generator, case):
+    gated = GatedGenerator(generator)
+    server = start_server(gated, warmup=False, max_batch_size=1, queue_size=4,
+                          max_batch_delay_ms=0, request_timeout_s=0.5, drain_timeout_s=1)
+    try:
+        with ThreadPoolExecutor(2) as pool:
+            running = pool.submit(post, server.url, case)  # held at the gate
+            assert gated.entered.wait(30)
+            queued = pool.submit(post, server.url, case)  # waits in the queue
+            for response in (running.result(), queued.result()):
+                assert response.status_code == 504
+                assert response.json()["type"] == "https://spacemesh.dev/problems/timeout"
+        assert metric(server.url, "spacemesh_queue_depth") == 0  # left the queue
+        assert metric(server.url, "spacemesh_cancelled_requests_total") == 2
+        with grpc.insecure_channel(server.grpc_target) as channel:
+            request = pb.GenerateRequest(points=pb.Points(xyz=case.points.ravel().tolist()))
+            with pytest.raises(grpc.RpcError) as info:
+                pb_grpc.SpaceMeshStub(channel).Generate(request)
+        assert info.value.code() == grpc.StatusCode.DEADLINE_EXCEEDED
+        assert dict(info.value.trailing_metadata())["problem-type"].endswith("/timeout")
+        gated.gate.set()  # the held batch now stops at its first sampler step
+        wait_for(lambda: metric(server.url, "spacemesh_stopped_batches_total") >= 1,
+                 "the batch to stop")
+        assert "_AllCancelled" in gated.errors
+    finally:
+        gated.gate.set()
+
+
+def test_not_ready_until_the_warm_up_passes(start_server, generator, case):
+    gated = GatedGenerator(generator)  # the warm-up inference waits at the gate
+    server = start_server(gated, wait_ready=False, warmup=True, drain_timeout_s=1)
+    try:
+        assert httpx.get(server.url + "/v2/health/live").status_code == 200
+        ready = httpx.get(server.url + "/v2/health/ready")
+        assert ready.status_code == 503 and ready.json() == {"ready": False}
+        response = post(server.url, case)
+        assert response.status_code == 503 and response.headers["retry-after"]
+        assert response.json()["type"] == "https://spacemesh.dev/problems/not-ready"
+        with grpc.insecure_channel(server.grpc_target) as channel:
+            health = health_pb2_grpc.HealthStub(channel)
+            check = health_pb2.HealthCheckRequest(service="spacemesh.v1.SpaceMesh")
+            assert health.Check(check).status == health_pb2.HealthCheckResponse.NOT_SERVING
+            gated.gate.set()
+            wait_for(lambda: httpx.get(server.url + "/v2/health/ready").status_code == 200,
+                     "ready")
+            wait_for(lambda: health.Check(check).status
+                     == health_pb2.HealthCheckResponse.SERVING, "SERVING")
+        assert post(server.url, case).status_code == 200
+    finally:
+        gated.gate.set()
