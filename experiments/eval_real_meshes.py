@@ -27,8 +27,9 @@ CATEGORIES = ("cad", "cad-abc", "lowpoly")
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--meshes", type=Path, default=ROOT.parent / "shared" / "meshes")
-    parser.add_argument("--model", type=Path, default=None,
-                        help="model repository (default: the shipped model)")
+    parser.add_argument(
+        "--model", type=Path, default=None, help="model repository (default: the shipped model)"
+    )
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "real")
     parser.add_argument("--categories", default=",".join(CATEGORIES))
     parser.add_argument("--baselines", default="psr,psr_star,bpa")
@@ -66,15 +67,24 @@ def main() -> int:
             print(f"skipped {entry['file']}: not a closed oriented manifold")
     shapes = mesh_shapes(paths, categories=categories, seed=args.seed)
     generator = MeshGenerator.from_repository(args.model, intra_op_threads=args.threads)
-    result = run_evaluation(shapes, generator=generator,
-                            baselines=parse_baselines(args.baselines), seed=args.seed,
-                            steps=args.steps, gallery=args.gallery, threads=args.threads,
-                            progress=not args.no_progress)
-    result.config.update(model_path=str(generator.repository.path), data="../shared/meshes "
-                         f"({', '.join(sorted(wanted))})")
+    result = run_evaluation(
+        shapes,
+        generator=generator,
+        baselines=parse_baselines(args.baselines),
+        seed=args.seed,
+        steps=args.steps,
+        gallery=args.gallery,
+        threads=args.threads,
+        progress=not args.no_progress,
+    )
+    result.config.update(
+        model_path=str(generator.repository.path),
+        data=f"../shared/meshes ({', '.join(sorted(wanted))})",
+    )
     command = "python experiments/eval_real_meshes.py " + shlex.join(sys.argv[1:])
-    paths_out = write_report(result, args.out, title="SpaceMesh evaluation: real meshes",
-                             command=command.strip())
+    paths_out = write_report(
+        result, args.out, title="SpaceMesh evaluation: real meshes", command=command.strip()
+    )
     sections = [paths_out["table"].read_text()]
     for category in sorted(wanted):
         rows = [r for r in result.rows if r["category"] == category]

@@ -38,6 +38,8 @@ DEFAULT_MESHES = (
 )
 DISTANCES = ("spacetime", "euclidean", "dot")
 REDUCTIONS = ("product", "sum", "max", "concat")
+#: Edge losses: the paper's Eq. 3 alone, and with the false-positive weighting (default)
+LOSSES = {"Eq. 3 (paper)": None, "Eq. 3 + false-positive weight": 1.0}
 
 
 def curves(mesh, iters: int, **overrides) -> dict:
@@ -91,7 +93,10 @@ def main() -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     results: dict = {}
     for name, mesh in meshes.items():
-        results[name] = {"distance": {}, "reduction": {}}
+        results[name] = {"distance": {}, "reduction": {}, "loss": {}}
+        for label, weight in LOSSES.items():
+            results[name]["loss"][label] = curves(mesh, args.iters, false_positive_weight=weight)
+            print(name, label, results[name]["loss"][label]["exact_at"], flush=True)
         for distance in DISTANCES:
             results[name]["distance"][distance] = curves(mesh, args.iters, distance=distance)
             print(name, distance, results[name]["distance"][distance]["exact_at"], flush=True)

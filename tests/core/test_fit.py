@@ -35,3 +35,9 @@ def test_budget_exhausted_reports_not_exact():
     assert not result.exact
     assert result.iterations == 2
     assert 0.0 <= result.edge_f1 < 1.0
+
+
+def test_paper_loss_alone_also_recovers():
+    """Eq. 3 exactly (no false-positive weighting) still fits a small mesh."""
+    result = fit_mesh(icosphere(1), FitConfig(max_iters=400, threads=1, false_positive_weight=None))
+    assert result.exact, result.summary()

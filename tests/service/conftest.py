@@ -30,7 +30,8 @@ def toy_repository(tmp_path_factory) -> Path:
     from spacemesh.train.toy import build_toy_model
 
     folder = os.environ.get("SPACEMESH_TEST_TOY_DIR")
-    directory = Path(folder) if folder else tmp_path_factory.mktemp("toy-model")
+    # the same folder as tests/runtime and tests/export: one build per session
+    directory = Path(folder) if folder else tmp_path_factory.getbasetemp() / "spacemesh-toy-model"
     return build_toy_model(directory).repository
 
 

@@ -97,6 +97,10 @@ def test_grpc_errors_carry_the_problem_type(stub, case):
     metadata = assert_rpc_problem(lambda: stub.Generate(points_request(many)),
                                   grpc.StatusCode.RESOURCE_EXHAUSTED, "too-many-points")
     assert metadata["problem-status"] == "413"
+    big = pb.GenerateRequest(file=pb.PointCloudFile(data=b"0 0 0\n" * 400_000,
+                                                    filename="c.xyz"))  # 2.4 MB > 2 MB
+    assert_rpc_problem(lambda: stub.Generate(big), grpc.StatusCode.RESOURCE_EXHAUSTED,
+                       "payload-too-large")
     assert_rpc_problem(lambda: stub.Generate(points_request(case.points, steps=10_000)),
                        grpc.StatusCode.INVALID_ARGUMENT, "invalid-parameter")
     assert_rpc_problem(lambda: stub.Generate(points_request(np.ones((40, 3)))),

@@ -116,3 +116,17 @@ def test_mesh_validation_and_headers():
     assert kind_of(lambda: validate_mesh(PolygonMesh.empty())) == "no-surface"
     open_mesh = PolygonMesh.from_faces(np.eye(3), [[0, 1, 2]])
     assert kind_of(lambda: validate_mesh(open_mesh)) == "invalid-output"
+
+
+def test_every_setting_is_a_flag_with_its_env_var():
+    from typer.testing import CliRunner
+
+    from spacemesh.cli import _register, app
+
+    _register()
+    result = CliRunner().invoke(app, ["serve", "--help"], terminal_width=200,
+                                env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    for name in Settings.model_fields:
+        assert f"--{name.replace('_', '-')}" in result.output, name
+        assert Settings.env_name(name) in result.output, name

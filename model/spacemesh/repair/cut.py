@@ -244,6 +244,29 @@ def outside_defects(mesh: PolygonMesh, region: BoolArray) -> list[dict]:
     return defects
 
 
+def defect_vertices(mesh: PolygonMesh) -> BoolArray:
+    """(V,) every vertex on a topological defect of ``mesh``.
+
+    The vertices of open boundary, non-manifold and misoriented edges, pinched
+    vertices, and the vertices of degenerate faces: a region that covers them all
+    (e.g. ``{"vertices": np.flatnonzero(defect_vertices(mesh))}``) makes the mesh
+    repairable.
+    """
+    sub = FaceSubset.of(mesh, np.arange(mesh.n_faces))
+    he, count = sub.halfedges, sub.edge_count[sub.edge]
+    bad_side = (count == 1) | (count > 2) | ((count == 2) & (sub.twin < 0))
+    marked = np.zeros(mesh.n_vertices, dtype=bool)
+    marked[he[bad_side].reshape(-1)] = True
+    marked |= sub.fan_counts(mesh.n_vertices) > 1
+    n = max(mesh.n_vertices, 1)
+    fv = np.sort(sub.face * n + he[:, 0])
+    repeated = np.unique(fv[1:][fv[1:] == fv[:-1]] // n)
+    degenerate = np.union1d(np.flatnonzero(mesh.face_sizes < 3), repeated)
+    corner_bad = np.isin(mesh.face_of_corner, degenerate)
+    marked[mesh.face_indices[corner_bad]] = True
+    return marked
+
+
 def defects_message(defects: list[dict]) -> str:
     """One sentence naming the defects outside the region."""
     parts = []
