@@ -15,6 +15,9 @@ What it measures (the real server, REST over loopback, one process):
    it (``max_batch_size=8``, 10 ms delay); the mean batch size comes from ``/metrics``.
 3. onnxruntime against torch eager on the same weights (needs torch and ``--config`` or
    ``--checkpoint``): each network once, one sampler step, and a whole generation.
+4. With ``--steps-sweep 10,20,50``: the median end-to-end latency at each step count and,
+   with ``--quality-data DIR`` (a held-out dataset), the pipeline's quality there
+   (valid/empty share, Chamfer, F1: :func:`spacemesh.train.evaluate.pipeline_metrics`).
 
 The model: ``--model`` (default: the shipped ``models/spacemesh-small``); ``--config NAME``
 exports a randomly initialised model of that configuration (network timings are right,
@@ -29,7 +32,6 @@ import json
 import os
 import re
 import statistics
-import sys
 import tempfile
 import threading
 import time
@@ -79,16 +81,14 @@ def percentile(values: list[float], q: float) -> float:
 
 
 def start_server(generator, threads: int, **changes):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "service"))
-    from service_testing import ServerThread
-
+    from spacemesh_service.server import BackgroundServer
     from spacemesh_service.settings import Settings
 
     values = dict(host="127.0.0.1", port=0, grpc_port=0, ort_threads=threads,
                   log_level="warning", request_timeout_s=600, queue_size=256,
                   max_batch_delay_ms=10, max_points=1_000_000)
     values.update(changes)
-    return ServerThread(Settings(**values), generator).start()
+    return BackgroundServer(Settings(**values), generator).start()
 
 
 # ---------------------------------------------------------------------- 1. latency
@@ -211,6 +211,28 @@ def bench_backends(generator, model, cloud: np.ndarray, steps: int | None,
     return out
 
 
+# ---------------------------------------------------------------------- 4. steps
+def bench_steps(url: str, generator, cloud: np.ndarray, sweep: list[int], requests: int,
+                data: Path | None, shapes: int) -> list[dict]:
+    """Latency (and quality, given a dataset) per sampler step count."""
+    rows = []
+    records = []
+    if data is not None:
+        from spacemesh.data.shards import open_dataset
+
+        limit = generator.spec.max_vertices
+        records = [r for r in open_dataset(data) if r.mesh.n_vertices <= limit][:shapes]
+    for steps in sweep:
+        row: dict[str, Any] = {"steps": steps,
+                               **bench_latency(url, cloud, requests, steps)["end_to_end_ms"]}
+        if records:
+            from spacemesh.train.evaluate import pipeline_metrics
+
+            row["quality"] = pipeline_metrics(generator, records, steps=steps)
+        rows.append(row)
+    return rows
+
+
 # ---------------------------------------------------------------------- report
 def report(results: dict) -> str:
     lines = [f"model: {results['model']} | steps: {results['steps']} | points: "
@@ -223,12 +245,22 @@ def report(results: dict) -> str:
     e2e = latency["end_to_end_ms"]
     lines.append(f"| **end to end (client)** | **{e2e['median']:.1f}** | {e2e['p90']:.1f} |")
     lines += ["", f"statuses: {latency['statuses']}, median faces: {latency['faces_median']}", ""]
-    lines += ["| clients | batching | requests/s | mean batch | requests | errors |",
-              "|---:|---|---:|---:|---:|---:|"]
+    if results["throughput"]:
+        lines += ["| clients | batching | requests/s | mean batch | requests | errors |",
+                  "|---:|---|---:|---:|---:|---:|"]
     for row in results["throughput"]:
         lines.append(f"| {row['clients']} | {'on (max 8)' if row['batching'] else 'off'} | "
                      f"{row['requests_per_s']:.2f} | {row['mean_batch_size']:.2f} | "
                      f"{row['requests']} | {row['errors']} |")
+    if results.get("steps_sweep"):
+        lines += ["", "| steps | end to end median ms | p90 ms | valid | empty | "
+                  "Chamfer median | F1 mean |", "|---:|---:|---:|---:|---:|---:|---:|"]
+        for row in results["steps_sweep"]:
+            q = row.get("quality", {})
+            cells = [f"{q[k]:.3f}" if k in q else "—" for k in
+                     ("valid", "empty", "chamfer_median", "f1_mean")]
+            lines.append(f"| {row['steps']} | {row['median']:.1f} | {row['p90']:.1f} | "
+                         + " | ".join(cells) + " |")
     if results.get("backends"):
         lines += ["", "| backend | encoder ms | denoiser step ms | connectivity ms | "
                   "generate ms |", "|---|---:|---:|---:|---:|"]
@@ -253,6 +285,11 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=2, help="onnxruntime intra-op threads")
     parser.add_argument("--torch", action=argparse.BooleanOptionalAction, default=True)
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--steps-sweep", default="", help="e.g. 10,20,30,50")
+    parser.add_argument("--quality-data", type=Path, default=None,
+                        help="held-out dataset for the quality of each swept step count")
+    parser.add_argument("--quality-shapes", type=int, default=16)
+    parser.add_argument("--no-throughput", dest="throughput", action="store_false")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
 
@@ -273,13 +310,18 @@ def main() -> None:
         server = start_server(generator, args.threads, max_batch_size=1)
         try:
             results["latency"] = bench_latency(server.url, cloud, args.requests, steps)
+            if args.steps_sweep:
+                sweep = [int(v) for v in args.steps_sweep.split(",")]
+                results["steps_sweep"] = bench_steps(
+                    server.url, generator, cloud, sweep, args.requests, args.quality_data,
+                    args.quality_shapes)
         finally:
             server.stop()
         results["throughput"] = [
             bench_throughput(generator, args.threads, cloud, int(c), batching,
                              args.per_client, steps)
             for c in args.clients.split(",") for batching in (False, True)
-        ]
+        ] if args.throughput else []
         if args.torch and model is not None:
             import torch
 

@@ -17,6 +17,7 @@ import logging
 import signal
 import sys
 import threading
+import time
 from collections.abc import Iterator
 
 import uvicorn
@@ -147,6 +148,58 @@ class SpaceMeshServer:
         await grpc_stopped
         if not drained:
             log.warning("drain timeout: some requests were cancelled")
+
+
+class BackgroundServer:
+    """A :class:`SpaceMeshServer` in a daemon thread (benchmarks, tests, notebooks).
+
+    Parameters
+    ----------
+    settings : Settings
+    generator : MeshGenerator, optional
+
+    Examples
+    --------
+    >>> server = BackgroundServer(Settings(port=0, grpc_port=0)).start()  # doctest: +SKIP
+    >>> httpx.get(server.url + "/v2/health/ready")  # doctest: +SKIP
+    >>> server.stop()  # doctest: +SKIP
+    """
+
+    def __init__(self, settings: Settings, generator: MeshGenerator | None = None) -> None:
+        self.server = SpaceMeshServer(settings, generator=generator)
+        self.thread = threading.Thread(target=self._run, daemon=True, name="spacemesh-server")
+        self.exit_code: int | None = None
+
+    def _run(self) -> None:
+        self.exit_code = asyncio.run(self.server.serve(handle_signals=False))
+
+    def start(self, wait_ready: bool = True, timeout: float = 120.0) -> BackgroundServer:
+        """Start, and wait until listening (and ready, unless ``wait_ready`` is False)."""
+        self.thread.start()
+        deadline = time.monotonic() + timeout
+        while not self.server.listening.wait(0.05):
+            if not self.thread.is_alive() or time.monotonic() > deadline:
+                raise RuntimeError("the server did not start")
+        while wait_ready and not self.server.engine.ready:
+            if self.server.engine.state == "failed" or time.monotonic() > deadline:
+                raise RuntimeError(f"the model did not become ready: {self.server.engine.error}")
+            time.sleep(0.02)
+        return self
+
+    @property
+    def url(self) -> str:
+        """``http://host:port`` of the REST server."""
+        return f"http://{self.server.settings.host}:{self.server.http_port}"
+
+    @property
+    def grpc_target(self) -> str:
+        """``host:port`` of the gRPC server."""
+        return f"{self.server.settings.host}:{self.server.grpc_port}"
+
+    def stop(self, timeout: float = 60.0) -> None:
+        """Drain and wait for the thread to end."""
+        self.server.shutdown_threadsafe()
+        self.thread.join(timeout)
 
 
 def configure_logging(level: str) -> None:

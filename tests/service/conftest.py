@@ -3,7 +3,7 @@
 The model is trained and exported once per session through the real command line
 (:func:`spacemesh.train.toy.build_toy_model`); set ``SPACEMESH_TEST_TOY_DIR`` to a
 folder to keep it between sessions. Servers run :class:`SpaceMeshServer` (uvicorn +
-gRPC) in a background thread on 127.0.0.1 with ports picked by the OS.
+gRPC) in a background thread (:class:`BackgroundServer`) on 127.0.0.1 with ports picked by the OS.
 """
 
 from __future__ import annotations
@@ -19,7 +19,9 @@ SERVICE_DEPENDENCIES = ("fastapi", "uvicorn", "grpc", "grpc_health", "spacemesh_
 if not all(importlib.util.find_spec(name) for name in SERVICE_DEPENDENCIES):
     collect_ignore_glob = ["test_*.py"]
 else:
-    from service_testing import SEEDS_TO_TRY, Case, ServerThread, make_cloud, server_settings
+    from service_testing import SEEDS_TO_TRY, Case, make_cloud, server_settings
+
+    from spacemesh_service.server import BackgroundServer
 
 
 # ---------------------------------------------------------------------- model
@@ -62,11 +64,11 @@ def case(generator) -> Case:
 # ---------------------------------------------------------------------- servers
 @pytest.fixture(scope="session")
 def start_server(toy_repository):
-    """``start_server(generator=None, **settings) -> ServerThread``; stopped at the end."""
-    servers: list[ServerThread] = []
+    """``start_server(generator=None, **settings) -> BackgroundServer``; stopped at the end."""
+    servers: list[BackgroundServer] = []
 
-    def start(generator=None, wait_ready=True, **changes) -> ServerThread:
-        server = ServerThread(server_settings(toy_repository, **changes), generator)
+    def start(generator=None, wait_ready=True, **changes) -> BackgroundServer:
+        server = BackgroundServer(server_settings(toy_repository, **changes), generator)
         servers.append(server.start(wait_ready))
         return server
 
@@ -76,7 +78,7 @@ def start_server(toy_repository):
 
 
 @pytest.fixture(scope="session")
-def server(start_server, generator) -> ServerThread:
+def server(start_server, generator) -> BackgroundServer:
     """The shared server (batches of up to 4, 2 ms delay)."""
     return start_server(generator)
 

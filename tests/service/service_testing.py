@@ -1,11 +1,9 @@
-"""Helpers of the service tests: inputs in every upload format, servers in threads."""
+"""Helpers of the service tests: inputs in every upload format, a gated generator."""
 
 from __future__ import annotations
 
-import asyncio
 import io
 import threading
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -104,42 +102,6 @@ class GatedGenerator:
         except Exception as error:
             self.errors.append(type(error).__name__)
             raise
-
-
-class ServerThread:
-    """A :class:`SpaceMeshServer` running in a background thread."""
-
-    def __init__(self, settings, generator=None) -> None:
-        from spacemesh_service.server import SpaceMeshServer
-
-        self.server = SpaceMeshServer(settings, generator=generator)
-        self.thread = threading.Thread(target=self._run, daemon=True)
-        self.exit_code: int | None = None
-
-    def _run(self) -> None:
-        self.exit_code = asyncio.run(self.server.serve(handle_signals=False))
-
-    def start(self, wait_ready: bool = True) -> ServerThread:
-        self.thread.start()
-        assert self.server.listening.wait(60), "the server did not start"
-        if wait_ready:
-            deadline = time.monotonic() + 60
-            while not self.server.engine.ready:
-                assert time.monotonic() < deadline, "the model did not become ready"
-                time.sleep(0.02)
-        return self
-
-    @property
-    def url(self) -> str:
-        return f"http://127.0.0.1:{self.server.http_port}"
-
-    @property
-    def grpc_target(self) -> str:
-        return f"127.0.0.1:{self.server.grpc_port}"
-
-    def stop(self) -> None:
-        self.server.shutdown_threadsafe()
-        self.thread.join(60)
 
 
 def server_settings(repository, **changes):

@@ -52,8 +52,12 @@ def _serve(**flags: Any) -> None:
         settings = Settings.from_env(**flags)
     except ValueError as error:
         fail(str(error))
-    if settings.model is not None and not Path(settings.model).exists():
-        fail(f"model repository {settings.model} does not exist")
+    from spacemesh.runtime.repository import default_model_dir
+
+    model = Path(settings.model) if settings.model is not None else default_model_dir()
+    if not model.exists():
+        hint = "" if settings.model is not None else " (the shipped model; pass --model DIR)"
+        fail(f"model repository {model} does not exist{hint}")
     try:
         from spacemesh_service.server import run
     except ModuleNotFoundError as error:

@@ -89,6 +89,10 @@ class ConnectivityConfig:
     fourier : int
         Octaves of sine/cosine features of each vertex's coordinates added to its input
         (a coordinate encoding, not a positional embedding: tokens remain a set).
+    position_prior : bool
+        Add ``c p_i`` (learned ``c``) to the first three space coordinates of ``x_i``, and
+        start with small outputs: training then starts from the graph of Euclidean
+        distance below a threshold instead of a random graph.
     point_voxel : tuple of (resolution, channels)
         Optional PVConv layers on the vertex tokens, as in the paper.
     """
@@ -103,6 +107,7 @@ class ConnectivityConfig:
     reduction: str = "product"
     distance_bias: bool = True
     fourier: int = 0
+    position_prior: bool = False
     point_voxel: tuple[tuple[int, int], ...] = ()
 
 
@@ -243,7 +248,8 @@ TINY = ModelConfig(
     encoder=EncoderConfig(n_points=256, stem=16, resolutions=(8, 4), channels=(16, 32)),
     denoiser=DenoiserConfig(width=32, layers=1, heads=2),
     connectivity=ConnectivityConfig(
-        width=32, layers=2, heads=2, adjacency_dim=16, n_space=8, permutation_dim=6, fourier=2
+        width=32, layers=2, heads=2, adjacency_dim=16, n_space=8, permutation_dim=6, fourier=2,
+        position_prior=True,
     ),
     diffusion=DiffusionConfig(timesteps=64, steps=8),
     train=TrainConfig(
@@ -259,7 +265,7 @@ SMALL = ModelConfig(
     denoiser=DenoiserConfig(width=128, layers=4, heads=4),
     connectivity=ConnectivityConfig(
         width=64, layers=4, heads=4, adjacency_dim=32, n_space=16, permutation_dim=12,
-        fourier=4,
+        fourier=4, position_prior=True,
     ),
     diffusion=DiffusionConfig(timesteps=1024, schedule="cosine", sampler="ddim", steps=50),
     train=TrainConfig(batch_size=6, lr=7e-4, warmup=20, steps=600, connectivity_steps=10,

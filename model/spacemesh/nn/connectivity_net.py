@@ -30,6 +30,10 @@ def fourier_features(positions: Tensor, octaves: int) -> list[Tensor]:
     return [torch.sin(angles), torch.cos(angles)]
 
 
+#: Edge length the position prior's initial scale and threshold are set for.
+PRIOR_EDGE_LENGTH = 0.3
+
+
 class ConnectivityNet(nn.Module):
     """Predicts ``x``, ``y_root``, ``y_prev``, ``y_next`` and ``tau``.
 
@@ -45,6 +49,9 @@ class ConnectivityNet(nn.Module):
         Use the learned distance prior in attention.
     fourier : int
         Octaves of coordinate sine/cosine features.
+    position_prior : bool
+        Add ``c p`` to the first three coordinates of ``x`` (they must be space
+        coordinates) with a learned ``c``, and start from small network outputs.
     point_voxel : tuple of (resolution, channels)
         Optional PVConv layers on the tokens.
     """
@@ -52,7 +59,7 @@ class ConnectivityNet(nn.Module):
     def __init__(
         self, *, width: int, layers: int, heads: int, feature_channels: int,
         adjacency_dim: int, permutation_dim: int, distance_bias: bool = True, fourier: int = 0,
-        point_voxel: tuple[tuple[int, int], ...] = (),
+        position_prior: bool = False, point_voxel: tuple[tuple[int, int], ...] = (),
     ) -> None:
         super().__init__()
         self.adjacency_dim = adjacency_dim
@@ -65,9 +72,16 @@ class ConnectivityNet(nn.Module):
         self.backbone = Transformer(width=width, layers=layers, heads=heads)
         self.ln_post = nn.LayerNorm(width)
         self.output_proj = nn.Linear(width, adjacency_dim + 3 * permutation_dim)
-        nn.init.normal_(self.output_proj.weight, std=1.0 / math.sqrt(width))
+        std = (0.1 if position_prior else 1.0) / math.sqrt(width)
+        nn.init.normal_(self.output_proj.weight, std=std)
         nn.init.zeros_(self.output_proj.bias)
-        self.tau = nn.Parameter(torch.zeros(()))
+        if position_prior:
+            # typical edges are ~0.3 long in the normalised frame: c |dp|^2 ~ 1 = tau
+            self.position_scale = nn.Parameter(torch.tensor(1.0 / PRIOR_EDGE_LENGTH))
+            self.tau = nn.Parameter(torch.ones(()))
+        else:
+            self.position_scale = None
+            self.tau = nn.Parameter(torch.zeros(()))
         if distance_bias:
             # slopes spread geometrically over two decades (edge lengths are ~0.1-0.5)
             start = np.log(0.5) + np.arange(heads) * np.log(100.0) / max(heads - 1, 1)
@@ -112,6 +126,9 @@ class ConnectivityNet(nn.Module):
         out = self.output_proj(h).float()  # (B, N, k + 3 kp)
         k, kp = self.adjacency_dim, self.permutation_dim
         x = out[..., :k]
+        if self.position_scale is not None:
+            pad = x.new_zeros(*x.shape[:-1], k - 3)
+            x = x + torch.cat([self.position_scale * vertices.float(), pad], dim=-1)
         root = out[..., k : k + kp]
         prev = out[..., k + kp : k + 2 * kp]
         nxt = out[..., k + 2 * kp :]

@@ -61,7 +61,8 @@ class SpaceMeshModel(nn.Module):
         self.connectivity = ConnectivityNet(
             width=con.width, layers=con.layers, heads=con.heads, feature_channels=features,
             adjacency_dim=con.adjacency_dim, permutation_dim=con.permutation_dim,
-            distance_bias=con.distance_bias, fourier=con.fourier, point_voxel=con.point_voxel,
+            distance_bias=con.distance_bias, fourier=con.fourier,
+            position_prior=con.position_prior, point_voxel=con.point_voxel,
         )
         self.reduction = PermutationReduction(con.reduction, dim=con.permutation_dim)
         self.diffusion = GaussianDiffusion(

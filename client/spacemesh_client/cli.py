@@ -1,0 +1,270 @@
+"""``spacemesh-client``: the service from the command line.
+
+::
+
+    spacemesh-client generate points.ply -o mesh.glb --url http://localhost:8000 --seed 7
+    spacemesh-client repair mesh.obj -o fixed.obj --faces 3,4,10-20
+    spacemesh-client health
+    spacemesh-client info
+
+The URL comes from ``--url``, else ``$SPACEMESH_URL``, else ``http://localhost:8000``;
+``grpc://host:8001`` uses gRPC. Errors are one line on stderr:
+exit code 2 for a bad request or a missing file, 1 when the server or the connection
+failed (after the retries).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, NoReturn
+
+from spacemesh_client import __version__
+from spacemesh_client._formats import MEDIA_TYPES, WRITTEN
+from spacemesh_client.client import DEFAULT_FORMAT, DEFAULT_URL, Client
+from spacemesh_client.errors import (
+    ConnectionFailed,
+    InvalidRequest,
+    NoSurface,
+    SpaceMeshError,
+)
+from spacemesh_client.mesh import Mesh
+from spacemesh_client.retry import RetryPolicy
+
+PROG = "spacemesh-client"
+#: Environment variable of the default URL.
+URL_ENV = "SPACEMESH_URL"
+#: Exit codes.
+EXIT_SERVER, EXIT_USAGE = 1, 2
+
+
+def fail(message: str, code: int = EXIT_USAGE) -> NoReturn:
+    """Print one line to stderr and exit."""
+    print(f"{PROG}: error: {message}", file=sys.stderr)
+    sys.exit(code)
+
+
+def _numbers(text: str, what: str, count: int) -> list[float]:
+    try:
+        values = [float(v) for v in text.replace(" ", "").split(",") if v]
+    except ValueError:
+        fail(f"--{what}: expected {count} comma-separated numbers, got {text!r}")
+    if len(values) != count:
+        fail(f"--{what}: expected {count} comma-separated numbers, got {len(values)}")
+    return values
+
+
+def _indices(text: str, what: str) -> list[int]:
+    """``1,2,5-9`` -> [1, 2, 5, 6, 7, 8, 9]."""
+    out: list[int] = []
+    for part in text.replace(" ", "").split(","):
+        if not part:
+            continue
+        try:
+            if "-" in part[1:]:
+                lo, hi = part.split("-", 1)
+                out.extend(range(int(lo), int(hi) + 1))
+            else:
+                out.append(int(part))
+        except ValueError:
+            fail(f"--{what}: expected indices like 1,2,5-9, got {part!r}")
+    return out
+
+
+def region_of(args: argparse.Namespace) -> dict[str, Any]:
+    """The JSON form of the region given by exactly one region option."""
+    given = [name for name in ("faces", "vertices", "sphere", "box", "region")
+             if getattr(args, name) is not None]
+    if len(given) != 1:
+        fail("give exactly one of --faces, --vertices, --sphere, --box, --region")
+    kind = given[0]
+    text = getattr(args, kind)
+    if kind in ("faces", "vertices"):
+        return {kind: _indices(text, kind)}
+    if kind == "sphere":
+        cx, cy, cz, r = _numbers(text, "sphere", 4)
+        return {"sphere": {"center": [cx, cy, cz], "radius": r}}
+    if kind == "box":
+        values = _numbers(text, "box", 6)
+        return {"box": {"min": values[:3], "max": values[3:]}}
+    try:
+        region = json.loads(text)
+    except ValueError as error:
+        fail(f"--region: not JSON ({error})")
+    if not isinstance(region, dict):
+        fail("--region: expected a JSON object such as {\"faces\": [1, 2]}")
+    return region
+
+
+def _output_format(output: Path, requested: str | None) -> str:
+    """The format to ask the server for: --format, else the output's extension when the
+    server writes it, else PLY (converted when saved)."""
+    if requested:
+        return requested
+    suffix = output.suffix.lower().lstrip(".")
+    return suffix if suffix in MEDIA_TYPES else DEFAULT_FORMAT
+
+
+def _check_output(output: Path) -> None:
+    suffix = output.suffix.lower().lstrip(".")
+    if not suffix:
+        fail(f"{output}: give the output an extension ({', '.join(WRITTEN)})")
+    if not output.parent.exists():
+        fail(f"{output.parent}: no such directory")
+
+
+def _summary(mesh: Mesh, output: Path, seconds: float) -> dict[str, Any]:
+    return {"output": str(output), "format": mesh.format, "seed": mesh.seed,
+            "steps": mesh.steps, "model": mesh.model, "seconds": round(seconds, 3),
+            **mesh.stats.to_dict()}
+
+
+def _report(mesh: Mesh, output: Path, seconds: float, as_json: bool) -> None:
+    if as_json:
+        print(json.dumps(_summary(mesh, output, seconds)))
+        return
+    s = mesh.stats
+    degrees = ", ".join(f"{k}:{v}" for k, v in sorted(s.face_degrees.items()))
+    shape = "closed oriented manifold" if s.closed and s.oriented and s.manifold else (
+        "NOT a closed oriented manifold")
+    print(f"{output}: {s.vertices} vertices, {s.faces} faces ({degrees}), {shape}, "
+          f"genus {s.genus}; seed {mesh.seed}, {mesh.steps} steps, {mesh.model} "
+          f"({seconds:.2f} s)")
+
+
+def _save(mesh: Mesh, output: Path) -> None:
+    try:
+        mesh.save(output)
+    except (ModuleNotFoundError, ValueError) as error:
+        fail(f"{output}: {error}")
+
+
+def _client(args: argparse.Namespace) -> Client:
+    retry = RetryPolicy(attempts=max(1, args.retries + 1))
+    try:
+        return Client(args.url, timeout=args.timeout, retry=retry)
+    except (ValueError, ModuleNotFoundError) as error:
+        fail(str(error))
+
+
+def cmd_generate(args: argparse.Namespace) -> None:
+    output = Path(args.output)
+    _check_output(output)
+    source = Path(args.input)
+    if not source.is_file():
+        fail(f"{source}: no such file")
+    fmt = _output_format(output, args.format)
+    started = time.perf_counter()
+    with _client(args) as client:
+        mesh = client.generate(source, format=fmt, seed=args.seed, steps=args.steps)
+    _save(mesh, output)
+    _report(mesh, output, time.perf_counter() - started, args.json)
+
+
+def cmd_repair(args: argparse.Namespace) -> None:
+    output = Path(args.output)
+    _check_output(output)
+    source = Path(args.mesh)
+    if not source.is_file():
+        fail(f"{source}: no such file")
+    region = region_of(args)
+    fmt = _output_format(output, args.format)
+    started = time.perf_counter()
+    with _client(args) as client:
+        mesh = client.repair(source, region, format=fmt, seed=args.seed, steps=args.steps)
+    _save(mesh, output)
+    _report(mesh, output, time.perf_counter() - started, args.json)
+
+
+def cmd_health(args: argparse.Namespace) -> None:
+    with _client(args) as client:
+        health = client.health()
+    print(json.dumps({"url": args.url, "live": health.live, "ready": health.ready}))
+    if not health.ready:
+        sys.exit(EXIT_SERVER)
+
+
+def cmd_info(args: argparse.Namespace) -> None:
+    with _client(args) as client:
+        info = client.model_info(args.name)
+    print(json.dumps(info, indent=2))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser (every command takes the connection options)."""
+    common = argparse.ArgumentParser(add_help=False)
+    connection = common.add_argument_group("connection")
+    connection.add_argument("--url", default=os.environ.get(URL_ENV) or DEFAULT_URL,
+                            help=f"http(s)://host:port (REST) or grpc://host:port (gRPC); "
+                            f"default ${URL_ENV} or {DEFAULT_URL}")
+    connection.add_argument("--timeout", type=float, default=300.0,
+                            help="seconds one attempt may take (default 300)")
+    connection.add_argument("--retries", type=int, default=4,
+                            help="retries on connection errors, 503 and 429 (default 4)")
+    options = argparse.ArgumentParser(add_help=False)
+    options.add_argument("-o", "--output", required=True,
+                         help=f"output mesh; the extension picks the format ({', '.join(WRITTEN)}"
+                         ", or any trimesh writes)")
+    options.add_argument("--format", choices=sorted(MEDIA_TYPES),
+                         help="format to ask the server for (default: the output's extension)")
+    options.add_argument("--seed", type=int, help="random seed (the same seed, the same mesh)")
+    options.add_argument("--steps", type=int, help="sampler steps (default: the model's)")
+    options.add_argument("--json", action="store_true", help="print a JSON summary")
+
+    parser = argparse.ArgumentParser(prog=PROG, description="Client of the SpaceMesh service: "
+                                     "point cloud in, oriented manifold polygon mesh out.")
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    gen = commands.add_parser("generate", parents=[options, common],
+                              help="generate a mesh from a point cloud file")
+    gen.add_argument("input", help="point cloud (PLY, XYZ, PTS, TXT, NPY, NPZ, OBJ, ...)")
+    gen.set_defaults(run=cmd_generate)
+
+    rep = commands.add_parser("repair", parents=[options, common],
+                              help="regenerate a region of a mesh")
+    rep.add_argument("mesh", help="mesh file (OBJ, PLY, OFF, STL, GLB, glTF)")
+    region = rep.add_argument_group("region (exactly one)")
+    region.add_argument("--faces", help="face indices, e.g. 3,4,10-20")
+    region.add_argument("--vertices", help="vertex indices: every face using one of them")
+    region.add_argument("--sphere", help="cx,cy,cz,r: every face with a vertex inside")
+    region.add_argument("--box", help="x0,y0,z0,x1,y1,z1: every face with a vertex inside")
+    region.add_argument("--region", help='the region as JSON, e.g. {"faces": [1, 2]}')
+    rep.set_defaults(run=cmd_repair)
+
+    health = commands.add_parser("health", parents=[common],
+                                 help="liveness and readiness (exit 1 when not ready)")
+    health.set_defaults(run=cmd_health)
+
+    info = commands.add_parser("info", parents=[common], help="model metadata (REST)")
+    info.add_argument("name", nargs="?", help="model name (default: the server's)")
+    info.set_defaults(run=cmd_info)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """Entry point of ``spacemesh-client``."""
+    args = build_parser().parse_args(argv)
+    try:
+        args.run(args)
+    except ConnectionFailed as error:
+        fail(f"{error} (is the server running? `spacemesh serve` starts one)", EXIT_SERVER)
+    except NoSurface as error:
+        fail(f"{error} (try another --seed)", EXIT_SERVER)
+    except InvalidRequest as error:
+        fail(str(error), EXIT_USAGE)
+    except SpaceMeshError as error:
+        fail(str(error), EXIT_SERVER)
+    except (OSError, ValueError) as error:
+        fail(str(error), EXIT_USAGE)
+    except KeyboardInterrupt:
+        fail("interrupted", 130)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -1,0 +1,185 @@
+"""What a request returns: a :class:`Mesh` (the file the server sent, its vertices and
+polygon faces, and the server's statistics) and its :class:`MeshStats`."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spacemesh_client import _formats
+from spacemesh_client._formats import MEDIA_TYPES, WRITTEN, FormatError, read_mesh
+
+#: Prefix of the statistics headers of ``POST /generate``.
+HEADER_PREFIX = "x-spacemesh-"
+
+
+def _bool(text: str) -> bool:
+    return text.strip().lower() == "true"
+
+
+@dataclass(frozen=True)
+class MeshStats:
+    """The server's checks of a mesh (``X-SpaceMesh-*`` headers, ``MeshStats`` in gRPC).
+
+    Attributes
+    ----------
+    vertices, faces, edges : int
+    face_degrees : dict of int to int
+        Face size (3: triangle, 4: quad...) -> number of faces.
+    manifold, closed, oriented : bool
+    components : int
+    genus : int
+        Sum of the components' genera.
+    """
+
+    vertices: int
+    faces: int
+    edges: int
+    face_degrees: dict[int, int]
+    manifold: bool
+    closed: bool
+    oriented: bool
+    components: int
+    genus: int
+
+    @classmethod
+    def from_headers(cls, headers: Mapping[str, str]) -> MeshStats:
+        """From the ``X-SpaceMesh-*`` response headers (case-insensitive mapping)."""
+        h = {k.lower(): v for k, v in headers.items()}
+
+        def get(name: str) -> str:
+            return h.get(HEADER_PREFIX + name, "")
+
+        degrees = {}
+        for item in get("face-degrees").split(","):
+            if ":" in item:
+                size, count = item.split(":", 1)
+                degrees[int(size)] = int(count)
+        return cls(
+            vertices=int(get("vertices") or 0), faces=int(get("faces") or 0),
+            edges=int(get("edges") or 0), face_degrees=degrees,
+            manifold=_bool(get("manifold")), closed=_bool(get("closed")),
+            oriented=_bool(get("oriented")), components=int(get("components") or 0),
+            genus=int(get("genus") or 0),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data (face degrees keyed by strings, as in the JSON format)."""
+        return {**self.__dict__, "face_degrees": {str(k): v for k, v in
+                                                  sorted(self.face_degrees.items())}}
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """A mesh from the service.
+
+    ``data`` holds the file exactly as the server sent it; ``vertices`` and ``faces`` are
+    read from it on first use. GLB and glTF hold triangles (the server triangulates
+    them); ``json``, ``obj``, ``ply`` and ``off`` keep the polygons.
+
+    Attributes
+    ----------
+    data : bytes
+        The encoded mesh (the REST response body, or ``MeshReply.mesh``).
+    format : str
+        ``glb``, ``gltf``, ``obj``, ``ply``, ``off`` or ``json``.
+    stats : MeshStats
+    seed : int
+        The seed used: the same input, seed, steps and model give the same mesh.
+    steps : int
+        Sampler steps used.
+    sampler : str
+    model : str
+        ``name/version`` of the model.
+    timings : dict of str to float
+        Seconds per server stage (``queue``, ``encoder``, ``sampler``...).
+    batch_size : int
+        How many requests shared this one's inference batch.
+    """
+
+    data: bytes = field(repr=False)
+    format: str
+    stats: MeshStats
+    seed: int | None = None
+    steps: int | None = None
+    sampler: str = ""
+    model: str = ""
+    timings: dict[str, float] = field(default_factory=dict, repr=False)
+    batch_size: int = 0
+
+    @property
+    def media_type(self) -> str:
+        """The media type of :attr:`data`."""
+        return MEDIA_TYPES.get(self.format, "application/octet-stream")
+
+    @cached_property
+    def _arrays(self) -> tuple[np.ndarray, list[np.ndarray]]:
+        return read_mesh(self.data, self.format)
+
+    @property
+    def vertices(self) -> np.ndarray:
+        """(V, 3) float64 vertex positions, in the input's frame."""
+        return self._arrays[0]
+
+    @property
+    def faces(self) -> list[np.ndarray]:
+        """Polygon faces: one int64 array of vertex indices per face, counter-clockwise
+        seen from outside (triangles for ``glb``/``gltf``)."""
+        return self._arrays[1]
+
+    @property
+    def face_sizes(self) -> np.ndarray:
+        """(F,) number of vertices of each face."""
+        return np.array([len(f) for f in self.faces], dtype=np.int64)
+
+    def triangles(self) -> np.ndarray:
+        """(T, 3) int64 triangles: each polygon fanned from its first vertex (orientation
+        kept; exact for convex faces)."""
+        return _formats.fan_triangles(self.faces)
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the mesh; the file's extension picks the format.
+
+        The same format as :attr:`format` writes :attr:`data` unchanged. Otherwise the
+        client writes ``json``, ``obj``, ``off`` and ``ply`` (polygons kept) and ``glb``
+        and ``gltf`` (triangulated) itself; any other format trimesh writes (``stl``...)
+        goes through :meth:`to_trimesh`.
+
+        Parameters
+        ----------
+        path : path
+
+        Returns
+        -------
+        Path
+        """
+        path = Path(path)
+        fmt = path.suffix.lower().lstrip(".")
+        if fmt == self.format:
+            path.write_bytes(self.data)
+        elif fmt in WRITTEN:
+            path.write_bytes(_formats.write_mesh(self.vertices, self.faces, fmt))
+        elif not fmt:
+            raise FormatError(f"{path}: give the file an extension (.{self.format}, .obj...)")
+        else:
+            self.to_trimesh().export(str(path))
+        return path
+
+    def to_trimesh(self) -> Any:
+        """A ``trimesh.Trimesh`` (triangulated, not processed: vertex order kept).
+
+        Needs the optional dependency: ``pip install spacemesh-client[trimesh]``.
+        """
+        try:
+            import trimesh
+        except ModuleNotFoundError:
+            raise ModuleNotFoundError(
+                "Mesh.to_trimesh needs trimesh: pip install 'spacemesh-client[trimesh]'"
+            ) from None
+        return trimesh.Trimesh(vertices=self.vertices, faces=self.triangles(), process=False)
