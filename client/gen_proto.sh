@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PYTHON="${PYTHON:-.venv/bin/python}"
-OUT=client/spacemesh_client/_pb
+OUT=client/spacemesh_client/pb
 "$PYTHON" -m grpc_tools.protoc -I proto --python_out="$OUT" --pyi_out="$OUT" \
     --grpc_python_out="$OUT" proto/spacemesh.proto
 # protoc writes a top-level import; make it relative to the package.

@@ -37,6 +37,7 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--steps", type=int, default=None)
     parser.add_argument("--gallery", type=int, default=6)
+    parser.add_argument("--title", default="SpaceMesh evaluation: real meshes")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args()
     manifest = args.meshes / "manifest.csv"

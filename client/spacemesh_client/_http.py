@@ -51,13 +51,14 @@ class Call:
     method: str
     path: str
     params: dict[str, Any] = field(default_factory=dict)
-    json: Any = None
+    content: bytes | None = None
+    headers: dict[str, str] | None = None
     files: dict[str, tuple[str, bytes, str]] | None = None
     data: dict[str, str] | None = None
 
     def kwargs(self) -> dict[str, Any]:
         out: dict[str, Any] = {"method": self.method, "url": self.path}
-        for name in ("params", "json", "files", "data"):
+        for name in ("params", "content", "headers", "files", "data"):
             value = getattr(self, name)
             if value:
                 out[name] = value
@@ -79,7 +80,11 @@ def generate_request(source: Upload | Arrays, fmt: str | None, seed: int | None,
     body: dict[str, Any] = {"points": source.points.tolist()}
     if source.normals is not None:
         body["normals"] = source.normals.tolist()
-    return Call("POST", "/generate", params, json=body)
+    # Python's JSON: exact floats (shortest repr), and NaN/Infinity written as such, so the
+    # server, not the client, decides what is wrong with them (422 non-finite).
+    content = json.dumps(body, separators=(",", ":")).encode()
+    return Call("POST", "/generate", params, content=content,
+                headers={"content-type": "application/json"})
 
 
 def repair_request(mesh: Upload, region: Mapping[str, Any], fmt: str | None, seed: int | None,

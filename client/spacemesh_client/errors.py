@@ -376,7 +376,8 @@ def error_from_http(status: int, headers: Mapping[str, str], content: bytes) -> 
     -------
     SpaceMeshError
     """
-    retry_after = parse_retry_after(headers.get("retry-after"))
+    lower = {k.lower(): v for k, v in headers.items()}
+    retry_after = parse_retry_after(lower.get("retry-after"))
     problem: Any = None
     if content:
         try:

@@ -51,7 +51,7 @@ def _modules() -> tuple[Any, Any, Any]:
     try:
         import grpc
 
-        from spacemesh_client._pb import spacemesh_pb2, spacemesh_pb2_grpc
+        from spacemesh_client.pb import spacemesh_pb2, spacemesh_pb2_grpc
     except ModuleNotFoundError as error:
         raise ModuleNotFoundError(
             f"the gRPC transport needs {error.name}: pip install 'spacemesh-client[grpc]'"

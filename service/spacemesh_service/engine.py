@@ -117,6 +117,8 @@ class Engine:
         except Exception as error:
             self.state, self.error = "failed", f"{type(error).__name__}: {error}"
             raise
+        if self.state != "loading":  # drained while loading
+            return
         s = self.settings
         self.batcher = Batcher(self.generator.generate_batch, max_batch_size=s.max_batch_size,
                                max_delay_s=s.max_batch_delay_ms / 1000, queue_size=s.queue_size,
@@ -144,7 +146,7 @@ class Engine:
 
     def begin_drain(self) -> None:
         """Report not ready and refuse new requests (SIGTERM)."""
-        if self.state == "ready":
+        if self.state in ("loading", "ready"):
             self.state = "draining"
             self.metrics.ready.set(0)
 

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from spacemesh.io.errors import MeshFormatError, UnsupportedFormatError
+from spacemesh.io.errors import MeshFormatError, NonFiniteError, UnsupportedFormatError
 from spacemesh.io.points import SUPPORTED_POINTS_READ, load_points
 from spacemesh_service import problems as P
 from spacemesh_service.outputs import OUTPUT_FORMATS
@@ -33,8 +33,6 @@ DEGENERACY_TOLERANCE = 1e-6
 MAX_SEED = 2**63 - 1
 #: Seeds picked by the server when a request gives none lie in ``[0, 2**31)``.
 RANDOM_SEED_BITS = 31
-#: How the readers phrase a non-finite coordinate (see spacemesh.io.errors.check_vertices).
-_NON_FINITE_MESSAGE = "NaN or infinite"
 #: Point-cloud upload formats (also reported by the model metadata).
 INPUT_FORMATS: tuple[str, ...] = SUPPORTED_POINTS_READ
 
@@ -169,9 +167,9 @@ def read_upload(data: bytes, filename: str | None) -> tuple[np.ndarray, np.ndarr
         points, normals = load_points(data, file_type=source)
     except UnsupportedFormatError as error:
         raise Problem(P.UNSUPPORTED_FORMAT, str(error)) from None
+    except NonFiniteError as error:
+        raise Problem(P.NON_FINITE, str(error)) from None
     except MeshFormatError as error:
-        if _NON_FINITE_MESSAGE in str(error):
-            raise Problem(P.NON_FINITE, str(error)) from None
         raise Problem(P.MALFORMED_INPUT, str(error)) from None
     return points, normals, source
 

@@ -59,11 +59,11 @@ def evaluate(
     progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Progress bar.")
                         ] = True,
 ) -> None:
-    """Evaluate a model against PSR, PSR* and ball pivoting; write tables, CSV and PNGs.
+    """Evaluate a model against PSR, PSR* and ball pivoting on the same inputs.
 
-    Writes OUT/table.md (the paper's Table 1 and the quality statistics), per_shape.csv,
-    summary.json, histograms.png (edge lengths, corner angles, self-intersections, face
-    degrees) and gallery.png (input points, ours, PSR*, ground truth).
+    Writes table.md (Table 1 and quality statistics), per_shape.csv and summary.json.
+
+    Also histograms.png (Fig. 9) and gallery.png (points, ours, PSR*, ground truth).
     """
     from spacemesh.evaluate.runner import pin_threads
 

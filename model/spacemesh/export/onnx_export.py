@@ -8,6 +8,9 @@ The sampler loop is not in any graph: the denoiser graph is one step.
 
 from __future__ import annotations
 
+import contextlib
+import io
+import logging
 import warnings
 from pathlib import Path
 
@@ -90,9 +93,26 @@ def example_inputs(model: SpaceMeshModel, batch: int = 2) -> dict[str, tuple]:
     }
 
 
+#: Loggers of the exporter that report routine events as warnings.
+_QUIET_LOGGERS = ("torch.onnx", "onnx_ir", "onnxscript")
+
+
 def _export(module: nn.Module, args: tuple, path: Path, input_names, output_names,
             dynamic_shapes, opset: int) -> None:
-    with warnings.catch_warnings():
+    loggers = [logging.getLogger(name) for name in _QUIET_LOGGERS]
+    levels = [logger.level for logger in loggers]
+    for logger in loggers:
+        logger.setLevel(logging.ERROR)
+    try:
+        _export_quietly(module, args, path, input_names, output_names, dynamic_shapes, opset)
+    finally:
+        for logger, level in zip(loggers, levels, strict=True):
+            logger.setLevel(level)
+
+
+def _export_quietly(module: nn.Module, args: tuple, path: Path, input_names, output_names,
+                    dynamic_shapes, opset: int) -> None:
+    with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
         warnings.simplefilter("ignore")
         program = torch.onnx.export(
             module, args, dynamo=True, opset_version=opset, external_data=False,

@@ -20,6 +20,10 @@ class UnsupportedFormatError(MeshFormatError):
     """A file type (extension) that no reader or writer handles."""
 
 
+class NonFiniteError(MeshFormatError):
+    """A well-formed file whose coordinates include NaN or infinity."""
+
+
 def decode_text(data: bytes, fmt: str) -> str:
     """Decode a text format as UTF-8 (tolerating a BOM), falling back to Latin-1.
 
@@ -72,7 +76,7 @@ def check_vertices(vertices: FloatArray, fmt: str, what: str = "vertex") -> Floa
     if not finite.all():
         bad = int(np.flatnonzero(~finite)[0])
         n_bad = int((~finite).sum())
-        raise MeshFormatError(
+        raise NonFiniteError(
             f"{fmt}: {what} {bad} has a NaN or infinite coordinate "
             f"({n_bad} {what} rows are not finite)"
         )

@@ -1,0 +1,114 @@
+"""Every problem type the real server answers becomes its typed exception, over REST and
+gRPC alike; the classes mirror ``spacemesh_service.problems`` one to one."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from spacemesh_client import errors as E
+from spacemesh_service import problems as P
+
+pytestmark = pytest.mark.slow
+
+
+def test_every_problem_type_of_the_service_has_its_class():
+    assert set(P.KINDS) <= set(E.PROBLEM_TYPES)
+    for slug, kind in P.KINDS.items():
+        cls = E.PROBLEM_TYPES[slug]
+        assert cls.slug == slug and kind.type == E.TYPE_BASE + slug
+        assert cls.retryable == (kind.status == 503), slug
+    assert E.TYPE_BASE == P.TYPE_BASE and E.PROBLEM_MEDIA_TYPE == P.PROBLEM_MEDIA_TYPE
+
+
+def test_region_error_kinds_have_classes():
+    region = pytest.importorskip("spacemesh.repair.region")
+    assert set(region.ERROR_KINDS) <= set(E.PROBLEM_TYPES)
+    assert all(issubclass(E.PROBLEM_TYPES[k], E.RegionError) for k in region.ERROR_KINDS)
+
+
+def test_unknown_types_are_the_base_class():
+    error = E.error_from_problem({"type": "https://example.com/teapot", "title": "Teapot",
+                                  "status": 418, "detail": "short and stout", "tea": 1})
+    assert type(error) is E.SpaceMeshError
+    assert (error.type, error.status, error.detail, error.extra) == (
+        "https://example.com/teapot", 418, "short and stout", {"tea": 1})
+    assert type(E.error_from_http(502, {}, b"<html>Bad Gateway</html>")) is E.SpaceMeshError
+    proxy = E.error_from_http(503, {"Retry-After": "7"}, b"busy")
+    assert type(proxy) is E.Unavailable and proxy.retry_after == 7.0 and proxy.retryable
+    assert type(E.error_from_http(429, {}, b"")) is E.RateLimited
+
+
+def expect(client, cls, points, **kwargs):
+    with pytest.raises(cls) as caught:
+        client.generate(points, **kwargs)
+    error = caught.value
+    assert type(error) is cls, repr(error)
+    assert error.type == E.TYPE_BASE + cls.slug and error.detail
+    return error
+
+
+def test_input_errors(client, case):
+    rng = np.random.default_rng(2)
+    limit = expect(client, E.TooFewPoints, case.points[:10])
+    assert limit.status == 422
+    expect(client, E.TooManyPoints, rng.standard_normal((5001, 3)))
+    nan = case.points.copy()
+    nan[5, 2] = np.nan
+    expect(client, E.NonFinite, nan)
+    flat = np.hstack([rng.standard_normal((40, 2)), np.full((40, 1), 3.0)])
+    assert "coplanar" in expect(client, E.DegenerateGeometry, flat).detail
+    expect(client, E.InvalidNormals, case.points, normals=case.points[:5])
+    expect(client, E.InvalidParameter, case.points, format="stl")
+    expect(client, E.InvalidParameter, case.points, steps=100_000)
+    expect(client, E.MalformedInput, b"ply\nformat ascii 1.0\nelement vertex 3\nend_header\n",
+           filename="c.ply")
+    expect(client, E.UnsupportedFormat, bytes(range(256)) * 10, filename="c.docx")
+    expect(client, E.PayloadTooLarge, b"0 0 0\n" * 400_000, filename="c.xyz")
+    assert isinstance(limit, E.InvalidRequest)
+
+
+def test_rest_problems_carry_their_extension_members(rest_url, case):
+    from spacemesh_client import Client, RetryPolicy
+
+    with Client(rest_url, retry=RetryPolicy.never()) as client:
+        error = expect(client, E.TooFewPoints, case.points[:10])
+    assert error.extra == {"limit": 16, "points": 10} and error.instance == "/generate"
+    assert error.title == P.TOO_FEW_POINTS.title
+
+
+def test_no_surface(client, case):
+    if case.empty_seed is None:
+        pytest.skip("the tiny model made a surface for every seed tried")
+    error = expect(client, E.NoSurface, case.points, seed=case.empty_seed)
+    assert not isinstance(error, E.InvalidRequest)
+
+
+def test_model_not_found_and_repair(rest_url, grpc_url, case):
+    from spacemesh_client import Client, RetryPolicy
+
+    with Client(rest_url, retry=RetryPolicy.never()) as client:
+        with pytest.raises(E.ModelNotFound) as caught:
+            client.model_info("no-such-model")
+        assert caught.value.status == 404 and isinstance(caught.value, E.NotFound)
+        mesh = client.generate(case.points, seed=case.good_seed, format="obj")
+        try:
+            repaired = client.repair(mesh, [0])
+        except (E.Unimplemented, E.RegionError) as error:  # before/after repair lands
+            assert error.status in (501, 422)
+        else:
+            assert repaired.stats.closed
+    with Client(grpc_url, retry=RetryPolicy.never()) as client:
+        with pytest.raises(E.Unimplemented, match="REST"):
+            client.model_info()
+        with pytest.raises(ValueError, match="face indices"):
+            client.repair(mesh, {"sphere": {"center": [0, 0, 0], "radius": 1}})
+
+
+def test_local_mistakes_are_ordinary_python_errors(client, tmp_path):
+    with pytest.raises(FileNotFoundError, match="no such file"):
+        client.generate(tmp_path / "missing.ply")
+    with pytest.raises(TypeError):
+        client.generate(object())
+    with pytest.raises(ValueError, match="normals"):
+        client.generate(tmp_path / "missing.ply", normals=[[0, 0, 1]])
