@@ -384,7 +384,7 @@ def error_from_http(status: int, headers: Mapping[str, str], content: bytes) -> 
             problem = json.loads(content)
         except (ValueError, UnicodeDecodeError):
             problem = None
-    if not isinstance(problem, dict) or "type" not in problem and "title" not in problem:
+    if not isinstance(problem, dict) or ("type" not in problem and "title" not in problem):
         text = content.decode("utf-8", "replace").strip() if content else ""
         problem = {"title": f"HTTP {status}", "detail": " ".join(text.split())[:300]}
     return error_from_problem(problem, status=status, retry_after=retry_after)
@@ -394,7 +394,41 @@ __all__ = [
     "PROBLEM_MEDIA_TYPE",
     "PROBLEM_TYPES",
     "TYPE_BASE",
-    *sorted(cls.__name__ for cls in [SpaceMeshError, *_subclasses(SpaceMeshError)]),
+    "ClientTimeout",
+    "ConnectionFailed",
+    "DefectsOutsideRegion",
+    "DegenerateGeometry",
+    "EmptyRegion",
+    "InternalError",
+    "InvalidNormals",
+    "InvalidOutput",
+    "InvalidParameter",
+    "InvalidRegion",
+    "InvalidRequest",
+    "MalformedInput",
+    "MethodNotAllowed",
+    "ModelNotFound",
+    "NoSurface",
+    "NonFinite",
+    "NormalsRequired",
+    "NotFound",
+    "NotReady",
+    "PayloadTooLarge",
+    "QueueFull",
+    "RateLimited",
+    "RegionError",
+    "RegionTooLarge",
+    "ServerError",
+    "ShuttingDown",
+    "SpaceMeshError",
+    "Timeout",
+    "TooFewPoints",
+    "TooManyPoints",
+    "TransportError",
+    "Unavailable",
+    "Unimplemented",
+    "UnsupportedFormat",
+    "WholeMeshRegion",
     "error_from_http",
     "error_from_problem",
     "parse_retry_after",

@@ -41,3 +41,20 @@ def test_paper_loss_alone_also_recovers():
     """Eq. 3 exactly (no false-positive weighting) still fits a small mesh."""
     result = fit_mesh(icosphere(1), FitConfig(max_iters=400, threads=1, false_positive_weight=None))
     assert result.exact, result.summary()
+
+
+def test_high_degree_poles_are_recovered():
+    """A bicone whose two apexes have degree 80, above the decode's default degree bound."""
+    import numpy as np
+
+    from spacemesh.mesh import PolygonMesh
+
+    n = 80
+    a = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    ring = np.c_[np.cos(a), np.sin(a), np.zeros(n)]
+    v = np.vstack([ring, [[0, 0, 1], [0, 0, -1]]])
+    top, bottom = n, n + 1
+    faces = [[i, (i + 1) % n, top] for i in range(n)] + [[(i + 1) % n, i, bottom] for i in range(n)]
+    mesh = PolygonMesh.from_faces(v, faces)
+    result = fit_mesh(mesh, FitConfig(max_iters=600, threads=1))
+    assert result.exact, result.summary()

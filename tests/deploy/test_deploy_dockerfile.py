@@ -92,8 +92,8 @@ def test_the_onnxruntime_argument_picks_a_requirements_file(variant):
 
 def test_the_build_context_holds_what_the_dockerfile_copies():
     ignore = (ROOT / ".dockerignore").read_text().splitlines()
-    assert ignore[[i for i, line in enumerate(ignore) if line.strip() and
-                   not line.startswith("#")][0]] == "*"  # an allowlist
+    assert ignore[next(i for i, line in enumerate(ignore) if line.strip() and
+                   not line.startswith("#"))] == "*"  # an allowlist
     allowed = {line[1:].rstrip("/") for line in ignore if line.startswith("!")}
     copied = set()
     for line in re.sub(r"\\\n\s*", " ", DOCKERFILE.read_text()).splitlines():

@@ -55,8 +55,8 @@ def wait_for_port(port: int, process: subprocess.Popen, timeout: float = 30) -> 
 def requests_served(server, protocol: str) -> float:
     """Generate requests this replica answered with 200 / OK."""
     text = server.server.engine.metrics.render().decode()
-    pattern = (r'^spacemesh_requests_total\{protocol="%s",route="[^"]*[Gg]enerate",'
-               r'status="(?:200|OK)"\} (\S+)$') % protocol
+    pattern = (rf'^spacemesh_requests_total\{{protocol="{protocol}",route="[^"]*[Gg]enerate",'
+               r'status="(?:200|OK)"\} (\S+)$')
     return sum(float(v) for v in re.findall(pattern, text, re.M))
 
 

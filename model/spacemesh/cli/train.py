@@ -1,6 +1,7 @@
 """``spacemesh train`` and ``spacemesh export``: train the networks, write a model repository.
 
-Several GPUs or nodes: ``torchrun --nproc_per_node K -m spacemesh.cli train ...``.
+Several GPUs or nodes: ``torchrun --nproc_per_node K $(which spacemesh) train ...`` (one
+process per GPU; DistributedDataParallel, NCCL on GPUs and gloo on CPUs).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Data-parallel training through ``torchrun``: process group, device, DDP wrapper.
 
-``torchrun --nproc_per_node K -m spacemesh.cli train ...`` sets ``RANK``, ``WORLD_SIZE``,
+``torchrun --nproc_per_node K $(which spacemesh) train ...`` sets ``RANK``, ``WORLD_SIZE``,
 ``LOCAL_RANK`` (and the rendezvous variables); each process then trains on its own
 random batches and DistributedDataParallel averages the gradients. CUDA processes use
 NCCL and one GPU each (``LOCAL_RANK``); CPU processes use gloo. Without those variables
