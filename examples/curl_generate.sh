@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # Point cloud in, mesh out, with curl: upload examples/points.ply, get mesh.glb back.
 # The mesh's statistics come back as X-SpaceMesh-* headers; errors as problem+json.
-#   bash examples/curl_generate.sh [POINTS]     (SPACEMESH_URL, SEED to change)
+# Run from the repository root:  bash examples/curl_generate.sh [POINTS]
 set -euo pipefail
 URL="${SPACEMESH_URL:-http://localhost:8000}"
-POINTS="${1:-$(dirname "$0")/points.ply}"
+POINTS="${1:-examples/points.ply}"
 
 curl -sS --fail-with-body "$URL/v2/health/ready"; echo
 curl -sS --fail-with-body -X POST "$URL/generate?format=glb&seed=${SEED:-7}" \

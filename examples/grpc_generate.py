@@ -1,7 +1,7 @@
 """Point cloud in, mesh out, over gRPC with the stubs of proto/spacemesh.proto
 (pip install -e 'client[grpc]'), streaming one progress event per diffusion step.
 
-    python examples/grpc_generate.py [POINTS]     (SPACEMESH_GRPC_TARGET, SEED to change)
+Run from the repository root:  python examples/grpc_generate.py [POINTS]
 """
 
 import os
@@ -14,7 +14,7 @@ from spacemesh_client.pb import spacemesh_pb2 as pb
 from spacemesh_client.pb import spacemesh_pb2_grpc as pb_grpc
 
 target = os.environ.get("SPACEMESH_GRPC_TARGET", "localhost:8001")
-path = Path(sys.argv[1] if len(sys.argv) > 1 else Path(__file__).with_name("points.ply"))
+path = Path(sys.argv[1] if len(sys.argv) > 1 else "examples/points.ply")
 request = pb.GenerateRequest(file=pb.PointCloudFile(data=path.read_bytes(), filename=path.name),
                              format="glb", seed=int(os.environ.get("SEED", 7)))
 
@@ -29,7 +29,6 @@ with grpc.insecure_channel(target) as channel:
     except grpc.RpcError as error:  # the problem type is in the trailing metadata
         problem = dict(error.trailing_metadata() or ())
         sys.exit(f"{error.code().name}: {error.details()} [{problem.get('problem-type')}]")
-
 Path("mesh.glb").write_bytes(reply.mesh)
 print(f"mesh.glb: {reply.stats.vertices} vertices, {reply.stats.faces} faces, "
       f"closed={reply.stats.closed}, seed {reply.seed}, model {reply.model_name}")

@@ -37,6 +37,7 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--steps", type=int, default=None)
     parser.add_argument("--gallery", type=int, default=6)
+    parser.add_argument("--psr-star-target", choices=("ours", "gt"), default="ours")
     parser.add_argument("--title", default="SpaceMesh evaluation: real meshes")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args()
@@ -76,6 +77,7 @@ def main() -> int:
         steps=args.steps,
         gallery=args.gallery,
         threads=args.threads,
+        psr_star_target=args.psr_star_target,
         progress=not args.no_progress,
     )
     result.config.update(
@@ -83,9 +85,7 @@ def main() -> int:
         data=f"../shared/meshes ({', '.join(sorted(wanted))})",
     )
     command = "python experiments/eval_real_meshes.py " + shlex.join(sys.argv[1:])
-    paths_out = write_report(
-        result, args.out, title="SpaceMesh evaluation: real meshes", command=command.strip()
-    )
+    paths_out = write_report(result, args.out, title=args.title, command=command.strip())
     sections = [paths_out["table"].read_text()]
     for category in sorted(wanted):
         rows = [r for r in result.rows if r["category"] == category]

@@ -47,6 +47,8 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh.repair.patch import sub_mesh
+
 ROOT = Path(__file__).resolve().parents[1]
 MESHES = ROOT.parent / "shared" / "meshes"
 METHODS = ("ours", "meshfix", "trimesh", "hole")
@@ -103,12 +105,6 @@ def face_keys(mesh, decimals: int = 6) -> list[tuple]:
         start = min(range(len(pts)), key=pts.__getitem__)
         keys.append(tuple(pts[start:] + pts[:start]))
     return keys
-
-
-def sub_mesh(mesh, faces: np.ndarray):
-    from spacemesh.mesh import PolygonMesh
-
-    return PolygonMesh.from_faces(mesh.vertices, [mesh.faces[f] for f in faces])
 
 
 def cut_mesh(mesh, region: np.ndarray):
@@ -226,6 +222,8 @@ def evaluate_case(shape_id: str, category: str, mesh, region_json: dict, generat
         rows.append(row)
     outputs["gt"] = mesh
     outputs["_unit"] = (centre, scale)
+    outputs["_region_centre"] = mesh.vertices[
+        mesh.face_indices[region[mesh.face_of_corner]]].mean(axis=0)
     return rows, outputs
 
 
@@ -361,15 +359,29 @@ def write_report(rows: list[dict], config: dict, out: Path, gallery: Path | None
     return path
 
 
+def facing(direction: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """(3, 3) rotation taking the unit vector ``direction`` to ``target`` (Rodrigues)."""
+    a = direction / max(np.linalg.norm(direction), 1e-12)
+    b = target / np.linalg.norm(target)
+    v, c = np.cross(a, b), float(a @ b)
+    if np.linalg.norm(v) < 1e-9:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + k + k @ k / (1 + c)
+
+
 def render(examples: list[tuple[str, dict]], path: Path) -> Path | None:
-    from spacemesh.evaluate.gallery import GalleryRow, render_gallery
+    """Each example turned so that its region faces the camera."""
+    from spacemesh.evaluate.gallery import GalleryRow, render_gallery, view_direction
     from spacemesh.metrics.sampling import apply_normalisation
 
     rows = []
     for title, outputs in examples:
         centre, scale = outputs["_unit"]
+        turn = facing(outputs["_region_centre"] - centre, view_direction())
         meshes = {k: apply_normalisation(m, centre, scale) for k, m in outputs.items()
                   if not k.startswith("_") and m is not None}
+        meshes = {k: m.with_vertices(m.vertices @ turn.T) for k, m in meshes.items()}
         rows.append(GalleryRow(title[:28], np.zeros((0, 3)), meshes))
     if not rows:
         return None

@@ -10,3 +10,4 @@ OUT=service/spacemesh_service/pb
 # protoc writes a top-level import; make it relative to the package.
 sed -i 's/^import spacemesh_pb2 as /from . import spacemesh_pb2 as /' "$OUT/spacemesh_pb2_grpc.py"
 echo "wrote $OUT/spacemesh_pb2.py, spacemesh_pb2.pyi, spacemesh_pb2_grpc.py"
+bash client/gen_proto.sh

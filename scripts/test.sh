@@ -6,8 +6,14 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 VENV="${SPACEMESH_TEST_VENV:-.venv-test}"
 PYTHON="${PYTHON:-python3}"
+# nginx lets tests/deploy check the compose load balancer for real (skipped without it)
+if ! command -v nginx >/dev/null 2>&1 && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+    (apt-get update -qq && apt-get install -y -qq nginx-light >/dev/null 2>&1) \
+        || echo "note: nginx could not be installed; the nginx test will be skipped"
+fi
 [ -x "$VENV/bin/python" ] || "$PYTHON" -m venv "$VENV"
 "$VENV/bin/python" -m pip install -q --upgrade pip
 "$VENV/bin/python" -m pip install -q "torch==2.13.0"
-"$VENV/bin/python" -m pip install -q -e "model[geometry,train,test]" -e service -e client
+"$VENV/bin/python" -m pip install -q -e "model[geometry,train,test]" -e service -e "client[trimesh,grpc]" \
+    -r deploy/requirements-check.txt
 exec "$VENV/bin/python" -m pytest -q "$@"

@@ -16,6 +16,8 @@ pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples"
+#: The scripts' default input (they take it relative to the repository root).
+POINTS = EXAMPLES / "points.ply"
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +26,7 @@ def seed(generator) -> int:
     (the shipped model makes one for the scripts' default seed)."""
     from spacemesh.io.points import load_points
 
-    points, normals = load_points(EXAMPLES / "points.ply")
+    points, normals = load_points(POINTS)
     for candidate in range(40):
         if generator.generate(points, normals=normals, seed=candidate).mesh.n_faces:
             return candidate
@@ -42,7 +44,7 @@ def run_example(command: list[str], cwd: Path, **env: str) -> str:
 def test_curl_generate(rest_url, seed, tmp_path):
     if shutil.which("curl") is None:
         pytest.skip("no curl")
-    out = run_example(["bash", str(EXAMPLES / "curl_generate.sh")], tmp_path,
+    out = run_example(["bash", str(EXAMPLES / "curl_generate.sh"), str(POINTS)], tmp_path,
                       SPACEMESH_URL=rest_url, SEED=str(seed))
     assert '{"ready":true}' in out and "x-spacemesh-closed: true" in out.lower()
     assert (tmp_path / "mesh.glb").read_bytes()[:4] == b"glTF"
@@ -50,14 +52,15 @@ def test_curl_generate(rest_url, seed, tmp_path):
 
 def test_python_client(rest_url, grpc_url, seed, tmp_path):
     for url in (rest_url, grpc_url):
-        out = run_example([sys.executable, str(EXAMPLES / "python_client.py")], tmp_path,
+        out = run_example([sys.executable, str(EXAMPLES / "python_client.py"), str(POINTS)],
+                          tmp_path,
                           SPACEMESH_URL=url, SEED=str(seed))
         assert "closed=True, oriented=True" in out and f"seed {seed}" in out
         assert (tmp_path / "mesh.obj").read_text().count("\nf ") >= 2
 
 
 def test_grpc_generate(grpc_url, seed, tmp_path):
-    out = run_example([sys.executable, str(EXAMPLES / "grpc_generate.py")], tmp_path,
+    out = run_example([sys.executable, str(EXAMPLES / "grpc_generate.py"), str(POINTS)], tmp_path,
                       SPACEMESH_GRPC_TARGET=grpc_url.removeprefix("grpc://"), SEED=str(seed))
     assert "closed=True" in out and "step " in out
     assert (tmp_path / "mesh.glb").read_bytes()[:4] == b"glTF"
@@ -98,3 +101,13 @@ def test_readme_blocks_are_excerpts_of_the_examples():
     for name, code in blocks:
         script = (ROOT / name).read_text()
         assert code.strip() in script, f"README block for {name} is not an excerpt of it"
+
+
+def test_the_default_input_is_the_shipped_sample(rest_url, seed, tmp_path):
+    """Without arguments the scripts read examples/points.ply from the current folder (the
+    repository root, as the README runs them; a copy of it here)."""
+    (tmp_path / "examples").mkdir()
+    (tmp_path / "examples" / "points.ply").symlink_to(POINTS)
+    out = run_example([sys.executable, str(EXAMPLES / "python_client.py")], tmp_path,
+                      SPACEMESH_URL=rest_url, SEED=str(seed))
+    assert "closed=True" in out and (tmp_path / "mesh.obj").is_file()

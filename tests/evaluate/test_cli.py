@@ -19,25 +19,64 @@ PNG = b"\x89PNG\r\n\x1a\n"
 
 def test_eval_refuses_bad_arguments(tmp_path):
     runner = CliRunner()
-    result = runner.invoke(app, ["eval", "--data", str(tmp_path / "nowhere"),
-                                 "--out", str(tmp_path / "out"), "--no-model"])
+    result = runner.invoke(
+        app,
+        ["eval", "--data", str(tmp_path / "nowhere"), "--out", str(tmp_path / "out"), "--no-model"],
+    )
     assert result.exit_code == 2 and "nowhere" in result.output
-    result = runner.invoke(app, ["eval", "--data", str(tmp_path), "--out", str(tmp_path),
-                                 "--baselines", "psr,magic", "--no-model"])
+    result = runner.invoke(
+        app,
+        [
+            "eval",
+            "--data",
+            str(tmp_path),
+            "--out",
+            str(tmp_path),
+            "--baselines",
+            "psr,magic",
+            "--no-model",
+        ],
+    )
     assert result.exit_code == 2 and "magic" in result.output
-    result = runner.invoke(app, ["eval", "--data", str(tmp_path), "--out", str(tmp_path),
-                                 "--model", str(tmp_path / "no-model")])
+    result = runner.invoke(
+        app,
+        [
+            "eval",
+            "--data",
+            str(tmp_path),
+            "--out",
+            str(tmp_path),
+            "--model",
+            str(tmp_path / "no-model"),
+        ],
+    )
     assert result.exit_code == 2
 
 
 @pytest.mark.slow
 def test_eval_end_to_end_with_a_tiny_model(toy_model, tmp_path):
     out = tmp_path / "report"
-    result = CliRunner().invoke(app, [
-        "eval", "--model", str(toy_model.repository), "--data", str(toy_model.data),
-        "--split", "all", "--limit", "3", "--baselines", "psr,psr_star,bpa",
-        "--out", str(out), "--gallery", "2", "--no-progress",
-    ])
+    result = CliRunner().invoke(
+        app,
+        [
+            "eval",
+            "--model",
+            str(toy_model.repository),
+            "--data",
+            str(toy_model.data),
+            "--split",
+            "all",
+            "--limit",
+            "3",
+            "--baselines",
+            "psr,psr_star,bpa",
+            "--out",
+            str(out),
+            "--gallery",
+            "2",
+            "--no-progress",
+        ],
+    )
     assert result.exit_code == 0, result.output
     table = (out / "table.md").read_text()
     for label in ("| Ours |", "| PSR |", "| PSR* |", "| BPA |", "| GT (resampled) |"):

@@ -49,8 +49,9 @@ class HullModel:
 
 def make_shapes():
     shapes = []
-    for i, (name, mesh) in enumerate((("cube", cube_quads(3.0)), ("sphere", icosphere(2)),
-                                      ("torus", torus_grid(16, 8)))):
+    for i, (name, mesh) in enumerate(
+        (("cube", cube_quads(3.0)), ("sphere", icosphere(2)), ("torus", torus_grid(16, 8)))
+    ):
         points, _ = sample_surface(mesh, 2048, np.random.default_rng(i))
         shapes.append(EvalShape(name, mesh, points, "example"))
     return shapes
@@ -59,8 +60,15 @@ def make_shapes():
 @pytest.fixture(scope="module")
 def result():
     model = HullModel()
-    out = run_evaluation(make_shapes(), generator=model, baselines=("psr_star", "bpa"),
-                         seed=5, steps=3, gallery=2, progress=False)
+    out = run_evaluation(
+        make_shapes(),
+        generator=model,
+        baselines=("psr_star", "bpa"),
+        seed=5,
+        steps=3,
+        gallery=2,
+        progress=False,
+    )
     out.config["calls"] = model.calls
     return out
 
@@ -76,8 +84,7 @@ def test_every_method_is_scored_on_every_shape(result):
     gt = [r for r in result.rows if r["method"] == "gt"]
     assert all(r["edge_length_w1"] == 0 and r["cd"] < 3e-3 for r in gt)
     # PSR* is decimated to our vertex count for the same shape
-    for mine, star in zip(ours, [r for r in result.rows if r["method"] == "psr_star"],
-                          strict=True):
+    for mine, star in zip(ours, [r for r in result.rows if r["method"] == "psr_star"], strict=True):
         assert abs(star["n_vertices"] - mine["n_vertices"]) <= 0.1 * mine["n_vertices"] + 2
 
 
@@ -86,8 +93,9 @@ def test_a_failing_method_is_a_row_not_a_crash():
         def generate(self, points, normals=None, *, seed=0, steps=None):
             raise RuntimeError("boom")
 
-    out = run_evaluation(make_shapes()[:1], generator=Broken(), baselines=(), gallery=1,
-                         progress=False)
+    out = run_evaluation(
+        make_shapes()[:1], generator=Broken(), baselines=(), gallery=1, progress=False
+    )
     ours = out.rows[0]
     assert ours["status"].startswith("failed: RuntimeError: boom") and not ours["valid"]
     assert np.isnan(ours["cd"]) and out.gallery[0].meshes["ours"] is None
@@ -110,7 +118,10 @@ def test_report_files(result, tmp_path):
 def test_gallery_renders_points_meshes_and_failures(tmp_path):
     cube = cube_quads(2.0)
     cube = cube.with_vertices(cube.vertices - 1.0)
-    row = GalleryRow("cube", np.random.default_rng(0).uniform(-1, 1, (100, 3)),
-                     {"ours": cube, "psr_star": None, "gt": cube})
+    row = GalleryRow(
+        "cube",
+        np.random.default_rng(0).uniform(-1, 1, (100, 3)),
+        {"ours": cube, "psr_star": None, "gt": cube},
+    )
     path = render_gallery([row], tmp_path / "g.png")
     assert path.read_bytes()[:8] == PNG

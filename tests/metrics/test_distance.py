@@ -49,8 +49,10 @@ def test_chamfer_grows_with_an_offset():
     sphere = icosphere(3)
     reference = Reference.from_mesh(sphere, seed=0)
     shifts = [np.array([d, 0.0, 0.0]) for d in (0.0, 0.05, 0.1, 0.2)]
-    cds = [score_mesh(sphere.with_vertices(sphere.vertices + s), reference, seed=1)["cd"]
-           for s in shifts]
+    cds = [
+        score_mesh(sphere.with_vertices(sphere.vertices + s), reference, seed=1)["cd"]
+        for s in shifts
+    ]
     assert all(a < b for a, b in itertools.pairwise(cds))
     # resampling alone costs about the sampling noise, far below a 0.2 offset
     assert cds[0] < 2e-3 < cds[-1]

@@ -37,8 +37,13 @@ def test_interpenetrating_cubes_intersect_and_clean_meshes_do_not():
 
 def test_topology_flags():
     cube = cube_quads()
-    assert topology_flags(cube) == {"manifold": True, "watertight": True, "oriented": True,
-                                    "valid": True, "components": 1}
+    assert topology_flags(cube) == {
+        "manifold": True,
+        "watertight": True,
+        "oriented": True,
+        "valid": True,
+        "components": 1,
+    }
     open_cube = PolygonMesh.from_faces(cube.vertices, cube.faces[1:])
     flags = topology_flags(open_cube)
     assert flags["manifold"] and not flags["watertight"] and not flags["valid"]
@@ -58,8 +63,9 @@ def test_edge_lengths_and_corner_angles():
     assert np.isclose(angles, 108.0).sum() == 10 and np.isclose(angles, 90.0).sum() == 20
     assert np.allclose(corner_angles(icosphere(1)).reshape(-1, 3).sum(axis=1), 180.0)
     # a reflex corner of an L-shaped hexagon
-    ell = PolygonMesh.from_faces([[0, 0, 0], [2, 0, 0], [2, 1, 0], [1, 1, 0], [1, 2, 0],
-                                  [0, 2, 0]], [[0, 1, 2, 3, 4, 5]])
+    ell = PolygonMesh.from_faces(
+        [[0, 0, 0], [2, 0, 0], [2, 1, 0], [1, 1, 0], [1, 2, 0], [0, 2, 0]], [[0, 1, 2, 3, 4, 5]]
+    )
     assert np.allclose(np.sort(corner_angles(ell)), [90, 90, 90, 90, 90, 270])
 
 

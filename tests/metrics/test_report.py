@@ -14,16 +14,44 @@ def fake_rows():
     rows = []
     for i in range(2):
         for method, cd in (("ours", 1e-3), ("psr", 2e-3), ("gt", 5e-4)):
-            rows.append({"shape_id": f"s{i}", "method": method, "category": "qem",
-                         "status": "ok", "seconds": 0.5, "cd": cd, "f1": 0.6, "ecd": 0.02,
-                         "ef1": 0.4, "in": 0.3, "n_vertices": 100, "n_faces": 196,
-                         "manifold": True, "watertight": True, "oriented": True,
-                         "valid": True, "components": 1, "self_intersections": 0.01,
-                         "edge_length_w1": 0.1, "corner_angle_w1": 5.0,
-                         "mean_edge_length": 0.2, "mean_corner_angle": 60.0,
-                         "degrees": "3:190 4:6"})
-    failed = dict(rows[0], method="bpa", status="failed: empty mesh", cd=math.nan,
-                  valid=False, manifold=False, watertight=False, oriented=False, degrees="")
+            rows.append(
+                {
+                    "shape_id": f"s{i}",
+                    "method": method,
+                    "category": "qem",
+                    "status": "ok",
+                    "seconds": 0.5,
+                    "cd": cd,
+                    "f1": 0.6,
+                    "ecd": 0.02,
+                    "ef1": 0.4,
+                    "in": 0.3,
+                    "n_vertices": 100,
+                    "n_faces": 196,
+                    "manifold": True,
+                    "watertight": True,
+                    "oriented": True,
+                    "valid": True,
+                    "components": 1,
+                    "self_intersections": 0.01,
+                    "edge_length_w1": 0.1,
+                    "corner_angle_w1": 5.0,
+                    "mean_edge_length": 0.2,
+                    "mean_corner_angle": 60.0,
+                    "degrees": "3:190 4:6",
+                }
+            )
+    failed = dict(
+        rows[0],
+        method="bpa",
+        status="failed: empty mesh",
+        cd=math.nan,
+        valid=False,
+        manifold=False,
+        watertight=False,
+        oriented=False,
+        degrees="",
+    )
     return [*rows, failed]
 
 
@@ -45,8 +73,12 @@ def test_summary_and_tables(tmp_path):
 
 def test_histogram_png(tmp_path):
     rng = np.random.default_rng(0)
-    distributions = {m: {"edge_lengths": [rng.uniform(0.01, 0.5, 50)],
-                         "corner_angles": [rng.uniform(10, 150, 90)]}
-                     for m in ("ours", "psr", "gt")}
+    distributions = {
+        m: {
+            "edge_lengths": [rng.uniform(0.01, 0.5, 50)],
+            "corner_angles": [rng.uniform(10, 150, 90)],
+        }
+        for m in ("ours", "psr", "gt")
+    }
     path = plot_histograms(distributions, summarise(fake_rows()), tmp_path / "h.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -8,6 +8,7 @@ import pytest
 from spacemesh.examples import cube_quads, icosphere, torus_grid
 from spacemesh.mesh import PolygonMesh
 from spacemesh.repair.cut import cut_region, outside_defects
+from spacemesh.repair.patch import sub_mesh
 from spacemesh.repair.region import (
     DEFECTS_OUTSIDE_REGION,
     WHOLE_MESH_REGION,
@@ -18,8 +19,7 @@ from spacemesh.topology import count_vertex_fans
 
 
 def kept_mesh(cut) -> PolygonMesh:
-    return PolygonMesh.from_faces(cut.mesh.vertices,
-                                  [cut.mesh.faces[f] for f in cut.kept_faces])
+    return sub_mesh(cut.mesh, cut.kept_faces)
 
 
 def check_loops(cut) -> None:

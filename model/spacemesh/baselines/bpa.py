@@ -31,8 +31,12 @@ def ball_pivoting(points: FloatArray, normals: FloatArray, *, radius: float = 0.
     import pymeshlab
 
     meshset = pymeshlab.MeshSet()
-    meshset.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(points, np.float64),
-                                    v_normals_matrix=np.asarray(normals, np.float64)))
+    meshset.add_mesh(
+        pymeshlab.Mesh(
+            vertex_matrix=np.asarray(points, np.float64),
+            v_normals_matrix=np.asarray(normals, np.float64),
+        )
+    )
     ball = pymeshlab.PureValue(radius) if radius > 0 else pymeshlab.PercentageValue(0.0)
     meshset.generate_surface_reconstruction_ball_pivoting(ballradius=ball)
     meshset.meshing_remove_unreferenced_vertices()

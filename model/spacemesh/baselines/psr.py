@@ -46,8 +46,12 @@ def screened_poisson(
     import pymeshlab
 
     meshset = pymeshlab.MeshSet()
-    meshset.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(points, np.float64),
-                                    v_normals_matrix=np.asarray(normals, np.float64)))
+    meshset.add_mesh(
+        pymeshlab.Mesh(
+            vertex_matrix=np.asarray(points, np.float64),
+            v_normals_matrix=np.asarray(normals, np.float64),
+        )
+    )
     meshset.generate_surface_reconstruction_screened_poisson(depth=depth, threads=threads)
     meshset.meshing_remove_unreferenced_vertices()
     current = meshset.current_mesh()

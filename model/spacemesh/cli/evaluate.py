@@ -27,37 +27,52 @@ def parse_baselines(text: str) -> list[str]:
     names = [t.strip() for t in text.split(",") if t.strip() and t.strip() != "none"]
     unknown = [n for n in names if n not in BASELINES]
     if unknown:
-        raise UserError(f"--baselines: unknown {', '.join(unknown)}; "
-                        f"choose from {', '.join(BASELINES)}")
+        raise UserError(
+            f"--baselines: unknown {', '.join(unknown)}; choose from {', '.join(BASELINES)}"
+        )
     return list(dict.fromkeys(names))
 
 
 @app.command("eval")
 @user_errors(FileNotFoundError, ValueError)
 def evaluate(
-    data: Annotated[Path, typer.Option(
-        "--data", help="A dataset folder (manifest.json) or a folder of mesh files.")],
+    data: Annotated[
+        Path,
+        typer.Option("--data", help="A dataset folder (manifest.json) or a folder of mesh files."),
+    ],
     out: Annotated[Path, typer.Option("--out", help="Report folder (created).")],
-    model: Annotated[Path | None, typer.Option(
-        "--model", help="Model repository (default: the shipped model or $SPACEMESH_MODEL).")
+    model: Annotated[
+        Path | None,
+        typer.Option(
+            "--model", help="Model repository (default: the shipped model or $SPACEMESH_MODEL)."
+        ),
     ] = None,
-    baselines: Annotated[str, typer.Option(
-        "--baselines", help="Comma-separated: psr, psr_star, bpa (or none).")
+    baselines: Annotated[
+        str, typer.Option("--baselines", help="Comma-separated: psr, psr_star, bpa (or none).")
     ] = "psr,psr_star,bpa",
-    split: Annotated[str, typer.Option(
-        "--split", help="Dataset split: train, val, test or all.")] = "test",
+    split: Annotated[
+        str, typer.Option("--split", help="Dataset split: train, val, test or all.")
+    ] = "test",
     limit: Annotated[int | None, typer.Option("--limit", min=1, help="At most N shapes.")] = None,
     seed: Annotated[int, typer.Option("--seed", help="Sampler and metric seed.")] = 0,
-    steps: Annotated[int | None, typer.Option(
-        "--steps", min=1, help="Sampler steps (default: the model's).")] = None,
+    steps: Annotated[
+        int | None, typer.Option("--steps", min=1, help="Sampler steps (default: the model's).")
+    ] = None,
     gallery: Annotated[int, typer.Option("--gallery", min=0, help="Shapes in the gallery.")] = 4,
-    threads: Annotated[int, typer.Option(
-        "--threads", min=1, help="Threads of every method (BLAS, Poisson, onnxruntime).")] = 1,
-    no_model: Annotated[bool, typer.Option(
-        "--no-model", help="Run the baselines only.")] = False,
+    threads: Annotated[
+        int,
+        typer.Option(
+            "--threads", min=1, help="Threads of every method (BLAS, Poisson, onnxruntime)."
+        ),
+    ] = 1,
+    psr_star_target: Annotated[
+        str, typer.Option("--psr-star-target", help="PSR* vertex count: ours (per shape) or gt.")
+    ] = "ours",
+    no_model: Annotated[bool, typer.Option("--no-model", help="Run the baselines only.")] = False,
     title: Annotated[str | None, typer.Option("--title", help="Report title.")] = None,
-    progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Progress bar.")
-                        ] = True,
+    progress: Annotated[
+        bool, typer.Option("--progress/--no-progress", help="Progress bar.")
+    ] = True,
 ) -> None:
     """Evaluate a model against PSR, PSR* and ball pivoting on the same inputs.
 
@@ -73,6 +88,8 @@ def evaluate(
 
     if split not in ("train", "val", "test", "all"):
         raise UserError(f"--split must be train, val, test or all, not {split!r}")
+    if psr_star_target not in ("ours", "gt"):
+        raise UserError(f"--psr-star-target must be ours or gt, not {psr_star_target!r}")
     names = parse_baselines(baselines)
     shapes = load_shapes(data, split=split, limit=limit)
     if not shapes:
@@ -83,19 +100,38 @@ def evaluate(
             generator = MeshGenerator.from_repository(model, intra_op_threads=threads)
         except ModelRepositoryError as error:
             raise UserError(str(error)) from None
-    result = run_evaluation(shapes, generator=generator, baselines=names, seed=seed,
-                            steps=steps, gallery=gallery, threads=threads, progress=progress)
+    result = run_evaluation(
+        shapes,
+        generator=generator,
+        baselines=names,
+        seed=seed,
+        steps=steps,
+        gallery=gallery,
+        threads=threads,
+        psr_star_target=psr_star_target,
+        progress=progress,
+    )
     if generator is not None and generator.repository is not None:
         result.config["model_path"] = str(generator.repository.path)
     result.config["data"] = str(data)
     command = ["spacemesh", "eval", "--data", str(data), "--out", str(out)]
     command += ["--no-model"] if no_model else ["--model", str(model)] if model else []
-    command += ["--baselines", ",".join(names) or "none", "--split", split, "--seed", str(seed),
-                "--threads", str(threads)]
+    command += [
+        "--baselines",
+        ",".join(names) or "none",
+        "--split",
+        split,
+        "--seed",
+        str(seed),
+        "--threads",
+        str(threads),
+    ]
     command += ["--limit", str(limit)] if limit else []
+    command += ["--psr-star-target", psr_star_target] if psr_star_target != "ours" else []
     command += ["--steps", str(steps)] if steps else []
     command = shlex.join(command)
-    paths = write_report(result, out, title=title or f"SpaceMesh evaluation: {data.name}",
-                         command=command)
+    paths = write_report(
+        result, out, title=title or f"SpaceMesh evaluation: {data.name}", command=command
+    )
     typer.echo((out / "table.md").read_text())
     typer.echo("wrote " + ", ".join(str(p) for p in paths.values()))

@@ -26,8 +26,13 @@ VIEW = (25.0, -60.0)
 #: Meshes with more faces than this are drawn without edges.
 MAX_EDGED_FACES = 3000
 #: Face colour of each column kind (RGB).
-COLORS = {"ours": (0.35, 0.55, 0.85), "psr_star": (0.90, 0.60, 0.30),
-          "psr": (0.90, 0.70, 0.40), "bpa": (0.60, 0.75, 0.45), "gt": (0.70, 0.70, 0.70)}
+COLORS = {
+    "ours": (0.35, 0.55, 0.85),
+    "psr_star": (0.90, 0.60, 0.30),
+    "psr": (0.90, 0.70, 0.40),
+    "bpa": (0.60, 0.75, 0.45),
+    "gt": (0.70, 0.70, 0.70),
+}
 
 
 @dataclass(frozen=True)
@@ -76,10 +81,14 @@ def _draw_mesh(ax, mesh: PolygonMesh, color: tuple[float, float, float]) -> None
     faces = [f for f, k in zip(mesh.faces, keep, strict=True) if k]
     rgb = np.clip(np.outer(shade[keep], color), 0, 1)
     edged = mesh.n_faces <= MAX_EDGED_FACES
-    ax.add_collection3d(Poly3DCollection(
-        [mesh.vertices[f] for f in faces], facecolors=rgb,
-        edgecolors=(0, 0, 0, 0.6) if edged else rgb, linewidths=0.2 if edged else 0.0,
-    ))
+    ax.add_collection3d(
+        Poly3DCollection(
+            [mesh.vertices[f] for f in faces],
+            facecolors=rgb,
+            edgecolors=(0, 0, 0, 0.6) if edged else rgb,
+            linewidths=0.2 if edged else 0.0,
+        )
+    )
 
 
 def _frame(ax, title: str | None = None) -> None:
@@ -135,8 +144,16 @@ def render_gallery(
             if column == "points":
                 p = np.asarray(row.points)
                 depth = p @ view
-                ax.scatter(p[:, 0], p[:, 1], p[:, 2], s=0.6, c=depth, cmap="viridis",
-                           depthshade=False, linewidths=0)
+                ax.scatter(
+                    p[:, 0],
+                    p[:, 1],
+                    p[:, 2],
+                    s=0.6,
+                    c=depth,
+                    cmap="viridis",
+                    depthshade=False,
+                    linewidths=0,
+                )
                 text = f"{head}\n{row.title}" if i == 0 else row.title
                 text = f"{text} ({len(p)} points)"
             else:

@@ -8,7 +8,8 @@ For every shape (a dataset record, or a mesh file normalised and sampled):
 2. normals are *estimated* from the points (:func:`spacemesh.baselines.estimate_normals`),
    as a user would; the baselines get them, and so does our model if it reads normals;
 3. ours (``MeshGenerator.generate``), then PSR, PSR* (PSR decimated to our vertex count
-   for that shape, or the ground truth's when ours failed) and BPA;
+   for that shape, or the ground truth's when ours failed or with
+   ``psr_star_target="gt"``) and BPA;
 4. each mesh is scored with :func:`spacemesh.metrics.score_mesh`; the ground truth itself,
    sampled with another seed, is scored too (the ``gt`` row: the best any method can get
    with 10,000 samples).
@@ -46,8 +47,13 @@ from spacemesh.metrics.sampling import apply_normalisation, normalisation
 from spacemesh.typed import FloatArray
 
 #: Environment variables that cap BLAS/OpenMP thread pools (read when a library loads).
-THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-                    "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+THREAD_VARIABLES = (
+    "OMP_NUM_THREADS",
+    "OPENBLAS_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "VECLIB_MAXIMUM_THREADS",
+    "NUMEXPR_NUM_THREADS",
+)
 #: Baselines the runner knows, in table order.
 BASELINES = ("psr", "psr_star", "bpa")
 #: Conditioning points sampled on a mesh file (as in the datasets).
@@ -95,8 +101,9 @@ class EvalShape:
     category: str = ""
 
 
-def dataset_shapes(directory: str | Path, split: str = "test", limit: int | None = None
-                   ) -> list[EvalShape]:
+def dataset_shapes(
+    directory: str | Path, split: str = "test", limit: int | None = None
+) -> list[EvalShape]:
     """The shapes of a shard dataset (``spacemesh data synth`` / ``data import``).
 
     Parameters
@@ -117,8 +124,13 @@ def dataset_shapes(directory: str | Path, split: str = "test", limit: int | None
     return [EvalShape(r.shape_id, r.mesh, r.points, r.style) for r in dataset[:count]]
 
 
-def mesh_shapes(paths: Sequence[str | Path], *, categories: Sequence[str] | None = None,
-                points: int = N_POINTS, seed: int = 0) -> list[EvalShape]:
+def mesh_shapes(
+    paths: Sequence[str | Path],
+    *,
+    categories: Sequence[str] | None = None,
+    points: int = N_POINTS,
+    seed: int = 0,
+) -> list[EvalShape]:
     """Mesh files as evaluation shapes: normalised, with ``points`` sampled points each.
 
     Parameters
@@ -147,8 +159,9 @@ def mesh_shapes(paths: Sequence[str | Path], *, categories: Sequence[str] | None
     return shapes
 
 
-def load_shapes(source: str | Path, *, split: str = "test", limit: int | None = None
-                ) -> list[EvalShape]:
+def load_shapes(
+    source: str | Path, *, split: str = "test", limit: int | None = None
+) -> list[EvalShape]:
     """A dataset folder (with ``manifest.json``) or a folder of mesh files, as shapes."""
     from spacemesh.data.importer import find_mesh_files
     from spacemesh.data.shards import MANIFEST
@@ -196,8 +209,9 @@ def gallery_indices(count: int, wanted: int) -> set[int]:
     return {int(i) for i in np.linspace(0, count - 1, min(wanted, count)).round()}
 
 
-def _timed(make: Callable[..., PolygonMesh], *args: Any, **kwargs: Any
-           ) -> tuple[PolygonMesh | None, str, float]:
+def _timed(
+    make: Callable[..., PolygonMesh], *args: Any, **kwargs: Any
+) -> tuple[PolygonMesh | None, str, float]:
     """Run one method: (mesh or None, ``"ok"`` or why it failed, seconds)."""
     start = time.perf_counter()
     try:
@@ -208,23 +222,44 @@ def _timed(make: Callable[..., PolygonMesh], *args: Any, **kwargs: Any
     return mesh, status, time.perf_counter() - start
 
 
-def _generate(generator: Any, points: FloatArray, normals: FloatArray | None, *, seed: int,
-              steps: int | None) -> PolygonMesh:
+def _generate(
+    generator: Any, points: FloatArray, normals: FloatArray | None, *, seed: int, steps: int | None
+) -> PolygonMesh:
     return generator.generate(points, normals, seed=seed, steps=steps).mesh
 
 
-def _row(shape: EvalShape, method: str, mesh: PolygonMesh | None, status: str, seconds: float,
-         reference: Reference, seed: list[int]) -> dict[str, Any]:
-    row: dict[str, Any] = {"shape_id": shape.shape_id, "method": method,
-                           "category": shape.category, "status": status, "seconds": seconds}
+def _row(
+    shape: EvalShape,
+    method: str,
+    mesh: PolygonMesh | None,
+    status: str,
+    seconds: float,
+    reference: Reference,
+    seed: list[int],
+) -> dict[str, Any]:
+    row: dict[str, Any] = {
+        "shape_id": shape.shape_id,
+        "method": method,
+        "category": shape.category,
+        "status": status,
+        "seconds": seconds,
+    }
     if mesh is not None and mesh.n_faces:
         row.update(score_mesh(mesh, reference, seed=seed))
         if math.isnan(row["cd"]):
             row["status"] = "failed: no surface"
     else:
         row.update({k: math.nan for k in METRIC_KEYS})
-        row.update(n_vertices=0, n_faces=0, manifold=False, watertight=False, oriented=False,
-                   valid=False, components=0, degrees="")
+        row.update(
+            n_vertices=0,
+            n_faces=0,
+            manifold=False,
+            watertight=False,
+            oriented=False,
+            valid=False,
+            components=0,
+            degrees="",
+        )
     return row
 
 
@@ -237,6 +272,7 @@ def run_evaluation(
     steps: int | None = None,
     gallery: int = 4,
     threads: int = 1,
+    psr_star_target: str = "ours",
     options: MetricOptions | None = None,
     progress: bool = True,
 ) -> EvalResult:
@@ -258,6 +294,9 @@ def run_evaluation(
         Shapes kept for the gallery.
     threads : int
         Solver threads of the baselines (Poisson).
+    psr_star_target : {"ours", "gt"}
+        Vertex count PSR* is decimated to: our output's for the shape (the paper's
+        PSR*), or the ground truth's (for runs whose model is not yet meaningful).
     options : MetricOptions, optional
     progress : bool
         Show a tqdm progress bar.
@@ -273,13 +312,22 @@ def run_evaluation(
     unknown = [b for b in baselines if b not in BASELINES]
     if unknown:
         raise ValueError(f"unknown baselines {unknown}; choose from {', '.join(BASELINES)}")
+    if psr_star_target not in ("ours", "gt"):
+        raise ValueError(f"psr_star_target must be 'ours' or 'gt', not {psr_star_target!r}")
     options = options or MetricOptions()
     methods = (["ours"] if generator is not None else []) + list(baselines) + ["gt"]
     result = EvalResult(
         distributions={m: {"edge_lengths": [], "corner_angles": []} for m in methods},
-        config={"seed": seed, "steps": steps, "baselines": list(baselines), "threads": threads,
-                "shapes": len(shapes), "metrics": options.__dict__.copy(),
-                "model": getattr(generator, "name", None)},
+        config={
+            "seed": seed,
+            "steps": steps,
+            "baselines": list(baselines),
+            "threads": threads,
+            "psr_star_target": psr_star_target,
+            "shapes": len(shapes),
+            "metrics": options.__dict__.copy(),
+            "model": getattr(generator, "name", None),
+        },
     )
     keep = gallery_indices(len(shapes), gallery)
     bar = tqdm(shapes, desc="eval", unit="shape", disable=not progress, dynamic_ncols=True)
@@ -293,15 +341,21 @@ def run_evaluation(
         if generator is not None:
             bar.set_postfix_str("ours")
             wants_normals = bool(getattr(getattr(generator, "spec", None), "normals", False))
-            meshes["ours"] = _timed(_generate, generator, points,
-                                    normals if wants_normals else None, seed=seed, steps=steps)
+            meshes["ours"] = _timed(
+                _generate,
+                generator,
+                points,
+                normals if wants_normals else None,
+                seed=seed,
+                steps=steps,
+            )
         if "psr" in baselines or "psr_star" in baselines:
             bar.set_postfix_str("psr")
             psr = _timed(screened_poisson, points, normals, threads=threads)
             if "psr" in baselines:
                 meshes["psr"] = psr
             if "psr_star" in baselines:
-                ours = meshes.get("ours", (None,))[0]
+                ours = meshes.get("ours", (None,))[0] if psr_star_target == "ours" else None
                 target = ours.n_vertices if ours is not None and ours.n_faces else gt.n_vertices
                 if psr[0] is None:
                     meshes["psr_star"] = psr
@@ -315,20 +369,27 @@ def run_evaluation(
         bar.set_postfix_str("metrics")
         for k, method in enumerate(methods):
             mesh, status, seconds = meshes[method]
-            result.rows.append(_row(shape, method, mesh, status, seconds, reference,
-                                    [seed, index, k + 1]))
+            result.rows.append(
+                _row(shape, method, mesh, status, seconds, reference, [seed, index, k + 1])
+            )
             if mesh is not None and mesh.n_faces:
                 result.distributions[method]["edge_lengths"].append(edge_lengths(mesh))
                 result.distributions[method]["corner_angles"].append(corner_angles(mesh))
         if index in keep:
-            result.gallery.append(GalleryRow(shape.shape_id, points,
-                                             {m: v[0] for m, v in meshes.items()}))
+            result.gallery.append(
+                GalleryRow(shape.shape_id, points, {m: v[0] for m, v in meshes.items()})
+            )
     bar.close()
     return result
 
 
-def write_report(result: EvalResult, out: str | Path, *, title: str = "SpaceMesh evaluation",
-                 command: str | None = None) -> dict[str, Path]:
+def write_report(
+    result: EvalResult,
+    out: str | Path,
+    *,
+    title: str = "SpaceMesh evaluation",
+    command: str | None = None,
+) -> dict[str, Path]:
     """Write the tables, the per-shape CSV, the histograms and the gallery.
 
     Parameters
@@ -358,15 +419,20 @@ def write_report(result: EvalResult, out: str | Path, *, title: str = "SpaceMesh
     paths["table"] = out / "table.md"
     paths["table"].write_text("\n".join(text))
     paths["summary"] = out / "summary.json"
-    paths["summary"].write_text(json.dumps(
-        _finite({"config": result.config, "summary": summary}), indent=2,
-        default=_json_default) + "\n")
-    paths["histograms"] = plot_histograms(result.distributions, summary,
-                                          out / "histograms.png", title=title)
+    paths["summary"].write_text(
+        json.dumps(
+            _finite({"config": result.config, "summary": summary}), indent=2, default=_json_default
+        )
+        + "\n"
+    )
+    paths["histograms"] = plot_histograms(
+        result.distributions, summary, out / "histograms.png", title=title
+    )
     labels = {"points": "input points", "gt": "ground truth"}
     labels.update({m: method_label(m) for m in ("ours", "psr", "psr_star", "bpa")})
-    paths["gallery"] = render_gallery(result.gallery, out / "gallery.png", labels=labels,
-                                      title=title)
+    paths["gallery"] = render_gallery(
+        result.gallery, out / "gallery.png", labels=labels, title=title
+    )
     return paths
 
 

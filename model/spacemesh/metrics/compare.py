@@ -36,9 +36,24 @@ from spacemesh.typed import FloatArray
 
 #: Every key of a row from :func:`score_mesh`, in table order.
 METRIC_KEYS = (
-    "cd", "f1", "ecd", "ef1", "in", "n_vertices", "n_faces", "manifold", "watertight",
-    "oriented", "valid", "components", "self_intersections", "edge_length_w1",
-    "corner_angle_w1", "mean_edge_length", "mean_corner_angle", "degrees",
+    "cd",
+    "f1",
+    "ecd",
+    "ef1",
+    "in",
+    "n_vertices",
+    "n_faces",
+    "manifold",
+    "watertight",
+    "oriented",
+    "valid",
+    "components",
+    "self_intersections",
+    "edge_length_w1",
+    "corner_angle_w1",
+    "mean_edge_length",
+    "mean_corner_angle",
+    "degrees",
 )
 
 
@@ -91,8 +106,9 @@ class Reference:
     options: MetricOptions
 
     @classmethod
-    def from_mesh(cls, mesh: PolygonMesh, *, seed: int | list[int] = 0,
-                  options: MetricOptions | None = None) -> Reference:
+    def from_mesh(
+        cls, mesh: PolygonMesh, *, seed: int | list[int] = 0, options: MetricOptions | None = None
+    ) -> Reference:
         """Sample and prepare a ground truth that is already normalised.
 
         Parameters
@@ -111,8 +127,15 @@ class Reference:
         samples = sample_mesh(mesh, options.samples, seed)
         if len(samples) == 0:
             raise ValueError("the ground truth has no surface to sample")
-        return cls(mesh, samples, edge_points(samples), cKDTree(samples.points),
-                   edge_lengths(mesh), corner_angles(mesh), options)
+        return cls(
+            mesh,
+            samples,
+            edge_points(samples),
+            cKDTree(samples.points),
+            edge_lengths(mesh),
+            corner_angles(mesh),
+            options,
+        )
 
 
 def format_degrees(histogram: dict[int, int]) -> str:
@@ -120,8 +143,9 @@ def format_degrees(histogram: dict[int, int]) -> str:
     return " ".join(f"{k}:{v}" for k, v in sorted(histogram.items()))
 
 
-def score_mesh(mesh: PolygonMesh, reference: Reference, *, seed: int | list[int] = 1
-               ) -> dict[str, Any]:
+def score_mesh(
+    mesh: PolygonMesh, reference: Reference, *, seed: int | list[int] = 1
+) -> dict[str, Any]:
     """Every metric of a prediction against a reference (keys in :data:`METRIC_KEYS`).
 
     Parameters
@@ -142,18 +166,26 @@ def score_mesh(mesh: PolygonMesh, reference: Reference, *, seed: int | list[int]
     row.update(topology_flags(mesh))
     samples = sample_mesh(mesh, options.samples, seed)
     if len(samples):
-        scores = chamfer_f1(samples.points, reference.samples.points, options.f1_threshold,
-                            gt_tree=reference.tree)
+        scores = chamfer_f1(
+            samples.points, reference.samples.points, options.f1_threshold, gt_tree=reference.tree
+        )
         edges = edge_chamfer_f1(edge_points(samples), reference.edges, options.ef1_threshold)
-        row.update(cd=scores.chamfer, f1=scores.f1, ecd=edges.chamfer, ef1=edges.f1,
-                   **{"in": inaccurate_normals(samples, reference.samples, options.in_degrees,
-                                               gt_tree=reference.tree)})
+        row.update(
+            cd=scores.chamfer,
+            f1=scores.f1,
+            ecd=edges.chamfer,
+            ef1=edges.f1,
+            **{
+                "in": inaccurate_normals(
+                    samples, reference.samples, options.in_degrees, gt_tree=reference.tree
+                )
+            },
+        )
     else:
         row.update(cd=np.nan, f1=np.nan, ecd=np.nan, ef1=np.nan, **{"in": np.nan})
     lengths, angles = edge_lengths(mesh), corner_angles(mesh)
     row.update(
-        self_intersections=self_intersection_fraction(
-            mesh, confirm=options.confirm_intersections),
+        self_intersections=self_intersection_fraction(mesh, confirm=options.confirm_intersections),
         edge_length_w1=distribution_distance(lengths, reference.edge_lengths),
         corner_angle_w1=distribution_distance(angles, reference.corner_angles),
         mean_edge_length=float(lengths.mean()) if len(lengths) else np.nan,

@@ -83,8 +83,11 @@ def f_score(precision: float, recall: float) -> float:
 
 
 def chamfer_f1(
-    pred: FloatArray, gt: FloatArray, threshold: float = F1_THRESHOLD,
-    *, gt_tree: cKDTree | None = None,
+    pred: FloatArray,
+    gt: FloatArray,
+    threshold: float = F1_THRESHOLD,
+    *,
+    gt_tree: cKDTree | None = None,
 ) -> DistanceScores:
     """Chamfer distance and F-score of two non-empty point sets (formulas in the module doc).
 
@@ -111,6 +114,10 @@ def chamfer_f1(
     recall = float(np.mean(d_gt < threshold))
     pred_to_gt, gt_to_pred = float(np.mean(d_pred**2)), float(np.mean(d_gt**2))
     return DistanceScores(
-        chamfer=pred_to_gt + gt_to_pred, f1=f_score(precision, recall),
-        precision=precision, recall=recall, pred_to_gt=pred_to_gt, gt_to_pred=gt_to_pred,
+        chamfer=pred_to_gt + gt_to_pred,
+        f1=f_score(precision, recall),
+        precision=precision,
+        recall=recall,
+        pred_to_gt=pred_to_gt,
+        gt_to_pred=gt_to_pred,
     )

@@ -45,7 +45,10 @@ EF1_THRESHOLD = F1_THRESHOLD
 
 
 def edge_mask(
-    samples: SurfaceSamples, *, k: int = EDGE_NEIGHBOURS, threshold: float = EDGE_DOT_THRESHOLD,
+    samples: SurfaceSamples,
+    *,
+    k: int = EDGE_NEIGHBOURS,
+    threshold: float = EDGE_DOT_THRESHOLD,
     rule: Literal["min", "mean"] = "min",
 ) -> BoolArray:
     """Which samples lie on sharp features (see the module doc).

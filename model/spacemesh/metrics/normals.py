@@ -25,8 +25,9 @@ from spacemesh.metrics.sampling import SurfaceSamples
 IN_DEGREES = 10.0
 
 
-def normal_angles(pred: SurfaceSamples, gt: SurfaceSamples,
-                  *, gt_tree: cKDTree | None = None) -> np.ndarray:
+def normal_angles(
+    pred: SurfaceSamples, gt: SurfaceSamples, *, gt_tree: cKDTree | None = None
+) -> np.ndarray:
     """Angle between each predicted sample's normal and its nearest ground-truth normal.
 
     Parameters
@@ -46,8 +47,13 @@ def normal_angles(pred: SurfaceSamples, gt: SurfaceSamples,
     return np.degrees(np.arccos(np.clip(dots, -1.0, 1.0)))
 
 
-def inaccurate_normals(pred: SurfaceSamples, gt: SurfaceSamples, degrees: float = IN_DEGREES,
-                       *, gt_tree: cKDTree | None = None) -> float:
+def inaccurate_normals(
+    pred: SurfaceSamples,
+    gt: SurfaceSamples,
+    degrees: float = IN_DEGREES,
+    *,
+    gt_tree: cKDTree | None = None,
+) -> float:
     """IN: the fraction (in [0, 1]) of predicted samples whose normal is off by > ``degrees``.
 
     Parameters

@@ -97,7 +97,7 @@ def self_intersecting_faces(mesh: PolygonMesh, *, confirm: bool = True) -> BoolA
     lo, hi = pts.min(axis=1) - eps, pts.max(axis=1) + eps  # (C, 3) each
     confirmed = np.zeros(len(candidates), dtype=bool)
     for i in range(len(candidates) - 1):
-        overlap = np.all((lo[i + 1:] <= hi[i]) & (hi[i + 1:] >= lo[i]), axis=1)
+        overlap = np.all((lo[i + 1 :] <= hi[i]) & (hi[i + 1 :] >= lo[i]), axis=1)
         for j in np.flatnonzero(overlap) + i + 1:
             if confirmed[i] and confirmed[j]:
                 continue

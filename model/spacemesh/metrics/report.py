@@ -39,14 +39,33 @@ METHOD_LABELS = {
     "gt": "GT (resampled)",
 }
 #: Mean metrics (over shapes with a mesh).
-MEAN_KEYS = ("cd", "f1", "ecd", "ef1", "in", "n_vertices", "n_faces", "self_intersections",
-             "edge_length_w1", "corner_angle_w1", "seconds")
+MEAN_KEYS = (
+    "cd",
+    "f1",
+    "ecd",
+    "ef1",
+    "in",
+    "n_vertices",
+    "n_faces",
+    "self_intersections",
+    "edge_length_w1",
+    "corner_angle_w1",
+    "seconds",
+)
 #: Rates (over all shapes).
 RATE_KEYS = ("manifold", "watertight", "oriented", "valid")
 #: Whether lower is better, for the metrics that get a bold best value.
-LOWER_IS_BETTER = {"cd": True, "f1": False, "ecd": True, "ef1": False, "in": True,
-                   "self_intersections": True, "edge_length_w1": True,
-                   "corner_angle_w1": True, "valid": False}
+LOWER_IS_BETTER = {
+    "cd": True,
+    "f1": False,
+    "ecd": True,
+    "ef1": False,
+    "in": True,
+    "self_intersections": True,
+    "edge_length_w1": True,
+    "corner_angle_w1": True,
+    "valid": False,
+}
 
 
 def method_label(method: str) -> str:
@@ -156,8 +175,9 @@ def _best(summary: dict[str, dict[str, Any]], key: str) -> float | None:
     return min(values) if LOWER_IS_BETTER[key] else max(values)
 
 
-def _cell(summary: dict[str, dict[str, Any]], method: str, key: str, scale: float = 1.0,
-          digits: int = 2) -> str:
+def _cell(
+    summary: dict[str, dict[str, Any]], method: str, key: str, scale: float = 1.0, digits: int = 2
+) -> str:
     value = summary[method][key]
     text = _fmt(value * scale, digits)
     best = _best(summary, key) if key in LOWER_IS_BETTER and method != "gt" else None
@@ -169,7 +189,7 @@ def format_degrees(fractions: dict[int, float], top: int = 4) -> str:
     if not fractions:
         return "n/a"
     items = sorted(fractions.items())
-    head, tail = items[:top - 1], items[top - 1:]
+    head, tail = items[: top - 1], items[top - 1 :]
     parts = [f"{k}: {100 * v:.0f}%" for k, v in head]
     if tail:
         label = f"{tail[0][0]}" if len(tail) == 1 else f"{tail[0][0]}+"
@@ -256,39 +276,64 @@ def plot_histograms(
     length_bins = np.geomspace(1e-3, 2.0, 61)
     angle_bins = np.linspace(0.0, 180.0, 61)
     for method in methods:
-        style = {"color": colors[method], "histtype": "step",
-                 "linewidth": 2.0 if method in ("gt", "ours") else 1.2,
-                 "label": "GT" if method == "gt" else method_label(method)}
+        style = {
+            "color": colors[method],
+            "histtype": "step",
+            "linewidth": 2.0 if method in ("gt", "ours") else 1.2,
+            "label": "GT" if method == "gt" else method_label(method),
+        }
         lengths = _concat(distributions[method].get("edge_lengths", []))
         angles = _concat(distributions[method].get("corner_angles", []))
         if len(lengths):  # each histogram sums to 1 (fractions, also on the log axis)
-            axes[0].hist(np.clip(lengths, length_bins[0], length_bins[-1]), bins=length_bins,
-                         weights=np.full(len(lengths), 1.0 / len(lengths)), **style)
+            axes[0].hist(
+                np.clip(lengths, length_bins[0], length_bins[-1]),
+                bins=length_bins,
+                weights=np.full(len(lengths), 1.0 / len(lengths)),
+                **style,
+            )
         if len(angles):
-            axes[1].hist(np.clip(angles, 0, 180), bins=angle_bins,
-                         weights=np.full(len(angles), 1.0 / len(angles)), **style)
-    axes[0].set(xscale="log", xlabel="edge length ([-1, 1] frame)",
-                ylabel="fraction of edges", title="Edge lengths")
-    axes[1].set(xlabel="corner angle (degrees)", ylabel="fraction of corners",
-                title="Corner angles")
+            axes[1].hist(
+                np.clip(angles, 0, 180),
+                bins=angle_bins,
+                weights=np.full(len(angles), 1.0 / len(angles)),
+                **style,
+            )
+    axes[0].set(
+        xscale="log",
+        xlabel="edge length ([-1, 1] frame)",
+        ylabel="fraction of edges",
+        title="Edge lengths",
+    )
+    axes[1].set(
+        xlabel="corner angle (degrees)", ylabel="fraction of corners", title="Corner angles"
+    )
     axes[0].legend(fontsize=8)
     shown = [m for m in methods if m in summary]
     x = np.arange(len(shown))
-    axes[2].bar(x, [100 * _nan0(summary[m]["self_intersections"]) for m in shown],
-                color=[colors[m] for m in shown])
+    axes[2].bar(
+        x,
+        [100 * _nan0(summary[m]["self_intersections"]) for m in shown],
+        color=[colors[m] for m in shown],
+    )
     axes[2].set(xticks=x, title="Faces with self-intersections (%)")
-    axes[2].set_xticklabels([method_label(m).replace(" (resampled)", "") for m in shown],
-                            fontsize=8)
+    axes[2].set_xticklabels(
+        [method_label(m).replace(" (resampled)", "") for m in shown], fontsize=8
+    )
     degrees = sorted({d for m in shown for d in summary[m]["degrees"]})
     degrees = [d for d in degrees if d <= 8] or [3]
     width = 0.8 / max(len(shown), 1)
     for i, m in enumerate(shown):
         fractions = summary[m]["degrees"]
-        axes[3].bar(np.arange(len(degrees)) + i * width,
-                    [100 * fractions.get(d, 0.0) for d in degrees], width,
-                    color=colors[m], label=method_label(m))
-    axes[3].set(xticks=np.arange(len(degrees)) + 0.4 - width / 2, ylabel="% of faces",
-                title="Face degrees")
+        axes[3].bar(
+            np.arange(len(degrees)) + i * width,
+            [100 * fractions.get(d, 0.0) for d in degrees],
+            width,
+            color=colors[m],
+            label=method_label(m),
+        )
+    axes[3].set(
+        xticks=np.arange(len(degrees)) + 0.4 - width / 2, ylabel="% of faces", title="Face degrees"
+    )
     axes[3].set_xticklabels([str(d) for d in degrees])
     if title:
         fig.suptitle(title)

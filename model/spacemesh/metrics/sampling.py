@@ -67,8 +67,9 @@ def apply_normalisation(mesh: PolygonMesh, centre: FloatArray, scale: float) -> 
     return mesh.with_vertices((mesh.vertices - centre) / scale)
 
 
-def sample_mesh(mesh: PolygonMesh, count: int = N_SAMPLES, seed: int | list[int] = 0
-                ) -> SurfaceSamples:
+def sample_mesh(
+    mesh: PolygonMesh, count: int = N_SAMPLES, seed: int | list[int] = 0
+) -> SurfaceSamples:
     """Sample ``count`` points uniformly by area, with the normals of their faces.
 
     Parameters

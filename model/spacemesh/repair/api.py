@@ -265,8 +265,8 @@ def repair_mesh(
     steps, method = _sampler_options(spec, steps, method)
     if plan is None:
         plan = plan_repair(mesh, region, spec.max_vertices)
-    elif plan.cut.mesh is not mesh:
-        raise ValueError("the plan was made for another mesh")
+    elif plan.cut.mesh is not mesh or plan.patch.n_tokens != spec.max_vertices:
+        raise ValueError("the plan was made for another mesh or model")
     cut, patch = plan.cut, plan.patch
     timings = {"cut": plan.seconds}
 

@@ -85,7 +85,7 @@ class Patch:
         return np.asarray(points, np.float64) * self.scale + self.centre
 
 
-def _sub_mesh(mesh: PolygonMesh, faces: IntArray) -> PolygonMesh:
+def sub_mesh(mesh: PolygonMesh, faces: IntArray) -> PolygonMesh:
     """The faces ``faces`` of ``mesh`` over all of its vertices."""
     sizes = mesh.face_sizes[faces]
     starts = np.repeat(mesh.face_offsets[faces], sizes)
@@ -97,7 +97,7 @@ def _sub_mesh(mesh: PolygonMesh, faces: IntArray) -> PolygonMesh:
 def open_loops(cut: Cut) -> list[IntArray]:
     """The loops with at least one edge that no removed face has (holes in the input)."""
     mesh = cut.mesh
-    region_mesh = _sub_mesh(mesh, np.flatnonzero(cut.region))
+    region_mesh = sub_mesh(mesh, np.flatnonzero(cut.region))
     n = max(mesh.n_vertices, 1)
     he = region_mesh.halfedges
     keys = np.unique(np.minimum(he[:, 0], he[:, 1]) * n + np.maximum(he[:, 0], he[:, 1]))
@@ -119,7 +119,7 @@ def hole_surface(cut: Cut) -> PolygonMesh:
         Over the input's vertices followed by one centroid per open loop.
     """
     mesh = cut.mesh
-    removed = _sub_mesh(mesh, np.flatnonzero(cut.region))
+    removed = sub_mesh(mesh, np.flatnonzero(cut.region))
     loops = open_loops(cut)
     centroids = np.array([mesh.vertices[loop].mean(axis=0) for loop in loops]).reshape(-1, 3)
     fans = []
@@ -149,7 +149,7 @@ def expected_new_vertices(cut: Cut, hole: PolygonMesh) -> int:
     on_boundary[cut.boundary] = True
     near = np.zeros(mesh.n_faces, dtype=bool)
     near[mesh.face_of_corner[on_boundary[mesh.face_indices]]] = True
-    ring = _sub_mesh(mesh, np.flatnonzero(near & ~cut.region))
+    ring = sub_mesh(mesh, np.flatnonzero(near & ~cut.region))
     valence = mesh.face_indices.size / max(mesh.n_vertices, 1)
     ring_area = _area(ring)
     density = ring.face_indices.size / valence / ring_area if ring_area > 0 else 0.0
@@ -210,14 +210,14 @@ def plan_patch(cut: Cut, n_tokens: int, *, max_rings: int = MAX_RINGS,
             break  # the rings reached every kept face connected to the hole
         candidate_faces = np.flatnonzero(grown)
         candidate_known = np.union1d(cut.boundary,
-                                     _sub_mesh(mesh, candidate_faces).face_indices)
+                                     sub_mesh(mesh, candidate_faces).face_indices)
         if len(candidate_known) > budget:
             break
         in_patch, ring_faces, known, rings = grown, candidate_faces, candidate_known, r
         frontier = np.zeros(mesh.n_vertices, dtype=bool)
         frontier[known] = True
     faces = np.union1d(region_faces, ring_faces)
-    extent = np.concatenate([mesh.vertices[_sub_mesh(mesh, faces).face_indices],
+    extent = np.concatenate([mesh.vertices[sub_mesh(mesh, faces).face_indices],
                              hole.vertices[hole.face_indices]])
     _, centre, scale = normalize_points(extent)
     return Patch(faces, known, rings, int(n_tokens), expected, centre, scale)
@@ -266,7 +266,7 @@ def sample_patch(cut: Cut, patch: Patch, *, n_points: int, normals: bool, n_hole
     """
     mesh = cut.mesh
     hole = hole_surface(cut) if hole is None else hole
-    surface = _sub_mesh(mesh, patch.faces)
+    surface = sub_mesh(mesh, patch.faces)
     points, point_normals = sample_surface(surface, n_points, rng)  # (P, 3) each
     columns = [patch.to_unit(points)]
     if normals:
@@ -279,7 +279,7 @@ def sample_patch(cut: Cut, patch: Patch, *, n_points: int, normals: bool, n_hole
         hole_points = patch.to_unit(mesh.vertices[cut.boundary])[
             rng.integers(0, len(cut.boundary), n_hole)]
     kept_faces = np.setdiff1d(patch.faces, np.flatnonzero(cut.region))
-    kept_mesh = _sub_mesh(mesh, kept_faces)
+    kept_mesh = sub_mesh(mesh, kept_faces)
     kept_area = _area(kept_mesh)
     n_kept = int(min(20 * n_hole, math.ceil(n_hole * kept_area / max(hole_area, 1e-30))))
     kept_points = (patch.to_unit(sample_surface(kept_mesh, max(n_kept, 1), rng)[0])
