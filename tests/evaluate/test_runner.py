@@ -99,6 +99,8 @@ def test_a_failing_method_is_a_row_not_a_crash():
     ours = out.rows[0]
     assert ours["status"].startswith("failed: RuntimeError: boom") and not ours["valid"]
     assert np.isnan(ours["cd"]) and out.gallery[0].meshes["ours"] is None
+    with pytest.raises(ValueError, match="psr_star_target"):
+        run_evaluation(make_shapes()[:1], psr_star_target="half", progress=False)
     with pytest.raises(ValueError, match="unknown baselines"):
         run_evaluation(make_shapes()[:1], baselines=("nope",), progress=False)
 

@@ -55,6 +55,12 @@ class GalleryRow:
     meshes: dict[str, PolygonMesh | None]
 
 
+def short_title(title: str, width: int = 28) -> str:
+    """A file-like title cut to fit a cell: the part after the last ``__``, at most ``width``."""
+    name = title.rsplit("__", 1)[-1]
+    return name if len(name) <= width else name[: width - 3] + "..."
+
+
 def view_direction(elev: float = VIEW[0], azim: float = VIEW[1]) -> FloatArray:
     """(3,) unit vector from the scene towards matplotlib's camera."""
     e, a = np.radians(elev), np.radians(azim)
@@ -154,7 +160,8 @@ def render_gallery(
                     depthshade=False,
                     linewidths=0,
                 )
-                text = f"{head}\n{row.title}" if i == 0 else row.title
+                name = short_title(row.title)
+                text = f"{head}\n{name}" if i == 0 else name
                 text = f"{text} ({len(p)} points)"
             else:
                 mesh = row.meshes.get(column)

@@ -42,6 +42,7 @@ Layout (Triton style)::
 from __future__ import annotations
 
 import json
+import math
 import shutil
 from pathlib import Path
 from typing import Any
@@ -138,10 +139,22 @@ def build_manifest(
     }
 
 
+def _json_safe(value: Any) -> Any:
+    """``value`` with non-finite floats replaced by None (strict JSON has no NaN)."""
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
 def write_manifest(directory: Path, manifest: dict[str, Any]) -> Path:
-    """Write ``manifest.json`` (sorted keys, 2-space indent)."""
+    """Write ``manifest.json`` (strict JSON, sorted keys, 2-space indent)."""
     path = Path(directory) / MANIFEST
-    path.write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+    text = json.dumps(_json_safe(manifest), indent=2, sort_keys=True, allow_nan=False)
+    path.write_text(text + "\n")
     return path
 
 

@@ -335,6 +335,7 @@ def plot_histograms(
         xticks=np.arange(len(degrees)) + 0.4 - width / 2, ylabel="% of faces", title="Face degrees"
     )
     axes[3].set_xticklabels([str(d) for d in degrees])
+    axes[3].legend(fontsize=8)
     if title:
         fig.suptitle(title)
     fig.tight_layout()

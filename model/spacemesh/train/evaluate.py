@@ -130,8 +130,9 @@ def pipeline_metrics(
     Returns
     -------
     dict
-        ``valid`` (share of outputs that are closed oriented manifolds, empty outputs
-        counted invalid), ``empty`` (share without faces), ``chamfer_mean``,
+        ``valid`` (share of outputs without any topological defect: closed, manifold,
+        consistently oriented; an empty output has none), ``valid_nonempty`` (the same
+        among outputs with faces), ``empty`` (share without faces), ``chamfer_mean``,
         ``chamfer_median`` and ``f1_mean`` (over non-empty outputs), ``vertices_mean``
         and ``shapes``.
     """
@@ -147,15 +148,19 @@ def pipeline_metrics(
         ]
         for record, result in zip(chunk, generator.generate_batch(requests), strict=True):
             mesh = result.mesh
+            report = check_topology(mesh)
             empty.append(mesh.n_faces == 0)
-            valid.append(check_topology(mesh).is_closed_oriented_manifold)
+            # no defect of any kind; the empty mesh (no faces) has none
+            valid.append(report.is_manifold and report.is_closed and report.is_oriented)
             vertices.append(mesh.n_vertices)
             if mesh.n_faces:
                 scores = surface_scores(mesh, record.mesh)
                 chamfer.append(scores["chamfer"])
                 f1.append(scores["f1"])
+    nonempty = [v for v, e in zip(valid, empty, strict=True) if not e]
     return {
         "valid": float(np.mean(valid)) if valid else float("nan"),
+        "valid_nonempty": float(np.mean(nonempty)) if nonempty else float("nan"),
         "empty": float(np.mean(empty)) if empty else float("nan"),
         "chamfer_mean": float(np.mean(chamfer)) if chamfer else float("nan"),
         "chamfer_median": float(np.median(chamfer)) if chamfer else float("nan"),
