@@ -92,6 +92,10 @@ def export_(
         Path | None,
         typer.Option("--eval-data", help="Held-out dataset to measure into the manifest."),
     ] = None,
+    calibrate_data: Annotated[
+        Path | None,
+        typer.Option("--calibrate-data", help="Dataset whose val split recalibrates tau."),
+    ] = None,
     eval_shapes: Annotated[
         int, typer.Option("--eval-shapes", min=1, help="Shapes for connectivity metrics.")
     ] = 100,
@@ -112,11 +116,13 @@ def export_(
         torch.set_num_threads(threads)
     if not run.exists():
         fail(f"{run}: no such run folder or checkpoint")
-    if eval_data is not None and not (eval_data / "manifest.json").is_file():
-        fail(f"{eval_data}: not a dataset folder (no manifest.json)")
+    for folder in (eval_data, calibrate_data):
+        if folder is not None and not (folder / "manifest.json").is_file():
+            fail(f"{folder}: not a dataset folder (no manifest.json)")
     try:
         directory = export_run(
             run, out, name=name, version=version, eval_data=eval_data,
+            calibrate_data=calibrate_data,
             connectivity_shapes=eval_shapes, pipeline_shapes=pipeline_shapes, threads=threads,
         )
     except (FileNotFoundError, ValueError) as error:

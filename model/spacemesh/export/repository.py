@@ -312,6 +312,7 @@ def export_run(
     name: str | None = None,
     version: int = 1,
     eval_data: str | Path | None = None,
+    calibrate_data: str | Path | None = None,
     connectivity_shapes: int = 100,
     pipeline_shapes: int = 16,
     threads: int = 0,
@@ -330,6 +331,10 @@ def export_run(
     eval_data : path, optional
         Held-out dataset to measure (metrics go into the manifest); without it the
         manifest records the run's last validation metrics.
+    calibrate_data : path, optional
+        Dataset whose ``val`` split recalibrates the edge threshold ``tau`` (see
+        :func:`spacemesh.train.evaluate.calibrate_threshold`); the learned and the
+        calibrated values go into the manifest's ``training`` section.
     connectivity_shapes, pipeline_shapes : int
     threads : int
         onnxruntime threads for the measurement.
@@ -353,6 +358,19 @@ def export_run(
         "optimizer": f"Adam(lr={config.train.lr})",
         "parameters": sum(p.numel() for p in model.parameters()),
     }
+    if calibrate_data is not None:
+        from spacemesh.train.evaluate import calibrate_threshold
+        from spacemesh.train.loop import load_samples
+
+        samples = load_samples(calibrate_data, "val", config.max_vertices,
+                               limit=connectivity_shapes)
+        learned = float(model.connectivity.tau.detach())
+        tau, f1 = calibrate_threshold(model, samples)
+        with torch.no_grad():
+            model.connectivity.tau.fill_(tau)
+        training["tau"] = {"learned": learned, "calibrated": tau, "val_edge_f1": f1,
+                           "calibration": f"max mean edge F1 on {len(samples)} shapes of the "
+                                          f"val split of {Path(calibrate_data).name}"}
     metrics = {"validation": extra.get("validation", {})}
     directory = write_model_repository(model, root, name=name, version=version,
                                        data=extra.get("data", {}), training=training,

@@ -27,11 +27,19 @@ import numpy as np
 from spacemesh.decode import Embeddings
 from spacemesh.mesh import PolygonMesh
 from spacemesh.repair.cut import Cut, cut_region
-from spacemesh.repair.inpaint import inpaint_tokens
-from spacemesh.repair.patch import MAX_RINGS, Patch, hole_surface, in_hole, plan_patch, sample_patch
+from spacemesh.repair.inpaint import InpaintResult, inpaint_tokens
+from spacemesh.repair.patch import (
+    MAX_RINGS,
+    Patch,
+    PatchSamples,
+    hole_surface,
+    in_hole,
+    plan_patch,
+    sample_patch,
+)
 from spacemesh.repair.region import Region
 from spacemesh.repair.splice import fill_hole, splice
-from spacemesh.runtime.backend import Backend
+from spacemesh.runtime.backend import Backend, ConnectivityOutputs
 from spacemesh.runtime.pipeline import MeshGenerator, ModelSpec, drop_duplicates
 from spacemesh.runtime.sampler import ProgressFn
 from spacemesh.runtime.schedule import METHODS
@@ -187,6 +195,50 @@ def enclosed_volume(mesh: PolygonMesh) -> float:
     return float(np.einsum("ij,ij->", first, np.cross(a, b)) / 6.0)
 
 
+def select_new_vertices(result: InpaintResult, samples: PatchSamples
+                        ) -> tuple[IntArray, BoolArray, dict[str, int]]:
+    """The free tokens that become new vertices.
+
+    A free token alive by the mask channel is kept when its nearest patch sample is a
+    hole point (not a kept-face point) and it is not within the pipeline's duplicate
+    tolerance of a known vertex or of another kept token.
+
+    Returns
+    -------
+    candidates : (M,) int64
+        Token indices of the new vertices.
+    valid : (N,) bool
+        Known tokens and candidates (the connectivity network's mask).
+    counts : dict
+        ``alive``, ``outside_hole`` and ``duplicates``.
+    """
+    positions = result.tokens[:, :3].astype(np.float64)  # (N, 3)
+    alive = np.flatnonzero(result.alive)
+    inside_mask = in_hole(positions[alive], samples)
+    inside = alive[inside_mask]
+    order = np.concatenate([result.known_token, inside])  # known first: duplicates drop new
+    kept = drop_duplicates(positions[order], np.ones(len(order), dtype=bool))
+    candidates = inside[kept[len(result.known_token):]]
+    valid = ~result.free
+    valid[candidates] = True
+    counts = {"alive": len(alive), "outside_hole": int((~inside_mask).sum()),
+              "duplicates": len(inside) - len(candidates)}
+    return candidates, valid, counts
+
+
+def hole_embeddings(out: ConnectivityOutputs, rows: IntArray, flipped: bool) -> Embeddings:
+    """The embeddings of the tokens ``rows`` (boundary vertices, then new vertices).
+
+    With ``flipped`` (a clockwise input) ``prev`` and ``next`` swap roles, which reverses
+    every predicted cyclic order.
+    """
+    prev, nxt = (out.next, out.prev) if flipped else (out.prev, out.next)
+    return Embeddings(np.asarray(out.x[0][rows], np.float64), out.tau,
+                      np.asarray(out.root[0][rows], np.float64),
+                      np.asarray(prev[0][rows], np.float64),
+                      np.asarray(nxt[0][rows], np.float64))
+
+
 def _resolve(generator: MeshGenerator | None, backend: Backend | None,
              spec: ModelSpec | None) -> tuple[Backend, ModelSpec]:
     if generator is not None:
@@ -288,15 +340,7 @@ def repair_mesh(
                             spec.schedule.respaced(steps), method=method, rng=rng,
                             progress=progress)
     positions = result.tokens[:, :3].astype(np.float64)  # (N, 3)
-    alive_free = np.flatnonzero(result.alive)
-    hole_ok = in_hole(positions[alive_free], samples)
-    inside = alive_free[hole_ok]
-    valid = ~result.free
-    valid[inside] = True
-    order = np.concatenate([result.known_token, inside])  # known first: duplicates drop new
-    kept = drop_duplicates(positions[order], np.ones(len(order), dtype=bool))
-    candidates = inside[kept[len(result.known_token):]]
-    valid[np.setdiff1d(inside, candidates)] = False
+    candidates, valid, dropped = select_new_vertices(result, samples)
     timings["sampler"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -304,14 +348,9 @@ def repair_mesh(
     timings["connectivity"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    boundary_tokens = result.known_token[np.searchsorted(patch.known, cut.boundary)]
-    rows = np.concatenate([boundary_tokens, candidates])
     flipped = bool(enclosed_volume(mesh) < 0)
-    prev, nxt = (out.next, out.prev) if flipped else (out.prev, out.next)
-    emb = Embeddings(np.asarray(out.x[0][rows], np.float64), out.tau,
-                     np.asarray(out.root[0][rows], np.float64),
-                     np.asarray(prev[0][rows], np.float64),
-                     np.asarray(nxt[0][rows], np.float64))
+    boundary_tokens = result.known_token[np.searchsorted(patch.known, cut.boundary)]
+    emb = hole_embeddings(out, np.concatenate([boundary_tokens, candidates]), flipped)
     fill = fill_hole(emb, len(cut.boundary), cut.loop_next, cut.loop_prev, spec.decode)
     spliced = splice(cut, patch.from_unit(positions[candidates]), fill)
     timings["splice"] = time.perf_counter() - t0
@@ -330,8 +369,7 @@ def repair_mesh(
         patch_faces=len(patch.faces), patch_rings=patch.rings,
         known_vertices=len(patch.known), tokens=patch.n_tokens, candidates=len(candidates),
         fallback=fallback, fill=dict(fs),
-        inpaint={"alive": len(alive_free), "outside_hole": int((~hole_ok).sum()),
-                 "duplicates": len(inside) - len(candidates)},
+        inpaint=dropped,
         flipped_orientation=flipped, seed=int(seed), steps=steps, method=method,
         timings=timings,
     )

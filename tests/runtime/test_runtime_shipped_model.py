@@ -1,0 +1,44 @@
+"""The shipped model repository: present, intact, small, and loaded by default."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("onnxruntime")
+
+from spacemesh.runtime import MeshGenerator, ModelRepository, ModelSpec
+from spacemesh.runtime.repository import (
+    DEFAULT_MODEL_NAME,
+    MODEL_ENV,
+    default_model_dir,
+)
+from spacemesh.topology import check_topology
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    if not default_model_dir().exists():
+        pytest.skip("no shipped model in this checkout")
+    return ModelRepository.load(intra_op_threads=1)
+
+
+def test_default_is_the_shipped_model_and_verifies(shipped):
+    assert shipped.name == DEFAULT_MODEL_NAME
+    assert sum(f["bytes"] for f in shipped.manifest["files"].values()) < 25 * 2**20
+    for key in ("data", "training", "metrics"):
+        assert shipped.manifest[key], key
+    assert shipped.manifest["training"]["seconds"] > 0
+
+
+def test_environment_variable_overrides_the_default(monkeypatch, tmp_path):
+    monkeypatch.setenv(MODEL_ENV, str(tmp_path / "elsewhere"))
+    assert default_model_dir() == tmp_path / "elsewhere"
+
+
+def test_shipped_model_generates_a_valid_mesh(shipped):
+    generator = MeshGenerator(shipped.backend, ModelSpec.from_manifest(shipped.manifest))
+    d = np.random.default_rng(0).normal(size=(2048, 3))
+    result = generator.generate(d / np.linalg.norm(d, axis=1, keepdims=True), seed=0, steps=10)
+    report = check_topology(result.mesh)
+    assert report.is_manifold and report.is_closed and report.is_oriented
