@@ -303,6 +303,8 @@ def write_report(rows: list[dict], config: dict, out: Path, gallery: Path | None
         f"{config['steps']} sampler steps, seed {config['seed']}. Written by "
         "`experiments/eval_repair.py`; every row is in `repair.json`.",
         "",
+        f"Model training: {config.get('training', 'unknown')}.",
+        "",
         "CD is the Chamfer distance (sum of the two mean squared distances, x 1e-3) and F1",
         "the F-score at 0.02, both in the original's [-1, 1] frame with 10,000 points per",
         "surface (Supplement C). *Region* CD/F1 compare only the region: points on the",
@@ -353,7 +355,8 @@ def write_report(rows: list[dict], config: dict, out: Path, gallery: Path | None
         lines += ["", f"![gallery]({gallery.name})", "",
                   "Gallery: the input with the region removed, ours, MeshFix, the original."]
     lines += ["", "Config: `" + json.dumps({k: v for k, v in config.items()
-                                            if k not in ('model_label',)}) + "`", ""]
+                                            if k not in ("model_label", "training")}) + "`",
+              ""]
     path = out / "repair.md"
     path.write_text("\n".join(lines))
     return path
@@ -389,6 +392,18 @@ def render(examples: list[tuple[str, dict]], path: Path) -> Path | None:
                           labels={"hole": "region removed", "gt": "original"})
 
 
+def training_summary(model: Path) -> str:
+    """One line on how the model was trained (from its manifest)."""
+    manifest = json.loads((model / "manifest.json").read_text())
+    training = manifest.get("training", {})
+    data = manifest.get("data", {})
+    held = manifest.get("metrics", {}).get("heldout", {}).get("connectivity_on_gt_vertices", {})
+    return (f"{training.get('steps', '?')} steps on {training.get('device', '?')} "
+            f"({training.get('seconds', 0) / 60:.0f} min), data {data.get('dataset', '?')}; "
+            f"held-out next accuracy on true vertices {held.get('next_accuracy', math.nan):.3f}, "
+            f"decoded edge F1 {held.get('decoded_edge_f1', math.nan):.3f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--model", default=None)
@@ -399,7 +414,17 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--out", default=str(ROOT / "docs" / "results"))
     parser.add_argument("--no-shared", action="store_true", help="Skip ../shared/meshes.")
+    parser.add_argument("--report-only", action="store_true",
+                        help="Rewrite repair.md from an existing repair.json.")
     args = parser.parse_args()
+    out = Path(args.out)
+    if args.report_only:
+        saved = json.loads((out / "repair.json").read_text())
+        config = saved["config"]
+        config.setdefault("training", training_summary(Path(config["model"])))
+        gallery = out / "repair.png"
+        print(write_report(saved["rows"], config, out, gallery if gallery.is_file() else None))
+        return
 
     from spacemesh.evaluate.runner import pin_threads
 
@@ -409,7 +434,6 @@ def main() -> None:
     model, label = find_model(args.model)
     generator = MeshGenerator.from_repository(model, intra_op_threads=args.threads)
     steps = args.steps or generator.spec.steps
-    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     cases = []
     if Path(args.data).is_dir():
@@ -439,6 +463,7 @@ def main() -> None:
     config = {"model": str(model), "model_label": label, "steps": steps, "seed": args.seed,
               "count": args.count, "data": str(args.data), "threads": args.threads,
               "shared_meshes": MESHES.is_dir() and not args.no_shared,
+              "training": training_summary(model),
               "seconds": round(time.perf_counter() - start, 1)}
     (out / "repair.json").write_text(json.dumps({"config": config, "rows": rows}, indent=1,
                                                 default=float))

@@ -86,8 +86,8 @@ class RepairStats:
     fill : dict
         :attr:`spacemesh.repair.splice.Fill.stats`.
     inpaint : dict
-        ``alive`` (free tokens alive by the mask), ``outside_hole`` and
-        ``duplicates`` (of those, dropped).
+        ``alive`` (free tokens alive by the mask), and of those dropped:
+        ``outside_hole``, ``duplicates`` and ``over_limit`` (beyond the expected count).
     flipped_orientation : bool
         The input's faces wind clockwise (negative volume), so the network's cyclic
         orders were read reversed.
@@ -195,13 +195,15 @@ def enclosed_volume(mesh: PolygonMesh) -> float:
     return float(np.einsum("ij,ij->", first, np.cross(a, b)) / 6.0)
 
 
-def select_new_vertices(result: InpaintResult, samples: PatchSamples
+def select_new_vertices(result: InpaintResult, samples: PatchSamples, max_new: int
                         ) -> tuple[IntArray, BoolArray, dict[str, int]]:
     """The free tokens that become new vertices.
 
     A free token alive by the mask channel is kept when its nearest patch sample is a
     hole point (not a kept-face point) and it is not within the pipeline's duplicate
-    tolerance of a known vertex or of another kept token.
+    tolerance of a known vertex or of another kept token. At most ``max_new`` are kept,
+    those with the largest mask channel: a mask that keeps more tokens alive than the
+    density around the hole implies is trusted only for its most confident tokens.
 
     Returns
     -------
@@ -218,11 +220,14 @@ def select_new_vertices(result: InpaintResult, samples: PatchSamples
     inside = alive[inside_mask]
     order = np.concatenate([result.known_token, inside])  # known first: duplicates drop new
     kept = drop_duplicates(positions[order], np.ones(len(order), dtype=bool))
-    candidates = inside[kept[len(result.known_token):]]
+    distinct = inside[kept[len(result.known_token):]]
+    confident = np.argsort(-result.tokens[distinct, 3], kind="stable")[:max(max_new, 0)]
+    candidates = np.sort(distinct[confident])
     valid = ~result.free
     valid[candidates] = True
     counts = {"alive": len(alive), "outside_hole": int((~inside_mask).sum()),
-              "duplicates": len(inside) - len(candidates)}
+              "duplicates": len(inside) - len(distinct),
+              "over_limit": len(distinct) - len(candidates)}
     return candidates, valid, counts
 
 
@@ -340,7 +345,7 @@ def repair_mesh(
                             spec.schedule.respaced(steps), method=method, rng=rng,
                             progress=progress)
     positions = result.tokens[:, :3].astype(np.float64)  # (N, 3)
-    candidates, valid, dropped = select_new_vertices(result, samples)
+    candidates, valid, dropped = select_new_vertices(result, samples, patch.expected_new)
     timings["sampler"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
