@@ -131,7 +131,11 @@ def test_the_seed_used_is_reported_and_replays(http, case):
     else:
         seed = assert_problem(first, 422, "no-surface")["seed"]
     again = generate_json(http, case.points, format="obj", seed=seed)
-    assert again.status_code == first.status_code and again.content == first.content
+    assert again.status_code == first.status_code
+    if first.status_code == 200:
+        assert again.content == first.content
+    else:  # the problem reports wall-clock timings, which differ run to run
+        assert {**again.json(), "timings": None} == {**first.json(), "timings": None}
 
 
 # ---------------------------------------------------------------------- errors
