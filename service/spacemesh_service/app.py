@@ -1,9 +1,9 @@
 """The REST API (FastAPI): routes, problem+json errors, request metrics.
 
-Routes: ``POST /generate``, ``POST /repair`` (501 until the repair issue lands),
-``GET /v2``, ``/v2/health/live``, ``/v2/health/ready``, ``/v2/models/{name}``,
-``/v2/models/{name}/ready``, ``/v2/models/{name}/versions/{version}``, ``/metrics``,
-and ``/docs`` + ``/openapi.json``.
+Routes: ``POST /generate`` (point cloud in, mesh out), ``POST /repair`` (a mesh and a
+region in, the mesh with the region re-generated out), ``GET /v2``, ``/v2/health/live``,
+``/v2/health/ready``, ``/v2/models/{name}``, ``/v2/models/{name}/ready``,
+``/v2/models/{name}/versions/{version}``, ``/metrics``, and ``/docs`` + ``/openapi.json``.
 
 :func:`create_app` builds the app around an :class:`~spacemesh_service.engine.Engine`.
 Without one it makes its own and starts it in the app's lifespan, so
@@ -28,13 +28,15 @@ from starlette.datastructures import UploadFile
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from spacemesh_service import problems as P
-from spacemesh_service.engine import Engine, ParseFn
+from spacemesh_service.engine import Engine, MeshUpload, ParseFn
 from spacemesh_service.inputs import read_json, read_upload
 from spacemesh_service.metrics import CONTENT_TYPE as METRICS_CONTENT_TYPE
 from spacemesh_service.openapi import (
     DESCRIPTION,
     GENERATE_REQUEST_BODY,
     GENERATE_RESPONSES,
+    REPAIR_REQUEST_BODY,
+    REPAIR_RESPONSES,
     LiveModel,
     ModelReadyModel,
     ReadyModel,
@@ -177,6 +179,34 @@ async def _read_request(request: Request, limit: int) -> tuple[ParseFn, dict[str
                   "with a 'file' field, or application/json with 'points'")
 
 
+async def _read_repair_form(request: Request, limit: int
+                            ) -> tuple[MeshUpload, str | bytes, dict[str, Any]]:
+    """The mesh file (field ``file``), the region's JSON (field ``region``, text or a
+    file) and the options found in a repair request's multipart form."""
+    content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if content_type != "multipart/form-data":
+        shown = content_type or "no Content-Type"
+        raise Problem(P.UNSUPPORTED_FORMAT, f"cannot read a {shown} body; send "
+                      "multipart/form-data with the mesh in 'file' and the region (JSON) "
+                      "in 'region'")
+    form = await _limited(request, limit).form(max_files=2, max_fields=len(_OPTION_NAMES) + 4)
+    try:
+        upload = form.get("file")
+        if not isinstance(upload, UploadFile):
+            raise Problem(P.MALFORMED_INPUT, "the multipart body has no file field 'file' "
+                          "(the mesh)")
+        field = form.get("region")
+        if field is None:
+            raise Problem(P.MALFORMED_INPUT, "the multipart body has no field 'region' (the "
+                          'region as JSON, e.g. {"faces": [0, 1]})')
+        region = await field.read() if isinstance(field, UploadFile) else field
+        mesh = MeshUpload(await upload.read(), upload.filename)
+        options = {k: form.get(k) for k in _OPTION_NAMES if isinstance(form.get(k), str)}
+    finally:
+        await form.close()
+    return mesh, region, options
+
+
 # ---------------------------------------------------------------------- app
 def create_app(settings: Settings | None = None, *, engine: Engine | None = None) -> FastAPI:
     """The REST app.
@@ -238,12 +268,39 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
             f'inline; filename="spacemesh-{reply.seed}.{reply.mesh.format}"')
         return Response(reply.mesh.body, media_type=reply.mesh.media_type, headers=headers)
 
-    @app.post("/repair", tags=["repair"], summary="Regenerate a region of a mesh",
-              responses={501: problem_response("Not implemented yet", {
-                  "todo": (P.NOT_IMPLEMENTED, "repair is not implemented yet")})})
-    async def repair() -> Response:
-        """Not implemented yet: answers 501 ``not-implemented``."""
-        raise Problem(P.NOT_IMPLEMENTED, "repair is not implemented yet")
+    @app.post("/repair", tags=["repair"], response_class=Response,
+              summary="Re-generate a region of a mesh",
+              openapi_extra={"requestBody": REPAIR_REQUEST_BODY},
+              responses=REPAIR_RESPONSES)
+    async def repair(
+        request: Request,
+        format: str | None = Query(None, description=f"One of {', '.join(OUTPUT_FORMATS)} "
+                                   "(default glb).", examples=["obj"]),
+        seed: int | None = Query(None, description="Random seed (picked when absent).",
+                                 examples=[7]),
+        steps: int | None = Query(None, description="Sampler steps (the model's default "
+                                  "when absent).", examples=[25]),
+    ) -> Response:
+        """A mesh and a region in; the region's vertices and faces generated again, every
+        other face unchanged.
+
+        The body is multipart: the mesh file in `file` (OBJ, OFF, PLY, STL, GLB, glTF) and
+        the region as JSON in `region`: `{"faces": [...]}`, `{"vertices": [...]}`,
+        `{"sphere": {"center": [x, y, z], "radius": r}}` or
+        `{"box": {"min": [x, y, z], "max": [x, y, z]}}` (mesh coordinates, indices into
+        the file's faces and vertices). Options as for `/generate`, in the query or the
+        form (the form wins). A region the server cannot use answers 422 with its kind
+        as the problem type, before the request is queued.
+        """
+        with engine.admit():
+            upload, region, form_options = await _read_repair_form(
+                request, settings.max_upload_bytes)
+            options = {"format": format, "seed": seed, "steps": steps, **form_options}
+            reply = await engine.repair(upload, region, options)
+        headers = reply.headers()
+        headers["Content-Disposition"] = (
+            f'inline; filename="spacemesh-repair-{reply.seed}.{reply.mesh.format}"')
+        return Response(reply.mesh.body, media_type=reply.mesh.media_type, headers=headers)
 
     @app.get("/v2", tags=["health"], response_model=ServerMetadata)
     async def server_metadata() -> dict[str, Any]:

@@ -9,6 +9,10 @@ at a time). Each request keeps its own seed, so batching never changes a mesh.
 A full queue raises :class:`QueueFull`. A caller that is cancelled (its timeout, or a
 client that went away) leaves the queue; when every request of a running batch has
 been cancelled the batch stops at the next sampler step.
+
+:meth:`Batcher.submit_call` queues work that does not batch (a repair): it waits in the
+same queue, counts against the same ``queue_size`` and runs alone in the same inference
+thread, so generation and repair never compete for the cores.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from typing import Any
 
 from spacemesh.runtime.pipeline import GenerateRequest, GenerateResult
 from spacemesh_service.metrics import BATCH_STAGES, Metrics
@@ -31,6 +36,8 @@ log = logging.getLogger("spacemesh.service")
 ProgressFn = Callable[[int, int], None]
 #: ``run(requests, progress) -> results``: :meth:`MeshGenerator.generate_batch`.
 RunBatch = Callable[..., list[GenerateResult]]
+#: ``call(progress) -> result``: work run alone (:meth:`Batcher.submit_call`).
+SoloCall = Callable[[ProgressFn], Any]
 
 
 class QueueFull(Exception):
@@ -52,28 +59,32 @@ class Outcome:
     Attributes
     ----------
     result : GenerateResult
+        Or what the call of :meth:`Batcher.submit_call` returned.
     batch_size : int
-        Requests in the batch it ran in.
+        Requests in the batch it ran in (1 for a call).
     queue_seconds : float
         Time between submission and the start of its batch.
     """
 
-    result: GenerateResult
+    result: Any
     batch_size: int
     queue_seconds: float
 
 
 @dataclass(eq=False)
 class _Job:
-    request: GenerateRequest
+    request: GenerateRequest | None
     future: asyncio.Future
     progress: ProgressFn | None
+    call: SoloCall | None = None
     enqueued: float = field(default_factory=time.perf_counter)
     queue_seconds: float = 0.0
     cancelled: bool = False
 
     @property
     def key(self) -> tuple:
+        if self.request is None:  # a call: batches with nothing
+            return ("call", id(self))
         return (self.request.steps, self.request.method)
 
 
@@ -148,11 +159,40 @@ class Batcher:
         ------
         QueueFull, ShuttingDown
         """
+        return await self._enqueue(request, None, progress)
+
+    async def submit_call(self, call: SoloCall, *,
+                          progress: ProgressFn | None = None) -> Outcome:
+        """Queue work that runs alone in the inference thread, and wait for its result.
+
+        Parameters
+        ----------
+        call : callable
+            ``call(progress) -> result``; ``progress(done, total)`` must be called after
+            each sampler step (it raises when the caller has given up, which stops the
+            work).
+        progress : callable, optional
+            ``progress(done, total)``, called on the event loop.
+
+        Returns
+        -------
+        Outcome
+            ``result`` is what ``call`` returned, ``batch_size`` 1.
+
+        Raises
+        ------
+        QueueFull, ShuttingDown
+            And whatever ``call`` raised.
+        """
+        return await self._enqueue(None, call, progress)
+
+    async def _enqueue(self, request: GenerateRequest | None, call: SoloCall | None,
+                       progress: ProgressFn | None) -> Outcome:
         if self._closing:
             raise ShuttingDown
         if len(self._pending) >= self.queue_size:
             raise QueueFull
-        job = _Job(request, asyncio.get_running_loop().create_future(), progress)
+        job = _Job(request, asyncio.get_running_loop().create_future(), progress, call)
         self._open.add(job)
         job.future.add_done_callback(lambda _: self._open.discard(job))
         self._pending.append(job)
@@ -230,6 +270,9 @@ class Batcher:
             if first is not None:
                 break
         batch = [first]
+        if first.call is not None:  # runs alone: nothing to wait for
+            self._set_depth()
+            return batch
         loop = asyncio.get_running_loop()
         deadline = loop.time() + self.max_delay_s
         while True:
@@ -251,7 +294,38 @@ class Batcher:
             except Exception:  # pragma: no cover - _run settles every future
                 log.exception("batch failed")
 
+    def _record_duration(self, elapsed: float) -> None:
+        self._batch_seconds = elapsed if not self._batch_seconds else (
+            0.8 * self._batch_seconds + 0.2 * elapsed)
+
+    async def _run_call(self, job: _Job) -> None:
+        loop = asyncio.get_running_loop()
+        start = time.perf_counter()
+        job.queue_seconds = start - job.enqueued
+
+        def progress(done: int, total: int) -> None:  # in the inference thread
+            if job.cancelled:
+                raise _AllCancelled
+            if job.progress is not None:
+                loop.call_soon_threadsafe(job.progress, done, total)
+
+        try:
+            result = await loop.run_in_executor(self._executor, lambda: job.call(progress))
+        except _AllCancelled:
+            log.info("stopped a cancelled call")
+            if self.metrics is not None:
+                self.metrics.stopped_batches.inc()
+            return
+        except Exception as error:
+            self._settle(job, error=error)
+            return
+        self._record_duration(time.perf_counter() - start)
+        self._settle(job, Outcome(result, 1, job.queue_seconds))
+
     async def _run(self, batch: list[_Job]) -> None:
+        if batch[0].call is not None:  # alone by its key
+            await self._run_call(batch[0])
+            return
         log.debug("running a batch of %d", len(batch))
         loop = asyncio.get_running_loop()
         start = time.perf_counter()
@@ -283,9 +357,7 @@ class Batcher:
                 return
             self._settle(batch[0], error=error)
             return
-        elapsed = time.perf_counter() - start
-        self._batch_seconds = elapsed if not self._batch_seconds else (
-            0.8 * self._batch_seconds + 0.2 * elapsed)
+        self._record_duration(time.perf_counter() - start)
         if self.metrics is not None and results:
             for stage in BATCH_STAGES:
                 if stage in results[0].timings:

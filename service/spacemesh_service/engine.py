@@ -8,6 +8,11 @@
 and comes back as a :class:`Reply`, or raises a :class:`~spacemesh_service.problems.Problem`.
 Both servers are thin adapters around :meth:`Engine.generate`, which is why they accept
 the same inputs, raise the same errors and return the same bytes.
+
+:meth:`Engine.repair` is the same for a repair (:mod:`spacemesh.repair`):
+
+    read mesh + region, cut and plan (thread; region errors: 422 before queueing)
+      -> queue -> repair_mesh alone (inference thread) -> encode output (thread)
 """
 
 from __future__ import annotations
@@ -22,12 +27,30 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh.mesh import PolygonMesh
+from spacemesh.repair import RegionError, RepairPlan, plan_repair, repair_mesh
+from spacemesh.repair.region import Region
 from spacemesh.runtime.pipeline import GenerateRequest, MeshGenerator
 from spacemesh_service import problems as P
 from spacemesh_service.batcher import Batcher, ProgressFn, QueueFull, ShuttingDown
-from spacemesh_service.inputs import INPUT_FORMATS, Options, parse_options, validate_cloud
+from spacemesh_service.inputs import (
+    INPUT_FORMATS,
+    MESH_FORMATS,
+    Options,
+    parse_options,
+    read_mesh_upload,
+    read_region,
+    validate_cloud,
+)
 from spacemesh_service.metrics import Metrics
-from spacemesh_service.outputs import MEDIA_TYPES, EncodedMesh, encode_mesh, stats_headers
+from spacemesh_service.outputs import (
+    MEDIA_TYPES,
+    EncodedMesh,
+    encode_mesh,
+    repair_headers,
+    repair_summary,
+    stats_headers,
+)
 from spacemesh_service.problems import Problem
 from spacemesh_service.settings import Settings
 
@@ -49,10 +72,16 @@ class Reply:
     model_version: str
     timings: dict[str, float]
     batch_size: int
+    #: What a repair did (:func:`~spacemesh_service.outputs.repair_summary`); None for
+    #: a generated mesh.
+    repair: dict[str, Any] | None = None
 
     def headers(self) -> dict[str, str]:
-        """Response headers: ``X-SpaceMesh-*`` statistics, seed, steps, and Server-Timing."""
+        """Response headers: ``X-SpaceMesh-*`` statistics, seed, steps, and Server-Timing
+        (and the repair's statistics)."""
         headers = stats_headers(self.mesh.stats)
+        if self.repair is not None:
+            headers.update(repair_headers(self.repair))
         headers.update({
             "X-SpaceMesh-Seed": str(self.seed),
             "X-SpaceMesh-Steps": str(self.steps),
@@ -63,6 +92,24 @@ class Reply:
                                        for k, v in self.timings.items()),
         })
         return headers
+
+
+@dataclass(frozen=True)
+class MeshUpload:
+    """A mesh file as sent: its bytes and name (the extension picks the format)."""
+
+    data: bytes
+    filename: str | None
+
+
+@dataclass(frozen=True)
+class _RepairJob:
+    """A decoded repair request, its region cut and planned."""
+
+    mesh: PolygonMesh
+    region: Region
+    plan: RepairPlan
+    options: Options
 
 
 def fibonacci_sphere(count: int) -> np.ndarray:
@@ -208,7 +255,8 @@ class Engine:
             "outputs": [{"name": "mesh", "datatype": "BYTES", "shape": [1]}],
             "limits": {**self.settings.limits(), "max_steps": self.max_steps,
                        "max_vertices": spec.max_vertices},
-            "input_formats": {"upload": list(INPUT_FORMATS), "json": ["points", "normals"]},
+            "input_formats": {"upload": list(INPUT_FORMATS), "json": ["points", "normals"],
+                              "repair": list(MESH_FORMATS)},
             "output_formats": dict(MEDIA_TYPES),
             "sampler": {"method": spec.method, "default_steps": self.default_steps,
                         "timesteps": spec.schedule.timesteps},
@@ -290,24 +338,8 @@ class Engine:
         spec = self.generator.spec
         request = GenerateRequest(cloud.points, cloud.normals, seed=opts.seed,
                                   steps=opts.steps or self.default_steps, method=spec.method)
-        remaining = self.settings.request_timeout_s - decode_s
-        try:
-            if remaining <= 0:
-                raise asyncio.TimeoutError
-            outcome = await asyncio.wait_for(
-                self.batcher.submit(request, progress=progress), remaining)
-        except asyncio.TimeoutError:
-            raise Problem(P.TIMEOUT, f"no result within {self.settings.request_timeout_s} s; "
-                          "the work was cancelled",
-                          timeout_s=self.settings.request_timeout_s) from None
-        except QueueFull:
-            raise Problem(P.QUEUE_FULL, f"{self.batcher.depth} requests are waiting already",
-                          retry_after=self.batcher.retry_after()) from None
-        except ShuttingDown:
-            raise Problem(P.SHUTTING_DOWN, "the server is draining before it exits",
-                          retry_after=1) from None
-        except ValueError as error:  # the pipeline's own input checks
-            raise Problem(P.INVALID_PARAMETER, str(error)) from None
+        outcome = await self._queued(self.batcher.submit(request, progress=progress),
+                                     decode_s)
         result = outcome.result
         self.metrics.observe_stage("queue", outcome.queue_seconds)
         self.metrics.observe_stage("extraction", result.timings.get("extraction", 0.0))
@@ -326,3 +358,113 @@ class Engine:
         self.metrics.observe_stage("encode_output", timings["encode_output"])
         return Reply(encoded, result.seed, result.steps, result.method, self.model_name,
                      self.model_version, timings, outcome.batch_size)
+
+    async def _queued(self, work: Any, spent: float) -> Any:
+        """Await the batcher (``submit`` or ``submit_call``) within what is left of the
+        request timeout; its exceptions become problems."""
+        remaining = self.settings.request_timeout_s - spent
+        try:
+            if remaining <= 0:
+                work.close()
+                raise asyncio.TimeoutError
+            return await asyncio.wait_for(work, remaining)
+        except asyncio.TimeoutError:
+            raise Problem(P.TIMEOUT, f"no result within {self.settings.request_timeout_s} s; "
+                          "the work was cancelled",
+                          timeout_s=self.settings.request_timeout_s) from None
+        except QueueFull:
+            raise Problem(P.QUEUE_FULL, f"{self.batcher.depth} requests are waiting already",
+                          retry_after=self.batcher.retry_after()) from None
+        except ShuttingDown:
+            raise Problem(P.SHUTTING_DOWN, "the server is draining before it exits",
+                          retry_after=1) from None
+        except RegionError as error:  # pragma: no cover - planned before queueing
+            raise P.region_problem(error) from None
+        except ValueError as error:  # the pipeline's own input checks
+            raise Problem(P.INVALID_PARAMETER, str(error)) from None
+
+    # ------------------------------------------------------------------ repair
+    def _decode_repair(self, upload: MeshUpload, region: Any,
+                       options: dict[str, Any]) -> _RepairJob:
+        opts = parse_options({k: v for k, v in options.items() if v is not None},
+                             self.settings, max_model_steps=self.max_steps)
+        shape = read_region(region)
+        mesh, _ = read_mesh_upload(upload.data, upload.filename)
+        try:
+            plan = plan_repair(mesh, shape, self.generator.spec.max_vertices)
+        except RegionError as error:
+            raise P.region_problem(error) from None
+        return _RepairJob(mesh, shape, plan, opts)
+
+    async def repair(self, upload: MeshUpload, region: Any, options: dict[str, Any], *,
+                     progress: ProgressFn | None = None) -> Reply:
+        """Re-generate a region of a mesh (:func:`spacemesh.repair.repair_mesh`).
+
+        The mesh and region are read, and the region cut and planned, in a worker
+        thread, so every region error answers 422 before the request is queued; the
+        repair then waits in the generation queue and runs alone in the inference thread.
+
+        Parameters
+        ----------
+        upload : MeshUpload
+            The mesh file.
+        region : str, bytes or dict
+            The region's JSON text (REST) or JSON form (gRPC).
+        options : dict
+            ``format``, ``seed``, ``steps`` (None: not given).
+        progress : callable, optional
+            ``progress(done, total)`` after each sampler step (on the event loop).
+
+        Returns
+        -------
+        Reply
+            With :attr:`Reply.repair`; ``batch_size`` is 1.
+
+        Raises
+        ------
+        Problem
+        RuntimeError
+            Called outside :meth:`admit`.
+        """
+        if not self._inflight:
+            raise RuntimeError("call Engine.repair inside 'with engine.admit():'")
+        started = time.perf_counter()
+        try:
+            job = await asyncio.to_thread(self._decode_repair, upload, region, options)
+        except Problem as problem:
+            if problem.kind in P.REGION_KINDS:
+                self.metrics.repair_rejected.labels(problem.kind.slug).inc()
+            raise
+        decode_s = time.perf_counter() - started
+        self.metrics.observe_repair_stage("decode_input", decode_s - job.plan.seconds)
+        spec, opts = self.generator.spec, job.options
+        steps = opts.steps or self.default_steps
+
+        def run(report: ProgressFn) -> Any:  # in the inference thread
+            return repair_mesh(job.mesh, job.region, self.generator, seed=opts.seed,
+                               steps=steps, method=spec.method, progress=report,
+                               plan=job.plan)
+
+        outcome = await self._queued(self.batcher.submit_call(run, progress=progress),
+                                     decode_s)
+        result = outcome.result
+        stats = result.stats
+        summary = repair_summary(stats)
+        info = {"seed": stats.seed, "steps": stats.steps, "sampler": stats.method,
+                "model": {"name": self.model_name, "version": self.model_version},
+                "repair": summary}
+        timings = {"decode_input": decode_s - job.plan.seconds, "queue": outcome.queue_seconds}
+        timings.update({k: v for k, v in stats.timings.items() if k != "total"})
+        t0 = time.perf_counter()
+        encoded = await asyncio.to_thread(encode_mesh, result.mesh, opts.format, info)
+        timings["encode_output"] = time.perf_counter() - t0
+        timings["total"] = time.perf_counter() - started
+        m = self.metrics
+        for stage in ("queue", "cut", "patch", "encoder", "sampler", "connectivity", "splice",
+                      "encode_output"):
+            if stage in timings:
+                m.observe_repair_stage(stage, timings[stage])
+        m.repairs.labels(stats.fallback).inc()
+        m.repair_region_faces.observe(stats.region_faces)
+        return Reply(encoded, stats.seed, stats.steps, stats.method, self.model_name,
+                     self.model_version, timings, outcome.batch_size, repair=summary)

@@ -1,7 +1,8 @@
 """The gRPC API (``proto/spacemesh.proto``), a thin adapter over the shared engine.
 
 ``Generate`` and ``GenerateStream`` call :meth:`Engine.generate` exactly as
-``POST /generate`` does, so inputs, errors and mesh bytes are the same. A
+``POST /generate`` does, and ``Repair`` calls :meth:`Engine.repair` as ``POST /repair``
+does, so inputs, errors and mesh bytes are the same. A
 :class:`~spacemesh_service.problems.Problem` ends the call with its gRPC status code and
 trailing metadata ``problem-type`` / ``problem-status`` (and ``retry-after``).
 ``grpc.health.v1`` reports SERVING for ``""`` and ``spacemesh.v1.SpaceMesh`` once the
@@ -22,7 +23,7 @@ from grpc_health.v1 import health_pb2, health_pb2_grpc
 from grpc_health.v1.health import aio as health_aio
 
 from spacemesh_service import problems as P
-from spacemesh_service.engine import Engine, ParseFn, Reply
+from spacemesh_service.engine import Engine, MeshUpload, ParseFn, Reply
 from spacemesh_service.inputs import points_from_flat, read_upload
 from spacemesh_service.pb import spacemesh_pb2 as pb
 from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
@@ -36,18 +37,30 @@ SERVICE_NAME = pb.DESCRIPTOR.services_by_name["SpaceMesh"].full_name
 _MESSAGE_SLACK = 1 << 20
 
 
+def repair_stats_to_pb(summary: dict[str, Any]) -> pb.RepairStats:
+    """The gRPC form of a repair summary (:func:`spacemesh_service.outputs.repair_summary`)."""
+    fields = pb.RepairStats.DESCRIPTOR.fields_by_name
+    values = {k: v for k, v in summary.items() if k in fields}
+    if "new_face_degrees" in values:
+        values["new_face_degrees"] = {int(k): v for k, v in values["new_face_degrees"].items()}
+    return pb.RepairStats(**values)
+
+
 def reply_to_pb(reply: Reply) -> pb.MeshReply:
     """The gRPC form of an engine reply."""
     s = reply.mesh.stats
     stats = pb.MeshStats(vertices=s.vertices, faces=s.faces, edges=s.edges,
                          face_degrees=s.face_degrees, manifold=s.manifold, closed=s.closed,
                          oriented=s.oriented, components=s.components, genus=s.genus)
-    return pb.MeshReply(
+    message = pb.MeshReply(
         mesh=reply.mesh.body, format=reply.mesh.format, media_type=reply.mesh.media_type,
         stats=stats, seed=reply.seed, steps=reply.steps, sampler=reply.sampler,
         model_name=reply.model_name, model_version=reply.model_version,
         timings=reply.timings, batch_size=reply.batch_size,
     )
+    if reply.repair is not None:
+        message.repair.CopyFrom(repair_stats_to_pb(reply.repair))
+    return message
 
 
 def request_parser(request: pb.GenerateRequest, max_bytes: int) -> ParseFn:
@@ -63,6 +76,37 @@ def request_parser(request: pb.GenerateRequest, max_bytes: int) -> ParseFn:
         xyz, normals = request.points.xyz, request.points.normals
         return lambda: (*points_from_flat(xyz, normals), "points", {})
     raise Problem(P.MALFORMED_INPUT, "the request has no input: set 'file' or 'points'")
+
+
+def region_from_pb(region: pb.Region) -> dict[str, Any]:
+    """The JSON form of a ``Region`` message (checked by :func:`read_region` later)."""
+    shape = region.WhichOneof("shape")
+    if shape in ("faces", "vertices"):
+        return {shape: list(getattr(region, shape).indices)}
+    if shape == "sphere":
+        return {"sphere": {"center": list(region.sphere.center),
+                           "radius": region.sphere.radius}}
+    if shape == "box":
+        return {"box": {"min": list(region.box.min), "max": list(region.box.max)}}
+    raise Problem(P.MALFORMED_INPUT, "the region has no shape: set faces, vertices, sphere "
+                  "or box")
+
+
+def repair_input(request: pb.RepairRequest, max_bytes: int) -> tuple[MeshUpload, dict]:
+    """The mesh and the region (JSON form) of a RepairRequest."""
+    if len(request.mesh) > max_bytes:
+        raise Problem(P.PAYLOAD_TOO_LARGE, f"the mesh has {len(request.mesh)} bytes; this "
+                      f"server takes at most {max_bytes}", limit=max_bytes)
+    if request.HasField("region"):
+        if len(request.faces):
+            raise Problem(P.INVALID_REGION, "set either 'region' or 'faces', not both")
+        region = region_from_pb(request.region)
+    elif len(request.faces):
+        region = {"faces": list(request.faces)}
+    else:
+        raise Problem(P.MALFORMED_INPUT, "the request has no region: set 'region' (or "
+                      "'faces')")
+    return MeshUpload(request.mesh, request.filename or None), region
 
 
 def request_options(request: Any) -> dict[str, Any]:
@@ -142,12 +186,21 @@ class SpaceMeshServicer(pb_grpc.SpaceMeshServicer):
 
     async def Repair(self, request: pb.RepairRequest,
                      context: grpc.aio.ServicerContext) -> pb.MeshReply:
-        started = time.perf_counter()
+        started, code = time.perf_counter(), grpc.StatusCode.OK
         try:
-            await self._fail(context, Problem(P.NOT_IMPLEMENTED, "repair is not implemented yet"))
+            with self.engine.admit():
+                upload, region = repair_input(request, self.engine.settings.max_upload_bytes)
+                reply = await self.engine.repair(upload, region, request_options(request))
+            return reply_to_pb(reply)
+        except Problem as problem:
+            code = problem.kind.grpc_code
+            await self._fail(context, problem)
+            raise  # pragma: no cover - abort raises
+        except asyncio.CancelledError:
+            code = grpc.StatusCode.CANCELLED
+            raise
         finally:
-            self._observe("Repair", P.NOT_IMPLEMENTED.grpc_code, started)
-        return pb.MeshReply()  # pragma: no cover - abort raises
+            self._observe("Repair", code, started)
 
 
 class GrpcServer:

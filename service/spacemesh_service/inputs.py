@@ -7,6 +7,11 @@ same inputs. Every rejection is a :class:`~spacemesh_service.problems.Problem`:
 - too many points: 413; too few, NaN/Inf, or degenerate geometry (all points identical,
   collinear or coplanar, from the singular values of the centred points): 422;
 - bad ``format``/``seed``/``steps``: 400 ``invalid-parameter``.
+
+Repair requests (:func:`read_mesh_upload`, :func:`read_region`): an unreadable mesh
+file, a file without faces, or a region that is not JSON: 400 ``malformed-input``;
+NaN/Inf vertices: 422 ``non-finite``; a region that is JSON but not a region: 422
+``invalid-region`` (see :func:`~spacemesh_service.problems.region_problem`).
 """
 
 from __future__ import annotations
@@ -19,8 +24,11 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh.io import SUPPORTED_MESH_READ
 from spacemesh.io.errors import MeshFormatError, NonFiniteError, UnsupportedFormatError
 from spacemesh.io.points import SUPPORTED_POINTS_READ, load_points
+from spacemesh.mesh import PolygonMesh
+from spacemesh.repair.region import Region, RegionError, parse_region
 from spacemesh_service import problems as P
 from spacemesh_service.outputs import OUTPUT_FORMATS
 from spacemesh_service.problems import Problem
@@ -35,6 +43,8 @@ MAX_SEED = 2**63 - 1
 RANDOM_SEED_BITS = 31
 #: Point-cloud upload formats (also reported by the model metadata).
 INPUT_FORMATS: tuple[str, ...] = SUPPORTED_POINTS_READ
+#: Mesh upload formats of a repair (also reported by the model metadata).
+MESH_FORMATS: tuple[str, ...] = SUPPORTED_MESH_READ
 
 
 @dataclass(frozen=True)
@@ -125,12 +135,12 @@ def parse_options(
 
 
 # ---------------------------------------------------------------------- reading
-def _file_type(filename: str | None) -> str | None:
+def _file_type(filename: str | None, formats: tuple[str, ...] = INPUT_FORMATS) -> str | None:
     """The format named by a file name's extension, when it is one we read."""
     if not filename:
         return None
     suffix = PurePath(filename).suffix.lower().lstrip(".")
-    return suffix if suffix in INPUT_FORMATS else None
+    return suffix if suffix in formats else None
 
 
 def read_upload(data: bytes, filename: str | None) -> tuple[np.ndarray, np.ndarray | None, str]:
@@ -172,6 +182,81 @@ def read_upload(data: bytes, filename: str | None) -> tuple[np.ndarray, np.ndarr
     except MeshFormatError as error:
         raise Problem(P.MALFORMED_INPUT, str(error)) from None
     return points, normals, source
+
+
+def read_mesh_upload(data: bytes, filename: str | None) -> tuple[PolygonMesh, str]:
+    """The polygon mesh of an uploaded file (a repair request).
+
+    The extension picks the format when it is one we read (OBJ, OFF, PLY, STL, GLB,
+    glTF); otherwise the content is sniffed. Faces and vertices keep the file's order,
+    so face and vertex indices of a region refer to the file.
+
+    Parameters
+    ----------
+    data : bytes
+    filename : str, optional
+
+    Returns
+    -------
+    mesh : PolygonMesh
+    source : str
+        The format read.
+    """
+    from spacemesh.io import load_mesh, sniff_file_type
+
+    if not data.strip():
+        raise Problem(P.MALFORMED_INPUT, "the uploaded mesh file is empty")
+    source = _file_type(filename, MESH_FORMATS) or sniff_file_type(data)
+    if source not in MESH_FORMATS:
+        named = PurePath(filename).suffix if filename else ""
+        what = f"'{named}' files" if named else "this file (its content was not recognised)"
+        raise Problem(P.UNSUPPORTED_FORMAT,
+                      f"cannot read {what} as a mesh; supported: {', '.join(MESH_FORMATS)}",
+                      supported=list(MESH_FORMATS))
+    try:
+        mesh = load_mesh(data, file_type=source)
+    except UnsupportedFormatError as error:
+        raise Problem(P.UNSUPPORTED_FORMAT, str(error)) from None
+    except NonFiniteError as error:
+        raise Problem(P.NON_FINITE, str(error)) from None
+    except (ValueError, IndexError, KeyError, TypeError, OverflowError) as error:
+        # MeshFormatError, or a reader's or PolygonMesh's own check
+        raise Problem(P.MALFORMED_INPUT, str(error) or type(error).__name__) from None
+    if mesh.n_faces == 0:
+        raise Problem(P.MALFORMED_INPUT, f"the {source.upper()} file has no faces; repair "
+                      "needs a polygon mesh")
+    return mesh, source
+
+
+def read_region(raw: Any) -> Region:
+    """A repair region from its JSON text (REST) or its JSON form (gRPC).
+
+    Parameters
+    ----------
+    raw : str, bytes or dict
+        ``{"faces": [...]}``, ``{"vertices": [...]}``,
+        ``{"sphere": {"center": [x, y, z], "radius": r}}`` or
+        ``{"box": {"min": [x, y, z], "max": [x, y, z]}}``.
+
+    Returns
+    -------
+    Region
+    """
+    data = raw
+    if isinstance(raw, (str, bytes, bytearray)):
+        if not raw.strip():
+            raise Problem(P.MALFORMED_INPUT, "the region is empty; send it as JSON, e.g. "
+                          '{"faces": [0, 1]}')
+        try:
+            data = json.loads(raw)
+        except (ValueError, UnicodeDecodeError, RecursionError) as error:
+            raise Problem(P.MALFORMED_INPUT, f"the region is not valid JSON ({error})") from None
+    try:
+        return parse_region(data)
+    except RegionError as error:
+        raise P.region_problem(error) from None
+    except (ValueError, TypeError, OverflowError, RecursionError) as error:  # pragma: no cover
+        raise Problem(P.INVALID_REGION, f"the region cannot be read ({error})") from None
 
 
 def _number_array(value: Any, name: str) -> np.ndarray:

@@ -16,6 +16,15 @@
     Requests given up by their caller (timeout, disconnect) before their result, and
     batches stopped early because all their requests were given up.
 ``spacemesh_ready``, ``spacemesh_model_info{name,version}``
+``spacemesh_repair_stage_seconds{stage}``
+    Per stage of a repair: ``decode_input`` (reading the mesh and the region), ``queue``,
+    ``cut``, ``patch``, ``encoder``, ``sampler``, ``connectivity``, ``splice``,
+    ``encode_output``.
+``spacemesh_repairs_total{fallback}``, ``spacemesh_repair_region_faces``
+    Repairs done, by fallback (``none``, ``removed-new-vertices``, ``polygon``), and the
+    faces each re-generated (the region after growth).
+``spacemesh_repair_rejected_total{kind}``
+    Repair requests refused for their region (422), by kind (``empty-region``...).
 """
 
 from __future__ import annotations
@@ -23,15 +32,23 @@ from __future__ import annotations
 from prometheus_client import CONTENT_TYPE_LATEST as CONTENT_TYPE
 from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, generate_latest
 
+from spacemesh_service.problems import REGION_KINDS
+
 #: Stages of a generate request, in order.
 STAGES = ("decode_input", "queue", "encoder", "sampler", "connectivity", "extraction",
           "encode_output")
 #: Network stages, timed once per batch.
 BATCH_STAGES = ("encoder", "sampler", "connectivity")
+#: Stages of a repair request, in order.
+REPAIR_STAGES = ("decode_input", "queue", "cut", "patch", "encoder", "sampler", "connectivity",
+                 "splice", "encode_output")
+#: How a repair closed its hole (``RepairStats.fallback``).
+REPAIR_FALLBACKS = ("none", "removed-new-vertices", "polygon")
 
 _LATENCY_BUCKETS = (0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 0.75, 1.0, 1.5, 2.5, 5.0, 10.0,
                     30.0, 60.0)
 _BATCH_BUCKETS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 64, 128, 256)
+_FACE_BUCKETS = (1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000)
 
 
 class Metrics:
@@ -50,7 +67,7 @@ class Metrics:
         self.queue_depth = Gauge("spacemesh_queue_depth", "Requests waiting for a batch",
                                  registry=r)
         self.inflight = Gauge("spacemesh_inflight_requests",
-                              "Generate requests inside the engine", registry=r)
+                              "Generate and repair requests inside the engine", registry=r)
         self.batch_size = Histogram("spacemesh_batch_size", "Requests per onnxruntime batch",
                                     buckets=_BATCH_BUCKETS, registry=r)
         self.batches = Counter("spacemesh_batches", "Batches run", registry=r)
@@ -62,8 +79,25 @@ class Metrics:
                            registry=r)
         self.model_info = Gauge("spacemesh_model_info", "The loaded model",
                                 ["name", "version"], registry=r)
+        self.repair_stage_seconds = Histogram(
+            "spacemesh_repair_stage_seconds", "Latency per stage of a repair", ["stage"],
+            buckets=_LATENCY_BUCKETS, registry=r)
+        self.repairs = Counter("spacemesh_repairs", "Repairs done, by fallback", ["fallback"],
+                               registry=r)
+        self.repair_region_faces = Histogram(
+            "spacemesh_repair_region_faces", "Faces re-generated per repair",
+            buckets=_FACE_BUCKETS, registry=r)
+        self.repair_rejected = Counter(
+            "spacemesh_repair_rejected", "Repair requests refused for their region (422)",
+            ["kind"], registry=r)
         for stage in STAGES:  # export every stage from the start
             self.stage_seconds.labels(stage)
+        for stage in REPAIR_STAGES:
+            self.repair_stage_seconds.labels(stage)
+        for fallback in REPAIR_FALLBACKS:
+            self.repairs.labels(fallback)
+        for kind in REGION_KINDS:
+            self.repair_rejected.labels(kind.slug)
 
     def observe_request(self, protocol: str, route: str, status: str, seconds: float) -> None:
         """Count one finished request."""
@@ -74,9 +108,14 @@ class Metrics:
         """Record one stage's time."""
         self.stage_seconds.labels(stage).observe(seconds)
 
+    def observe_repair_stage(self, stage: str, seconds: float) -> None:
+        """Record one repair stage's time."""
+        self.repair_stage_seconds.labels(stage).observe(seconds)
+
     def render(self) -> bytes:
         """The text exposition format."""
         return generate_latest(self.registry)
 
 
-__all__ = ["BATCH_STAGES", "CONTENT_TYPE", "STAGES", "Metrics"]
+__all__ = ["BATCH_STAGES", "CONTENT_TYPE", "REPAIR_FALLBACKS", "REPAIR_STAGES", "STAGES",
+           "Metrics"]

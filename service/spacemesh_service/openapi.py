@@ -1,7 +1,8 @@
 """The OpenAPI description of the REST API: schemas and examples (served at ``/docs``).
 
-``POST /generate`` reads its body by hand (a multipart upload or JSON), so its request
-body, responses and headers are described here rather than inferred by FastAPI.
+``POST /generate`` and ``POST /repair`` read their bodies by hand (a multipart upload or
+JSON), so their request bodies, responses and headers are described here rather than
+inferred by FastAPI.
 """
 
 from __future__ import annotations
@@ -19,6 +20,10 @@ Point cloud in, oriented manifold polygon mesh out (SpaceMesh).
 * `POST /generate`: upload a point cloud (multipart field `file`: PLY, XYZ/PTS/TXT/CSV,
   NPY/NPZ, or the vertices of an OBJ/OFF/STL/GLB) or send JSON `{"points": [[x, y, z], ...]}`.
   Options `format`, `seed`, `steps` as query parameters or form/JSON fields.
+* `POST /repair`: upload a mesh (multipart field `file`: OBJ, OFF, PLY, STL, GLB, glTF) and
+  a region as JSON (field `region`: `{"faces": [...]}`, `{"vertices": [...]}`,
+  `{"sphere": {"center": [x, y, z], "radius": r}}` or `{"box": {"min": [...], "max": [...]}}`);
+  the region is generated again, every other face comes back unchanged.
 * Health and metadata in the KServe v2 shape under `/v2`; Prometheus metrics at `/metrics`.
 * Every error is RFC 9457 `application/problem+json` with a stable `type`.
 """
@@ -66,6 +71,9 @@ class MeshJSON(BaseModel):
     steps: int
     sampler: str
     model: ModelRef
+    repair: dict[str, Any] | None = Field(
+        None, description="What the repair did (`POST /repair` only): the `X-SpaceMesh-Repair` "
+        "header's object.")
 
 
 class ProblemModel(BaseModel):
@@ -125,20 +133,21 @@ _HEADERS = {
 }
 
 
-def _problem_example(kind: P.ProblemKind, detail: str) -> dict[str, Any]:
+def _problem_example(kind: P.ProblemKind, detail: str, instance: str) -> dict[str, Any]:
     return {"summary": kind.title, "value": {"type": kind.type, "title": kind.title,
                                               "status": kind.status, "detail": detail,
-                                              "instance": "/generate"}}
+                                              "instance": instance}}
 
 
 def problem_response(description: str, examples: dict[str, tuple[P.ProblemKind, str]],
-                     retry_after: bool = False) -> dict[str, Any]:
+                     retry_after: bool = False, instance: str = "/generate") -> dict[str, Any]:
     """An OpenAPI response of ``application/problem+json`` with named examples."""
     response: dict[str, Any] = {
         "description": description,
         "content": {P.PROBLEM_MEDIA_TYPE: {
             "schema": {"$ref": "#/components/schemas/ProblemModel"},
-            "examples": {name: _problem_example(k, d) for name, (k, d) in examples.items()},
+            "examples": {name: _problem_example(k, d, instance)
+                         for name, (k, d) in examples.items()},
         }},
     }
     if retry_after:
@@ -188,6 +197,63 @@ GENERATE_RESPONSES: dict[int | str, dict[str, Any]] = {
     504: problem_response("Timed out", {"timeout": (P.TIMEOUT, "no result within 30.0 s")}),
 }
 
+_REPAIR_HEADERS = {
+    "Repair": ("string", "What the repair did, as compact JSON: `requested_faces`, "
+               "`region_faces` (after growth), `grown_faces`, `removed_vertices`, "
+               "`boundary_vertices`, `loops`, `new_vertices`, `new_faces`, "
+               "`new_face_degrees`, `patch_faces`, `patch_rings`, `known_vertices`, "
+               "`tokens`, `candidates`, `fallback`, `fill`, `inpaint`, "
+               "`flipped_orientation`."),
+    "Region-Faces": ("integer", "Faces re-generated (the region after growth)."),
+    "Grown-Faces": ("integer", "Faces added to the region so that no hole is pinched."),
+    "New-Vertices": ("integer", "Vertices generated."),
+    "New-Faces": ("integer", "Faces generated."),
+    "Fallback": ("string", "`none`, `removed-new-vertices` or `polygon`."),
+}
+
+_REPAIR_200 = {
+    "description": "The repaired mesh in the requested format: kept faces first, unchanged "
+                   "and in input order, then the new faces. Statistics in the headers.",
+    "content": GENERATE_RESPONSES[200]["content"],
+    "headers": {
+        **GENERATE_RESPONSES[200]["headers"],
+        **{HEADER_PREFIX + name: {"description": text, "schema": {"type": kind}}
+           for name, (kind, text) in _REPAIR_HEADERS.items()},
+    },
+}
+
+REPAIR_RESPONSES: dict[int | str, dict[str, Any]] = {
+    200: _REPAIR_200,
+    400: problem_response("Unreadable mesh or region, missing field, or bad option", {
+        "malformed": (P.MALFORMED_INPUT, "OFF: face 12 refers to vertex 900 but the file "
+                                         "has 100 vertices"),
+        "region": (P.MALFORMED_INPUT, "the region is not valid JSON (Expecting value: line "
+                                      "1 column 1 (char 0))"),
+        "missing": (P.MALFORMED_INPUT, "the multipart body has no field 'region'"),
+        "option": (P.INVALID_PARAMETER, "steps must be in 1..1024, not 0"),
+    }, instance="/repair"),
+    413: problem_response("Body too large", {
+        "bytes": (P.PAYLOAD_TOO_LARGE, "the body exceeds 33554432 bytes"),
+    }, instance="/repair"),
+    415: problem_response("Unsupported format", {
+        "format": (P.UNSUPPORTED_FORMAT, "cannot read '.docx' files as a mesh; supported: "
+                                         "..."),
+    }, instance="/repair"),
+    422: problem_response("A region the server cannot use (the kind is the type)", {
+        "invalid": (P.INVALID_REGION, "the sphere's radius must be a positive finite number"),
+        "empty": (P.EMPTY_REGION, "the region selects no face of the mesh"),
+        "whole": (P.WHOLE_MESH_REGION, "the region covers the whole mesh; repair needs faces "
+                                       "outside the region to keep"),
+        "defects": (P.DEFECTS_OUTSIDE_REGION, "the mesh has 4 open boundary edges outside "
+                                              "the region"),
+        "large": (P.REGION_TOO_LARGE, "the region's boundary has 300 vertices; the model "
+                                      "holds at most 248"),
+        "nan": (P.NON_FINITE, "OBJ: vertex 3 has a NaN or infinite coordinate"),
+    }, instance="/repair"),
+    503: GENERATE_RESPONSES[503],
+    504: GENERATE_RESPONSES[504],
+}
+
 _FORMAT_ENUM = {"type": "string", "enum": list(OUTPUT_FORMATS), "default": "glb"}
 
 GENERATE_REQUEST_BODY: dict[str, Any] = {
@@ -213,6 +279,44 @@ GENERATE_REQUEST_BODY: dict[str, Any] = {
                            "value": {"points": _TETRA * 8, "format": "obj", "seed": 7}},
                 "normals": {"summary": "With normals",
                             "value": {"points": _TETRA, "normals": _TETRA, "steps": 25}},
+            },
+        },
+    },
+}
+
+_REGION_SCHEMA = {
+    "type": "string",
+    "description": "The region as JSON (mesh coordinates; indices into the file's faces "
+                   "and vertices): exactly one of `faces`, `vertices`, `sphere`, `box`.",
+}
+
+REPAIR_REQUEST_BODY: dict[str, Any] = {
+    "required": True,
+    "content": {
+        "multipart/form-data": {
+            "schema": {
+                "type": "object", "required": ["file", "region"],
+                "properties": {
+                    "file": {"type": "string", "format": "binary",
+                             "description": "The mesh file (OBJ, OFF, PLY, STL, GLB, glTF)."},
+                    "region": _REGION_SCHEMA,
+                    "format": _FORMAT_ENUM,
+                    "seed": {"type": "integer", "minimum": 0},
+                    "steps": {"type": "integer", "minimum": 1},
+                },
+            },
+            "examples": {
+                "faces": {"summary": "Face indices",
+                          "value": {"file": "(mesh.obj)", "region": '{"faces": [3, 4, 10]}',
+                                    "format": "obj", "seed": 7}},
+                "vertices": {"summary": "Every face using these vertices",
+                             "value": {"file": "(mesh.obj)", "region": '{"vertices": [5]}'}},
+                "sphere": {"summary": "Every face with a vertex in a ball",
+                           "value": {"file": "(mesh.ply)", "region":
+                                     '{"sphere": {"center": [0, 0, 1], "radius": 0.3}}'}},
+                "box": {"summary": "Every face with a vertex in a box",
+                        "value": {"file": "(mesh.off)", "region":
+                                  '{"box": {"min": [0, 0, 0], "max": [1, 1, 1]}}'}},
             },
         },
     },

@@ -111,7 +111,8 @@ def validate_mesh(mesh: PolygonMesh) -> tuple[PolygonMesh, MeshStats]:
 
 
 def mesh_json(mesh: PolygonMesh, stats: MeshStats, info: dict[str, Any]) -> bytes:
-    """The ``json`` format: ``vertices``, polygon ``faces``, ``stats`` and ``info`` keys."""
+    """The ``json`` format: ``vertices``, polygon ``faces``, ``stats`` and ``info`` keys
+    (``seed``, ``steps``, ``sampler``, ``model``; ``repair`` for a repair)."""
     body = {
         "vertices": mesh.vertices.tolist(),
         "faces": [face.tolist() for face in mesh.faces],
@@ -130,7 +131,8 @@ def encode_mesh(mesh: PolygonMesh, fmt: str, info: dict[str, Any]) -> EncodedMes
     fmt : str
         One of :data:`OUTPUT_FORMATS`.
     info : dict
-        ``seed``, ``steps``, ``sampler`` and ``model`` (added to the JSON body).
+        ``seed``, ``steps``, ``sampler`` and ``model`` (added to the JSON body), and
+        ``repair`` for a repair.
 
     Returns
     -------
@@ -139,6 +141,29 @@ def encode_mesh(mesh: PolygonMesh, fmt: str, info: dict[str, Any]) -> EncodedMes
     mesh, stats = validate_mesh(mesh)
     body = mesh_json(mesh, stats, info) if fmt == "json" else export_mesh(mesh, fmt)
     return EncodedMesh(body, fmt, MEDIA_TYPES[fmt], stats)
+
+
+#: The repair statistics that also get a header of their own (all are in ``Repair``).
+REPAIR_HEADERS = {"Region-Faces": "region_faces", "Grown-Faces": "grown_faces",
+                  "New-Vertices": "new_vertices", "New-Faces": "new_faces",
+                  "Fallback": "fallback"}
+#: Keys of ``RepairStats.to_dict()`` reported elsewhere (seed, steps, sampler, timings).
+_REPORTED_ELSEWHERE = ("seed", "steps", "method", "timings")
+
+
+def repair_summary(stats: Any) -> dict[str, Any]:
+    """What a repair did: :meth:`spacemesh.repair.RepairStats.to_dict` without the seed,
+    steps, sampler and timings (the reply carries those for every request)."""
+    return {k: v for k, v in stats.to_dict().items() if k not in _REPORTED_ELSEWHERE}
+
+
+def repair_headers(summary: dict[str, Any]) -> dict[str, str]:
+    """``X-SpaceMesh-Repair`` (the summary as compact JSON) and one header per count of
+    :data:`REPAIR_HEADERS`."""
+    headers = {HEADER_PREFIX + "Repair": json.dumps(summary, separators=(",", ":"))}
+    headers.update({HEADER_PREFIX + name: str(summary[key])
+                    for name, key in REPAIR_HEADERS.items() if key in summary})
+    return headers
 
 
 def stats_headers(stats: MeshStats) -> dict[str, str]:

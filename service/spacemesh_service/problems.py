@@ -3,11 +3,13 @@
 Each kind has a stable ``type`` URI (``https://spacemesh.dev/problems/<slug>``), a title,
 an HTTP status and the gRPC status code the gRPC server ends the call with. Code raises
 :class:`Problem`; the REST app renders it as ``application/problem+json`` and the gRPC
-server as a status with the type in trailing metadata (``problem-type``).
+server as a status with the type in trailing metadata (``problem-type``, and the
+extension members as JSON in ``problem-extensions``).
 """
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,6 +19,8 @@ import grpc
 TYPE_BASE = "https://spacemesh.dev/problems/"
 #: Media type of problem responses.
 PROBLEM_MEDIA_TYPE = "application/problem+json"
+#: Longest ``problem-extensions`` trailing metadata value (gRPC limits the metadata).
+MAX_GRPC_EXTENSIONS = 4096
 
 
 @dataclass(frozen=True)
@@ -50,7 +54,7 @@ def _kind(slug: str, title: str, status: int, code: grpc.StatusCode) -> ProblemK
 
 
 _C = grpc.StatusCode
-MALFORMED_INPUT = _kind("malformed-input", "The point cloud could not be read", 400,
+MALFORMED_INPUT = _kind("malformed-input", "The input could not be read", 400,
                         _C.INVALID_ARGUMENT)
 INVALID_PARAMETER = _kind("invalid-parameter", "A request parameter is invalid", 400,
                           _C.INVALID_ARGUMENT)
@@ -65,7 +69,7 @@ UNSUPPORTED_FORMAT = _kind("unsupported-format", "Unsupported input format", 415
                            _C.INVALID_ARGUMENT)
 TOO_FEW_POINTS = _kind("too-few-points", "The point cloud has too few points", 422,
                        _C.INVALID_ARGUMENT)
-NON_FINITE = _kind("non-finite", "The point cloud has NaN or infinite values", 422,
+NON_FINITE = _kind("non-finite", "The input has NaN or infinite values", 422,
                    _C.INVALID_ARGUMENT)
 DEGENERATE_GEOMETRY = _kind("degenerate-geometry", "The point cloud is degenerate", 422,
                             _C.INVALID_ARGUMENT)
@@ -75,6 +79,19 @@ NORMALS_REQUIRED = _kind("normals-required", "This model needs normals", 422,
                          _C.INVALID_ARGUMENT)
 NO_SURFACE = _kind("no-surface", "No surface could be generated from this input", 422,
                    _C.FAILED_PRECONDITION)
+# The repair region kinds: the slugs are spacemesh.repair.region.ERROR_KINDS (a
+# RegionError's ``kind``), turned into problems by :func:`region_problem`.
+INVALID_REGION = _kind("invalid-region", "The repair region is invalid", 422,
+                       _C.INVALID_ARGUMENT)
+EMPTY_REGION = _kind("empty-region", "The repair region selects no face", 422,
+                     _C.INVALID_ARGUMENT)
+WHOLE_MESH_REGION = _kind("whole-mesh-region", "The repair region covers the whole mesh", 422,
+                          _C.INVALID_ARGUMENT)
+DEFECTS_OUTSIDE_REGION = _kind("defects-outside-region",
+                               "The mesh has defects outside the repair region", 422,
+                               _C.FAILED_PRECONDITION)
+REGION_TOO_LARGE = _kind("region-too-large", "The repair region is too large for the model",
+                         422, _C.INVALID_ARGUMENT)
 INTERNAL = _kind("internal-error", "Internal server error", 500, _C.INTERNAL)
 INVALID_OUTPUT = _kind("invalid-output", "The generated mesh failed validation", 500,
                        _C.INTERNAL)
@@ -89,10 +106,14 @@ KINDS: dict[str, ProblemKind] = {
     k.slug: k for k in (
         MALFORMED_INPUT, INVALID_PARAMETER, NOT_FOUND, MODEL_NOT_FOUND, METHOD_NOT_ALLOWED,
         PAYLOAD_TOO_LARGE, TOO_MANY_POINTS, UNSUPPORTED_FORMAT, TOO_FEW_POINTS, NON_FINITE,
-        DEGENERATE_GEOMETRY, INVALID_NORMALS, NORMALS_REQUIRED, NO_SURFACE, INTERNAL,
+        DEGENERATE_GEOMETRY, INVALID_NORMALS, NORMALS_REQUIRED, NO_SURFACE, INVALID_REGION,
+        EMPTY_REGION, WHOLE_MESH_REGION, DEFECTS_OUTSIDE_REGION, REGION_TOO_LARGE, INTERNAL,
         INVALID_OUTPUT, NOT_IMPLEMENTED, QUEUE_FULL, NOT_READY, SHUTTING_DOWN, TIMEOUT,
     )
 }
+#: The kinds a repair region can be refused with (422).
+REGION_KINDS: tuple[ProblemKind, ...] = (INVALID_REGION, EMPTY_REGION, WHOLE_MESH_REGION,
+                                         DEFECTS_OUTSIDE_REGION, REGION_TOO_LARGE)
 
 
 class Problem(Exception):
@@ -133,11 +154,46 @@ class Problem(Exception):
         return {"Retry-After": str(self.retry_after)} if self.retry_after is not None else {}
 
     def grpc_metadata(self) -> tuple[tuple[str, str], ...]:
-        """Trailing metadata of the gRPC status."""
+        """Trailing metadata of the gRPC status: ``problem-type``, ``problem-status``,
+        ``retry-after`` (when set) and ``problem-extensions`` (the extension members as
+        JSON, when there are any and they fit in :data:`MAX_GRPC_EXTENSIONS` bytes)."""
         items = [("problem-type", self.kind.type), ("problem-status", str(self.kind.status))]
         if self.retry_after is not None:
             items.append(("retry-after", str(self.retry_after)))
+        if self.extra:
+            try:
+                text = json.dumps(_plain(self.extra), separators=(",", ":"), allow_nan=False)
+            except (TypeError, ValueError):
+                text = ""
+            if text and len(text) <= MAX_GRPC_EXTENSIONS:
+                items.append(("problem-extensions", text))
         return tuple(items)
 
     def __repr__(self) -> str:
         return f"Problem({self.kind.slug!r}, {self.detail!r})"
+
+
+def _plain(value: Any) -> Any:
+    """numpy scalars and arrays (and tuples) -> JSON-ready numbers and lists."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if hasattr(value, "tolist"):  # numpy array or scalar
+        return _plain(value.tolist())
+    return value
+
+
+def region_problem(error: Any) -> Problem:
+    """The problem of a :class:`spacemesh.repair.RegionError`.
+
+    Its ``kind`` is the problem's slug (one of :data:`REGION_KINDS`), its message the
+    ``detail`` and its ``details`` (``defects``, ``boundary_vertices``...) the extension
+    members.
+    """
+    kind = KINDS.get(getattr(error, "kind", ""))
+    if kind not in REGION_KINDS:  # pragma: no cover - a RegionError always has one
+        kind = INVALID_REGION
+    problem = Problem(kind, str(error))
+    problem.extra.update(_plain(dict(getattr(error, "details", None) or {})))
+    return problem

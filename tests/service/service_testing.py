@@ -112,3 +112,74 @@ def server_settings(repository, **changes):
                   max_batch_delay_ms=2, log_level="warning")
     values.update(changes)
     return Settings(**values)
+
+
+# ---------------------------------------------------------------------- repair
+#: Steps of every repair in the tests (the tiny model's default is 8).
+REPAIR_STEPS = 4
+
+
+def repair_mesh_cases() -> dict:
+    """Closed meshes of ``spacemesh.examples`` and a region of each form on them:
+    ``name -> (mesh, region)`` (triangles for two forms, quads for the others)."""
+    from spacemesh.examples import icosphere, torus_grid
+
+    sphere = icosphere(1)  # 42 vertices, 80 triangles
+    torus = torus_grid(12, 8)  # 96 vertices, 96 quads (more than the 64 tokens: a patch)
+    star = [i for i, face in enumerate(sphere.faces) if 0 in face]
+    corner = torus.vertices[5]
+    return {
+        "faces": (sphere, {"faces": star}),
+        "vertices": (torus, {"vertices": [30]}),
+        "sphere": (sphere, {"sphere": {"center": sphere.vertices[7].tolist(), "radius": 0.3}}),
+        "box": (torus, {"box": {"min": (corner - 0.2).tolist(),
+                                "max": (corner + 0.2).tolist()}}),
+    }
+
+
+def mesh_file(mesh, fmt: str = "obj") -> bytes:
+    """``mesh`` as a file the server reads."""
+    from spacemesh.io import export_mesh
+
+    return export_mesh(mesh, fmt)
+
+
+def face_keys(reference: np.ndarray, vertices: np.ndarray, faces, tol: float = 1e-5) -> set:
+    """Faces as rotation-normalised tuples of the reference vertices they sit on (-1 for a
+    vertex on none), so faces of two files compare by position whatever their numbering."""
+    from scipy.spatial import cKDTree
+
+    distance, nearest = cKDTree(reference).query(np.asarray(vertices, dtype=np.float64))
+    nearest[distance > tol] = -1
+    keys = set()
+    for face in faces:
+        ids = [int(nearest[v]) for v in face]
+        start = ids.index(min(ids))
+        keys.add(tuple(ids[start:] + ids[:start]))
+    return keys
+
+
+def check_repair(original, region: dict, vertices: np.ndarray, faces, repair: dict,
+                 polygons: bool = True) -> None:
+    """A repaired mesh is closed, oriented and manifold, and every face outside the region
+    comes back with the same positions and the same polygon (faces the cut added to the
+    region, ``repair["grown_faces"]`` of them, may change)."""
+    from spacemesh.mesh import PolygonMesh
+    from spacemesh.repair import parse_region
+    from spacemesh.topology import check_topology
+
+    out = PolygonMesh.from_faces(np.asarray(vertices, dtype=np.float64),
+                                 [np.asarray(f) for f in faces])
+    report = check_topology(out)
+    assert report.is_closed_oriented_manifold, report.defects()
+    requested = parse_region(region).face_mask(original)
+    assert repair["requested_faces"] == int(requested.sum()) > 0
+    assert repair["region_faces"] == repair["requested_faces"] + repair["grown_faces"]
+    outside = [f for f, inside in zip(original.faces, requested, strict=True) if not inside]
+    expected = face_keys(original.vertices, original.vertices, outside)
+    got = face_keys(original.vertices, out.vertices, out.faces)
+    assert len(expected - got) <= repair["grown_faces"], expected - got
+    if repair["grown_faces"] == 0:
+        assert expected <= got
+    if polygons:  # kept faces, then the new ones
+        assert out.n_faces == original.n_faces - repair["region_faces"] + repair["new_faces"]

@@ -134,3 +134,60 @@ def test_a_cancelled_request_leaves_the_queue():
         return depth
 
     assert run(scenario()) == 0
+
+
+def test_a_call_runs_alone_between_batches_and_stops_when_given_up():
+    gate = threading.Event()
+
+    async def scenario():
+        fake = FakeGenerator(gate)
+        batcher = Batcher(fake.generate_batch, max_batch_size=4, max_delay_s=0.0,
+                          queue_size=8)
+        batcher.start()
+        calls: list[str] = []
+
+        def work(progress):
+            calls.append("ran")
+            for step in (1, 2, 3):
+                progress(step, 3)
+            return "repaired"
+
+        first = asyncio.ensure_future(batcher.submit(request(1)))
+        while batcher.depth or not batcher.busy:  # the first batch holds the thread
+            await asyncio.sleep(0.01)
+        seen: list[tuple[int, int]] = []
+        call = asyncio.ensure_future(batcher.submit_call(
+            work, progress=lambda d, t: seen.append((d, t))))
+        later = [asyncio.ensure_future(batcher.submit(request(s))) for s in (2, 3)]
+        await asyncio.sleep(0.02)
+        gate.set()
+        outcome = await call
+        await asyncio.gather(first, *later)
+
+        started = threading.Event()
+
+        def endless(progress):
+            started.set()
+            while True:
+                progress(1, 1)
+
+        given_up = asyncio.ensure_future(batcher.submit_call(endless))
+        while not started.is_set():
+            await asyncio.sleep(0.01)
+        given_up.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await given_up
+        await asyncio.sleep(0.05)  # the thread left the call at its next step
+
+        def failing(progress):
+            raise ValueError("bad region")
+
+        with pytest.raises(ValueError, match="bad region"):
+            await batcher.submit_call(failing)
+        assert await batcher.close(5)
+        return fake, outcome, seen, calls
+
+    fake, outcome, seen, calls = run(scenario())
+    assert outcome.result == "repaired" and outcome.batch_size == 1 and calls == ["ran"]
+    assert seen == [(1, 3), (2, 3), (3, 3)]
+    assert sorted(map(sorted, fake.batches)) == [[1], [2, 3]]  # never batched with the call

@@ -113,9 +113,10 @@ def test_grpc_errors_carry_the_problem_type(stub, case):
             grpc.StatusCode.FAILED_PRECONDITION, "no-surface")
 
 
-def test_repair_is_unimplemented(stub):
+def test_repair_without_a_region_is_malformed(stub):
+    # Repair itself: tests/service/test_service_repair.py
     assert_rpc_problem(lambda: stub.Repair(pb.RepairRequest(mesh=b"OFF\n0 0 0\n")),
-                       grpc.StatusCode.UNIMPLEMENTED, "not-implemented")
+                       grpc.StatusCode.INVALID_ARGUMENT, "malformed-input")
 
 
 def test_health_v1(channel):

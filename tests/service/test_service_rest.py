@@ -222,7 +222,8 @@ def test_no_surface_is_422(http, case):
 def test_other_errors_are_problems_too(http):
     assert_problem(http.get("/nowhere"), 404, "not-found")
     assert_problem(http.get("/generate"), 405, "method-not-allowed")
-    assert_problem(http.post("/repair"), 501, "not-implemented")
+    assert_problem(http.get("/repair"), 405, "method-not-allowed")
+    assert_problem(http.post("/repair"), 415, "unsupported-format")  # no multipart body
 
 
 # ---------------------------------------------------------------------- metrics, docs

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -10,6 +12,8 @@ from spacemesh_service.inputs import (
     check_degenerate,
     parse_options,
     read_json,
+    read_mesh_upload,
+    read_region,
     read_upload,
     validate_cloud,
 )
@@ -44,6 +48,49 @@ def test_problem_types_are_stable_and_unique():
     assert problem.headers() == {"Retry-After": "3"}
     assert ("problem-type", P.QUEUE_FULL.type) in problem.grpc_metadata()
     assert problem.to_dict("/generate")["status"] == 503
+
+
+def test_region_problems():
+    from spacemesh.repair import RegionError
+    from spacemesh.repair.region import ERROR_KINDS
+
+    assert {k.slug for k in P.REGION_KINDS} == set(ERROR_KINDS)
+    assert all(k.status == 422 and P.KINDS[k.slug] is k for k in P.REGION_KINDS)
+    error = RegionError("defects-outside-region", "open edges",
+                        {"defects": [{"kind": "open-boundary", "count": np.int64(4),
+                                      "vertices": np.arange(3)}]})
+    problem = P.region_problem(error)
+    assert problem.kind is P.DEFECTS_OUTSIDE_REGION and problem.detail == "open edges"
+    body = problem.to_dict("/repair")
+    assert body["defects"] == [{"kind": "open-boundary", "count": 4, "vertices": [0, 1, 2]}]
+    metadata = dict(problem.grpc_metadata())
+    assert metadata["problem-type"].endswith("/defects-outside-region")
+    assert json.loads(metadata["problem-extensions"]) == {"defects": body["defects"]}
+    huge = Problem(P.INVALID_REGION, "x", blob="y" * (P.MAX_GRPC_EXTENSIONS + 1))
+    assert "problem-extensions" not in dict(huge.grpc_metadata())
+
+
+def test_repair_inputs():
+    from spacemesh.io import export_mesh
+
+    assert read_region('{"faces": [1, 2]}').kind == "faces"
+    assert read_region({"sphere": {"center": [0, 0, 0], "radius": 1}}).radius == 1.0
+    assert kind_of(lambda: read_region("{nope")) == "malformed-input"
+    assert kind_of(lambda: read_region(" ")) == "malformed-input"
+    assert kind_of(lambda: read_region("[" * 100_000)) == "malformed-input"
+    for bad in ('{"faces": "1"}', '{"sphere": {"radius": 1}}', '{"box": 3}', "7", "null",
+                '{"faces": [1e400]}', '{"vertices": [true]}', '{"faces": [NaN]}'):
+        assert kind_of(lambda b=bad: read_region(b)) == "invalid-region", bad
+    cube = cube_quads()
+    mesh, source = read_mesh_upload(export_mesh(cube, "off"), "cube.off")
+    assert source == "off" and mesh.n_faces == 6
+    assert read_mesh_upload(export_mesh(cube, "ply"), "no-extension")[1] == "ply"  # sniffed
+    assert kind_of(lambda: read_mesh_upload(b"  ", "m.obj")) == "malformed-input"
+    assert kind_of(lambda: read_mesh_upload(b"v 0 0 0\n", "m.obj")) == "malformed-input"
+    assert kind_of(lambda: read_mesh_upload(b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n",
+                                            "m.off")) == "malformed-input"
+    assert kind_of(lambda: read_mesh_upload(bytes(range(256)) * 4, "m.doc")) == (
+        "unsupported-format")
 
 
 def test_options():

@@ -66,7 +66,7 @@ class MeshStats(_message.Message):
     def __init__(self, vertices: _Optional[int] = ..., faces: _Optional[int] = ..., edges: _Optional[int] = ..., face_degrees: _Optional[_Mapping[int, int]] = ..., manifold: _Optional[bool] = ..., closed: _Optional[bool] = ..., oriented: _Optional[bool] = ..., components: _Optional[int] = ..., genus: _Optional[int] = ...) -> None: ...
 
 class MeshReply(_message.Message):
-    __slots__ = ("mesh", "format", "media_type", "stats", "seed", "steps", "sampler", "model_name", "model_version", "timings", "batch_size")
+    __slots__ = ("mesh", "format", "media_type", "stats", "seed", "steps", "sampler", "model_name", "model_version", "timings", "batch_size", "repair")
     class TimingsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -85,6 +85,7 @@ class MeshReply(_message.Message):
     MODEL_VERSION_FIELD_NUMBER: _ClassVar[int]
     TIMINGS_FIELD_NUMBER: _ClassVar[int]
     BATCH_SIZE_FIELD_NUMBER: _ClassVar[int]
+    REPAIR_FIELD_NUMBER: _ClassVar[int]
     mesh: bytes
     format: str
     media_type: str
@@ -96,7 +97,69 @@ class MeshReply(_message.Message):
     model_version: str
     timings: _containers.ScalarMap[str, float]
     batch_size: int
-    def __init__(self, mesh: _Optional[bytes] = ..., format: _Optional[str] = ..., media_type: _Optional[str] = ..., stats: _Optional[_Union[MeshStats, _Mapping]] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., model_name: _Optional[str] = ..., model_version: _Optional[str] = ..., timings: _Optional[_Mapping[str, float]] = ..., batch_size: _Optional[int] = ...) -> None: ...
+    repair: RepairStats
+    def __init__(self, mesh: _Optional[bytes] = ..., format: _Optional[str] = ..., media_type: _Optional[str] = ..., stats: _Optional[_Union[MeshStats, _Mapping]] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., model_name: _Optional[str] = ..., model_version: _Optional[str] = ..., timings: _Optional[_Mapping[str, float]] = ..., batch_size: _Optional[int] = ..., repair: _Optional[_Union[RepairStats, _Mapping]] = ...) -> None: ...
+
+class RepairStats(_message.Message):
+    __slots__ = ("requested_faces", "region_faces", "grown_faces", "removed_vertices", "boundary_vertices", "loops", "new_vertices", "new_faces", "new_face_degrees", "patch_faces", "patch_rings", "known_vertices", "tokens", "candidates", "fallback", "fill", "inpaint", "flipped_orientation")
+    class NewFaceDegreesEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: int
+        value: int
+        def __init__(self, key: _Optional[int] = ..., value: _Optional[int] = ...) -> None: ...
+    class FillEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: int
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    class InpaintEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: int
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    REQUESTED_FACES_FIELD_NUMBER: _ClassVar[int]
+    REGION_FACES_FIELD_NUMBER: _ClassVar[int]
+    GROWN_FACES_FIELD_NUMBER: _ClassVar[int]
+    REMOVED_VERTICES_FIELD_NUMBER: _ClassVar[int]
+    BOUNDARY_VERTICES_FIELD_NUMBER: _ClassVar[int]
+    LOOPS_FIELD_NUMBER: _ClassVar[int]
+    NEW_VERTICES_FIELD_NUMBER: _ClassVar[int]
+    NEW_FACES_FIELD_NUMBER: _ClassVar[int]
+    NEW_FACE_DEGREES_FIELD_NUMBER: _ClassVar[int]
+    PATCH_FACES_FIELD_NUMBER: _ClassVar[int]
+    PATCH_RINGS_FIELD_NUMBER: _ClassVar[int]
+    KNOWN_VERTICES_FIELD_NUMBER: _ClassVar[int]
+    TOKENS_FIELD_NUMBER: _ClassVar[int]
+    CANDIDATES_FIELD_NUMBER: _ClassVar[int]
+    FALLBACK_FIELD_NUMBER: _ClassVar[int]
+    FILL_FIELD_NUMBER: _ClassVar[int]
+    INPAINT_FIELD_NUMBER: _ClassVar[int]
+    FLIPPED_ORIENTATION_FIELD_NUMBER: _ClassVar[int]
+    requested_faces: int
+    region_faces: int
+    grown_faces: int
+    removed_vertices: int
+    boundary_vertices: int
+    loops: int
+    new_vertices: int
+    new_faces: int
+    new_face_degrees: _containers.ScalarMap[int, int]
+    patch_faces: int
+    patch_rings: int
+    known_vertices: int
+    tokens: int
+    candidates: int
+    fallback: str
+    fill: _containers.ScalarMap[str, int]
+    inpaint: _containers.ScalarMap[str, int]
+    flipped_orientation: bool
+    def __init__(self, requested_faces: _Optional[int] = ..., region_faces: _Optional[int] = ..., grown_faces: _Optional[int] = ..., removed_vertices: _Optional[int] = ..., boundary_vertices: _Optional[int] = ..., loops: _Optional[int] = ..., new_vertices: _Optional[int] = ..., new_faces: _Optional[int] = ..., new_face_degrees: _Optional[_Mapping[int, int]] = ..., patch_faces: _Optional[int] = ..., patch_rings: _Optional[int] = ..., known_vertices: _Optional[int] = ..., tokens: _Optional[int] = ..., candidates: _Optional[int] = ..., fallback: _Optional[str] = ..., fill: _Optional[_Mapping[str, int]] = ..., inpaint: _Optional[_Mapping[str, int]] = ..., flipped_orientation: _Optional[bool] = ...) -> None: ...
 
 class Progress(_message.Message):
     __slots__ = ("step", "total")
@@ -115,17 +178,53 @@ class GenerateEvent(_message.Message):
     def __init__(self, progress: _Optional[_Union[Progress, _Mapping]] = ..., mesh: _Optional[_Union[MeshReply, _Mapping]] = ...) -> None: ...
 
 class RepairRequest(_message.Message):
-    __slots__ = ("mesh", "filename", "faces", "format", "seed", "steps")
+    __slots__ = ("mesh", "filename", "faces", "format", "seed", "steps", "region")
     MESH_FIELD_NUMBER: _ClassVar[int]
     FILENAME_FIELD_NUMBER: _ClassVar[int]
     FACES_FIELD_NUMBER: _ClassVar[int]
     FORMAT_FIELD_NUMBER: _ClassVar[int]
     SEED_FIELD_NUMBER: _ClassVar[int]
     STEPS_FIELD_NUMBER: _ClassVar[int]
+    REGION_FIELD_NUMBER: _ClassVar[int]
     mesh: bytes
     filename: str
     faces: _containers.RepeatedScalarFieldContainer[int]
     format: str
     seed: int
     steps: int
-    def __init__(self, mesh: _Optional[bytes] = ..., filename: _Optional[str] = ..., faces: _Optional[_Iterable[int]] = ..., format: _Optional[str] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ...) -> None: ...
+    region: Region
+    def __init__(self, mesh: _Optional[bytes] = ..., filename: _Optional[str] = ..., faces: _Optional[_Iterable[int]] = ..., format: _Optional[str] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., region: _Optional[_Union[Region, _Mapping]] = ...) -> None: ...
+
+class Region(_message.Message):
+    __slots__ = ("faces", "vertices", "sphere", "box")
+    FACES_FIELD_NUMBER: _ClassVar[int]
+    VERTICES_FIELD_NUMBER: _ClassVar[int]
+    SPHERE_FIELD_NUMBER: _ClassVar[int]
+    BOX_FIELD_NUMBER: _ClassVar[int]
+    faces: Indices
+    vertices: Indices
+    sphere: Sphere
+    box: Box
+    def __init__(self, faces: _Optional[_Union[Indices, _Mapping]] = ..., vertices: _Optional[_Union[Indices, _Mapping]] = ..., sphere: _Optional[_Union[Sphere, _Mapping]] = ..., box: _Optional[_Union[Box, _Mapping]] = ...) -> None: ...
+
+class Indices(_message.Message):
+    __slots__ = ("indices",)
+    INDICES_FIELD_NUMBER: _ClassVar[int]
+    indices: _containers.RepeatedScalarFieldContainer[int]
+    def __init__(self, indices: _Optional[_Iterable[int]] = ...) -> None: ...
+
+class Sphere(_message.Message):
+    __slots__ = ("center", "radius")
+    CENTER_FIELD_NUMBER: _ClassVar[int]
+    RADIUS_FIELD_NUMBER: _ClassVar[int]
+    center: _containers.RepeatedScalarFieldContainer[float]
+    radius: float
+    def __init__(self, center: _Optional[_Iterable[float]] = ..., radius: _Optional[float] = ...) -> None: ...
+
+class Box(_message.Message):
+    __slots__ = ("min", "max")
+    MIN_FIELD_NUMBER: _ClassVar[int]
+    MAX_FIELD_NUMBER: _ClassVar[int]
+    min: _containers.RepeatedScalarFieldContainer[float]
+    max: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, min: _Optional[_Iterable[float]] = ..., max: _Optional[_Iterable[float]] = ...) -> None: ...

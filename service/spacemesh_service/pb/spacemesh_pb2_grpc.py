@@ -69,7 +69,8 @@ class SpaceMeshServicer:
         raise NotImplementedError('Method not implemented!')
 
     def Repair(self, request, context):
-        """Regenerate a region of a mesh (UNIMPLEMENTED until the repair issue lands).
+        """A mesh and a region in; the region's vertices and faces generated again, every
+        other face unchanged (POST /repair).
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
