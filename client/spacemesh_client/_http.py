@@ -21,7 +21,7 @@ import httpx
 from spacemesh_client._formats import MEDIA_TYPES
 from spacemesh_client._inputs import Arrays, Upload
 from spacemesh_client.errors import ClientTimeout, ConnectionFailed, error_from_http
-from spacemesh_client.mesh import HEADER_PREFIX, Mesh, MeshStats
+from spacemesh_client.mesh import HEADER_PREFIX, Mesh, MeshStats, repair_summary
 
 _FORMAT_OF_MEDIA = {v: k for k, v in MEDIA_TYPES.items()}
 #: The model ``model_info()`` asks for when the server does not list its models.
@@ -116,6 +116,17 @@ def _int(text: str | None) -> int | None:
         return None
 
 
+def _repair(text: str | None) -> dict[str, Any] | None:
+    """``X-SpaceMesh-Repair`` (JSON) -> :attr:`Mesh.repair`."""
+    if not text:
+        return None
+    try:
+        data = json.loads(text)
+    except ValueError:
+        return None
+    return repair_summary(data) if isinstance(data, dict) else None
+
+
 def mesh_from_response(response: httpx.Response, fmt: str | None) -> Mesh:
     """A :class:`Mesh` from a successful ``/generate`` or ``/repair`` response."""
     headers = response.headers
@@ -130,6 +141,7 @@ def mesh_from_response(response: httpx.Response, fmt: str | None) -> Mesh:
         model=headers.get(HEADER_PREFIX + "model", ""),
         timings=_timings(headers.get("server-timing", "")),
         batch_size=_int(headers.get(HEADER_PREFIX + "batch-size")) or 0,
+        repair=_repair(headers.get(HEADER_PREFIX + "repair")),
     )
 
 

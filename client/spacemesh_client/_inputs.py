@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh_client._formats import write_mesh
 from spacemesh_client.mesh import Mesh
 
 #: A point cloud: (P, 3) numbers, a path, file bytes or a trimesh object with ``vertices``.
@@ -112,6 +113,8 @@ def mesh_input(mesh: MeshLike, filename: str | None = None) -> Upload:
     if isinstance(mesh, (bytes, bytearray, memoryview)):
         return Upload(bytes(mesh), filename or "mesh")
     if isinstance(mesh, Mesh):
+        if mesh.format == "json":  # the service's own format, which it does not read back
+            return Upload(write_mesh(mesh.vertices, mesh.faces, "ply"), "mesh.ply")
         return Upload(mesh.data, f"mesh.{mesh.format}")
     if hasattr(mesh, "export") and hasattr(mesh, "faces"):  # trimesh.Trimesh
         return Upload(bytes(mesh.export(file_type="ply")), "mesh.ply")

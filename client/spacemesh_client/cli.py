@@ -8,9 +8,10 @@
     spacemesh-client info
 
 The URL comes from ``--url``, else ``$SPACEMESH_URL``, else ``http://localhost:8000``;
-``grpc://host:8001`` uses gRPC. Errors are one line on stderr:
+``grpc://host:8001`` uses gRPC. Errors are one line on stderr (usage mistakes too):
 exit code 2 for a bad request or a missing file, 1 when the server or the connection
-failed (after the retries).
+failed (after the retries). Region values may start with a minus sign
+(``--sphere -0.5,0,0,0.2``).
 """
 
 from __future__ import annotations
@@ -119,9 +120,13 @@ def _check_output(output: Path) -> None:
 
 
 def _summary(mesh: Mesh, output: Path, seconds: float) -> dict[str, Any]:
-    return {"output": str(output), "format": mesh.format, "seed": mesh.seed,
-            "steps": mesh.steps, "model": mesh.model, "seconds": round(seconds, 3),
-            **mesh.stats.to_dict()}
+    summary = {"output": str(output), "format": mesh.format, "seed": mesh.seed,
+               "steps": mesh.steps, "model": mesh.model, "seconds": round(seconds, 3),
+               **mesh.stats.to_dict()}
+    if mesh.repair is not None:
+        summary["repair"] = {k: ({str(d): c for d, c in v.items()} if isinstance(v, dict)
+                                 else v) for k, v in mesh.repair.items()}
+    return summary
 
 
 def _report(mesh: Mesh, output: Path, seconds: float, as_json: bool) -> None:
@@ -132,8 +137,14 @@ def _report(mesh: Mesh, output: Path, seconds: float, as_json: bool) -> None:
     degrees = ", ".join(f"{k}:{v}" for k, v in sorted(s.face_degrees.items()))
     shape = "closed oriented manifold" if s.closed and s.oriented and s.manifold else (
         "NOT a closed oriented manifold")
+    repaired = ""
+    if mesh.repair is not None:
+        r = mesh.repair
+        repaired = (f"; {r.get('region_faces')} faces re-generated ({r.get('grown_faces')} "
+                    f"added to the region), {r.get('new_vertices')} new vertices, "
+                    f"{r.get('new_faces')} new faces, fallback {r.get('fallback')}")
     print(f"{output}: {s.vertices} vertices, {s.faces} faces ({degrees}), {shape}, "
-          f"genus {s.genus}; seed {mesh.seed}, {mesh.steps} steps, {mesh.model} "
+          f"genus {s.genus}{repaired}; seed {mesh.seed}, {mesh.steps} steps, {mesh.model} "
           f"({seconds:.2f} s)")
 
 
@@ -195,6 +206,34 @@ def cmd_info(args: argparse.Namespace) -> None:
     print(json.dumps(info, indent=2))
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (``spacemesh-client: error: ...``, exit code 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        fail(f"{message} (see {self.prog} --help)")
+
+
+#: Options whose values may start with "-" (negative coordinates).
+_SIGNED_OPTIONS = ("--sphere", "--box")
+
+
+def _attach_signed_values(argv: Sequence[str]) -> list[str]:
+    """``--box -1,-1,-1,1,1,1`` -> ``--box=-1,-1,-1,1,1,1`` (argparse would read the
+    value as an option)."""
+    out: list[str] = []
+    args = list(argv)
+    i = 0
+    while i < len(args):
+        if args[i] in _SIGNED_OPTIONS and i + 1 < len(args) and args[i + 1][:1] == "-" \
+                and args[i + 1][1:2] in "0123456789.":
+            out.append(f"{args[i]}={args[i + 1]}")
+            i += 2
+            continue
+        out.append(args[i])
+        i += 1
+    return out
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (every command takes the connection options)."""
     common = argparse.ArgumentParser(add_help=False)
@@ -216,8 +255,8 @@ def build_parser() -> argparse.ArgumentParser:
     options.add_argument("--steps", type=int, help="sampler steps (default: the model's)")
     options.add_argument("--json", action="store_true", help="print a JSON summary")
 
-    parser = argparse.ArgumentParser(prog=PROG, description="Client of the SpaceMesh service: "
-                                     "point cloud in, oriented manifold polygon mesh out.")
+    parser = _Parser(prog=PROG, description="Client of the SpaceMesh service: "
+                     "point cloud in, oriented manifold polygon mesh out.")
     parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -249,7 +288,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> None:
     """Entry point of ``spacemesh-client``."""
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else argv
+    args = build_parser().parse_args(_attach_signed_values(argv))
     try:
         args.run(args)
     except ConnectionFailed as error:

@@ -174,17 +174,30 @@ class Client(_Options):
         Parameters
         ----------
         mesh : path, bytes, Mesh or trimesh.Trimesh
+            A mesh file the server reads (OBJ, OFF, PLY, STL, GLB, glTF), its bytes, a
+            :class:`Mesh` (a ``json`` one is sent as PLY) or a trimesh object (sent as
+            PLY). Face and vertex indices refer to this file's order.
         region : dict or list of int
             ``{"faces": [...]}``, ``{"vertices": [...]}``,
             ``{"sphere": {"center": [x, y, z], "radius": r}}``,
-            ``{"box": {"min": [x, y, z], "max": [x, y, z]}}``, or face indices. Over
-            gRPC, face indices only.
+            ``{"box": {"min": [x, y, z], "max": [x, y, z]}}`` (mesh coordinates), or
+            face indices; the same over REST and gRPC.
         format, seed, steps, filename
             As for :meth:`generate`.
 
         Returns
         -------
         Mesh
+            With :attr:`Mesh.repair`, what the repair did (faces re-generated, new
+            vertices and faces, fallback...).
+
+        Raises
+        ------
+        SpaceMeshError
+            A region the server cannot use raises a
+            :class:`~spacemesh_client.errors.RegionError` subclass (422):
+            ``EmptyRegion``, ``WholeMeshRegion``, ``InvalidRegion``,
+            ``DefectsOutsideRegion`` (``extra["defects"]``), ``RegionTooLarge``.
         """
         upload = mesh_input(mesh, filename)
         shape = region_input(region)

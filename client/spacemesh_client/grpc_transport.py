@@ -4,8 +4,9 @@ Chosen by the URL: ``grpc://host:8001`` (plaintext HTTP/2) or ``grpcs://host:443
 It needs the ``grpc`` extra: ``pip install 'spacemesh-client[grpc]'``.
 
 Errors come back as a status code with the problem type in the trailing metadata
-(``problem-type``, ``problem-status``, ``retry-after``); :func:`error_from_rpc` turns them
-into the same exceptions as the REST transport. A status without a problem type (the
+(``problem-type``, ``problem-status``, ``retry-after``, and the extension members as JSON
+in ``problem-extensions``); :func:`error_from_rpc` turns them into the same exceptions as
+the REST transport. A status without a problem type (the
 channel could not connect, the client's deadline passed) becomes
 :class:`~spacemesh_client.errors.ConnectionFailed` or
 :class:`~spacemesh_client.errors.ClientTimeout`.
@@ -17,6 +18,7 @@ metadata call: ``model_info()`` raises :class:`~spacemesh_client.errors.Unimplem
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Mapping
 from typing import Any
 from urllib.parse import urlsplit
@@ -27,13 +29,14 @@ from spacemesh_client.errors import (
     TYPE_BASE,
     ClientTimeout,
     ConnectionFailed,
+    InvalidRegion,
     PayloadTooLarge,
     SpaceMeshError,
     Unimplemented,
     error_from_problem,
     parse_retry_after,
 )
-from spacemesh_client.mesh import Mesh, MeshStats
+from spacemesh_client.mesh import Mesh, MeshStats, repair_summary
 
 #: URL schemes of this transport.
 SCHEMES = ("grpc", "grpcs")
@@ -91,14 +94,46 @@ def generate_message(pb: Any, source: Upload | Arrays, fmt: str | None, seed: in
     return request
 
 
+def region_message(pb: Any, region: Mapping[str, Any]) -> Any:
+    """A ``Region`` from the JSON form of a region.
+
+    Raises
+    ------
+    InvalidRegion
+        What the server would answer (422 ``invalid-region``) for a region the message
+        cannot hold: not exactly one known key, or values of the wrong type. Numbers
+        the message holds are checked by the server.
+    """
+    forms = ("faces", "vertices", "sphere", "box")
+    keys = [k for k in region if region[k] is not None]
+    if len(keys) != 1 or keys[0] not in forms:
+        raise InvalidRegion("the region must have exactly one of the keys "
+                            + ", ".join(forms) + f", not {sorted(region)}", status=422)
+    kind, value = keys[0], region[keys[0]]
+    try:
+        if kind in ("faces", "vertices"):
+            return pb.Region(**{kind: pb.Indices(indices=[_index(i) for i in value])})
+        if kind == "sphere":
+            return pb.Region(sphere=pb.Sphere(center=list(value["center"]),
+                                              radius=value["radius"]))
+        return pb.Region(box=pb.Box(min=list(value["min"]), max=list(value["max"])))
+    except (KeyError, TypeError, ValueError) as error:
+        raise InvalidRegion(f"the {kind} region cannot be sent: {error!r}",
+                            status=422) from None
+
+
+def _index(value: Any) -> int:
+    """An integer index (floats with a fraction, bools and strings refused)."""
+    if isinstance(value, (bool, str, bytes)) or not float(value).is_integer():
+        raise ValueError(f"{value!r} is not an integer index")
+    return int(value)
+
+
 def repair_message(pb: Any, mesh: Upload, region: Mapping[str, Any], fmt: str | None,
                    seed: int | None, steps: int | None) -> Any:
-    """A ``RepairRequest`` (the contract carries face indices only)."""
-    if set(region) != {"faces"}:
-        raise ValueError("over gRPC a repair region is face indices ({'faces': [...]}); "
-                         "use the REST URL for vertices, sphere or box regions")
+    """A ``RepairRequest`` (the region in any of its four forms)."""
     request = pb.RepairRequest(mesh=mesh.data, filename=mesh.filename, format=fmt or "",
-                               faces=[int(f) for f in region["faces"]])
+                               region=region_message(pb, region))
     if seed is not None:
         request.seed = seed
     if steps is not None:
@@ -113,10 +148,26 @@ def mesh_from_reply(reply: Any) -> Mesh:
                       face_degrees=dict(sorted(s.face_degrees.items())), manifold=s.manifold,
                       closed=s.closed, oriented=s.oriented, components=s.components,
                       genus=s.genus)
+    repair = None
+    if reply.HasField("repair"):
+        repair = repair_summary({f.name: (dict(value) if hasattr(value, "items") else value)
+                                 for f in reply.repair.DESCRIPTOR.fields
+                                 for value in [getattr(reply.repair, f.name)]})
     return Mesh(data=reply.mesh, format=reply.format, stats=stats, seed=reply.seed,
                 steps=reply.steps, sampler=reply.sampler,
                 model=f"{reply.model_name}/{reply.model_version}",
-                timings=dict(reply.timings), batch_size=reply.batch_size)
+                timings=dict(reply.timings), batch_size=reply.batch_size, repair=repair)
+
+
+def _extensions(text: str | None) -> dict[str, Any]:
+    """``problem-extensions`` (JSON) -> the problem's extension members."""
+    if not text:
+        return {}
+    try:
+        data = json.loads(text)
+    except ValueError:
+        return {}
+    return data if isinstance(data, dict) else {}
 
 
 def error_from_rpc(error: Any, target: str) -> SpaceMeshError:
@@ -127,7 +178,10 @@ def error_from_rpc(error: Any, target: str) -> SpaceMeshError:
     type_uri = metadata.get("problem-type")
     if type_uri:
         status = metadata.get("problem-status", "")
-        problem = {"type": type_uri, "detail": details,
+        extensions = _extensions(metadata.get("problem-extensions"))
+        problem = {**{k: v for k, v in extensions.items()
+                      if k not in ("type", "title", "status", "detail", "instance")},
+                   "type": type_uri, "detail": details,
                    "status": int(status) if status.isdigit() else None}
         return error_from_problem(problem, retry_after=parse_retry_after(
             metadata.get("retry-after")))

@@ -75,6 +75,19 @@ class MeshStats:
                                                   sorted(self.face_degrees.items())}}
 
 
+def repair_summary(data: Mapping[str, Any]) -> dict[str, Any]:
+    """A repair's statistics as :attr:`Mesh.repair` holds them (face degrees keyed by
+    ints, dicts sorted), from the ``X-SpaceMesh-Repair`` JSON or a gRPC ``RepairStats``."""
+    out: dict[str, Any] = {}
+    for key, value in data.items():
+        if isinstance(value, Mapping):
+            value = {int(k) if key == "new_face_degrees" else str(k): v
+                     for k, v in value.items()}
+            value = dict(sorted(value.items()))
+        out[key] = value
+    return out
+
+
 @dataclass(frozen=True)
 class Mesh:
     """A mesh from the service.
@@ -101,6 +114,14 @@ class Mesh:
         Seconds per server stage (``queue``, ``encoder``, ``sampler``...).
     batch_size : int
         How many requests shared this one's inference batch.
+    repair : dict or None
+        What a repair did (None for a generated mesh): ``requested_faces``,
+        ``region_faces`` (after growth), ``grown_faces``, ``removed_vertices``,
+        ``boundary_vertices``, ``loops``, ``new_vertices``, ``new_faces``,
+        ``new_face_degrees`` (size -> count), ``patch_faces``, ``patch_rings``,
+        ``known_vertices``, ``tokens``, ``candidates``, ``fallback`` (``none``,
+        ``removed-new-vertices`` or ``polygon``), ``fill``, ``inpaint`` and
+        ``flipped_orientation``; the same over REST and gRPC.
     """
 
     data: bytes = field(repr=False)
@@ -112,6 +133,7 @@ class Mesh:
     model: str = ""
     timings: dict[str, float] = field(default_factory=dict, repr=False)
     batch_size: int = 0
+    repair: dict[str, Any] | None = field(default=None, repr=False)
 
     @property
     def media_type(self) -> str:

@@ -85,6 +85,7 @@ def test_no_surface(client, case):
 
 
 def test_model_not_found_and_repair(rest_url, grpc_url, case):
+    # repair's own errors: tests/client/test_client_repair.py
     from spacemesh_client import Client, RetryPolicy
 
     with Client(rest_url, retry=RetryPolicy.never()) as client:
@@ -92,17 +93,17 @@ def test_model_not_found_and_repair(rest_url, grpc_url, case):
             client.model_info("no-such-model")
         assert caught.value.status == 404 and isinstance(caught.value, E.NotFound)
         mesh = client.generate(case.points, seed=case.good_seed, format="obj")
-        try:
-            repaired = client.repair(mesh, [0])
-        except (E.Unimplemented, E.RegionError) as error:  # before/after repair lands
-            assert error.status in (501, 422)
-        else:
-            assert repaired.stats.closed
+    for url in (rest_url, grpc_url):
+        with Client(url, retry=RetryPolicy.never()) as client:
+            try:  # a generated mesh: repaired, or its region refused (e.g. grows to all)
+                repaired = client.repair(mesh, [0], steps=4)
+            except E.RegionError as error:
+                assert error.status == 422
+            else:
+                assert repaired.stats.closed and repaired.repair["requested_faces"] == 1
     with Client(grpc_url, retry=RetryPolicy.never()) as client:
         with pytest.raises(E.Unimplemented, match="REST"):
             client.model_info()
-        with pytest.raises(ValueError, match="face indices"):
-            client.repair(mesh, {"sphere": {"center": [0, 0, 0], "radius": 1}})
 
 
 def test_local_mistakes_are_ordinary_python_errors(client, tmp_path):
