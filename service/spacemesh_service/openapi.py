@@ -244,8 +244,9 @@ REPAIR_RESPONSES: dict[int | str, dict[str, Any]] = {
         "empty": (P.EMPTY_REGION, "the region selects no face of the mesh"),
         "whole": (P.WHOLE_MESH_REGION, "the region covers the whole mesh; repair needs faces "
                                        "outside the region to keep"),
-        "defects": (P.DEFECTS_OUTSIDE_REGION, "the mesh has 4 open boundary edges outside "
-                                              "the region"),
+        "defects": (P.DEFECTS_OUTSIDE_REGION, "the mesh has defects outside the region; "
+                    "extend the region to cover them: 4 open boundary edges (e.g. vertices 0, "
+                    "42, 43, 46)"),
         "large": (P.REGION_TOO_LARGE, "the region's boundary has 300 vertices; the model "
                                       "holds at most 248"),
         "nan": (P.NON_FINITE, "OBJ: vertex 3 has a NaN or infinite coordinate"),
