@@ -9,6 +9,7 @@ import struct
 
 import numpy as np
 import pytest
+
 from spacemesh.io import (
     SUPPORTED_MESH_READ,
     SUPPORTED_MESH_WRITE,

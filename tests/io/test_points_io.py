@@ -6,6 +6,7 @@ import io
 
 import numpy as np
 import pytest
+
 from spacemesh.io import export_mesh, load_points
 from spacemesh.io.errors import MeshFormatError, UnsupportedFormatError
 from spacemesh.io.points import SUPPORTED_POINTS_READ

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import spacemesh.triangulate as tri
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
+import spacemesh.triangulate as tri
 from spacemesh.mesh import PolygonMesh
 from spacemesh.triangulate import newell_normal, triangulate_faces, triangulate_polygon
 
