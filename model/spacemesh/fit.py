@@ -38,7 +38,8 @@ from spacemesh.spacetime import count_pairs_below_threshold, edges_below_thresho
 
 @dataclass(frozen=True)
 class FitConfig:
-    """Settings of :func:`fit_mesh`; the defaults are the paper's."""
+    """Settings of :func:`fit_mesh`: the paper's, plus the sparse-mode and
+    false-positive options that make large meshes converge (docs/REPRESENTATION.md)."""
 
     adjacency_dim: int = 16
     n_space: int = 8
@@ -57,6 +58,9 @@ class FitConfig:
     max_hard: int = 8  # mined non-edges kept per edge, in sparse mode
     false_positive_weight: float | None = 1.0  # non-edges below tau; None: lambda for all (paper)
     threads: int | None = None
+    # non-edges keep the false-positive weight until d > tau + margin (hysteresis)
+    false_positive_margin: float = 0.5
+    init: str = "random"  # or "positions": space coordinates start at the vertex positions
 
 
 @dataclass
@@ -120,19 +124,34 @@ def next_accuracy(decoded: Connectivity, truth: Connectivity) -> float:
     return float(np.isin(key_t, key_d).mean()) if len(key_t) else 1.0
 
 
+#: With ``init="positions"``: the threshold's start, in squared mean edge lengths (edges
+#: start near 1, the next ring near 3 to 4).
+POSITIONS_TAU = 2.0
+INITS = ("random", "positions")
+
+
 class _Parameters(torch.nn.Module):
-    def __init__(self, n: int, config: FitConfig, generator: torch.Generator) -> None:
+    def __init__(self, mesh: PolygonMesh, edges: np.ndarray, config: FitConfig,
+                 generator: torch.Generator) -> None:
         super().__init__()
-        s = config.init_scale
+        n, s = mesh.n_vertices, config.init_scale
 
         def rand(*shape: int) -> torch.nn.Parameter:
             return torch.nn.Parameter(torch.randn(*shape, generator=generator) * s)
 
         self.x = rand(n, config.adjacency_dim)
+        tau = 0.0
+        if config.init == "positions":  # space coordinates in units of the mean edge
+            v = mesh.vertices
+            mean_edge = np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1).mean()
+            with torch.no_grad():
+                start = (v - v.mean(0)) / max(float(mean_edge), 1e-12)
+                self.x[:, :3] = torch.as_tensor(start, dtype=self.x.dtype)
+            tau = POSITIONS_TAU
         self.root = rand(n, config.permutation_dim)
         self.prev = rand(n, config.permutation_dim)
         self.next = rand(n, config.permutation_dim)
-        self.tau = torch.nn.Parameter(torch.zeros(()))
+        self.tau = torch.nn.Parameter(torch.full((), tau))
         self.reduction = PermutationReduction(config.reduction, dim=config.permutation_dim)
 
     def embeddings(self) -> Embeddings:
@@ -249,6 +268,10 @@ def fit_mesh(
         sequences); ``edge_f1`` and ``next_accuracy`` are measured on all pairs.
     """
     config = config or FitConfig()
+    if config.init not in INITS:
+        raise ValueError(f"unknown init {config.init!r}; expected one of {INITS}")
+    if config.init == "positions" and config.distance == "dot":
+        raise ValueError("init='positions' needs a distance with space coordinates, not 'dot'")
     if config.threads:
         torch.set_num_threads(config.threads)
     require_closed_manifold(mesh)
@@ -258,7 +281,7 @@ def fit_mesh(
     n = mesh.n_vertices
     gt_edges = truth.edges
     generator = torch.Generator().manual_seed(config.seed)
-    params = _Parameters(n, config, generator)
+    params = _Parameters(mesh, gt_edges, config, generator)
     optimizer = torch.optim.Adam(params.parameters(), lr=config.lr)
     groups = degree_groups(truth)
     n_rows = sum(int(g.target.numel()) for g in groups)
@@ -289,6 +312,7 @@ def fit_mesh(
                 config.distance,
                 config.n_space,
                 config.false_positive_weight,
+                config.false_positive_margin,
             )
         else:
             if (iteration - 1) % config.mine_every == 0:
@@ -320,6 +344,7 @@ def fit_mesh(
                 config.distance,
                 config.n_space,
                 config.false_positive_weight,
+                config.false_positive_margin,
             )
         p_loss, correct = permutation_loss(
             groups, params.root, params.prev, params.next, params.reduction, config.sinkhorn_iters

@@ -58,3 +58,19 @@ def test_high_degree_poles_are_recovered():
     mesh = PolygonMesh.from_faces(v, faces)
     result = fit_mesh(mesh, FitConfig(max_iters=600, threads=1))
     assert result.exact, result.summary()
+
+
+@pytest.mark.parametrize("dense_limit", [1024, 10])
+def test_positions_init_recovers_mesh(dense_limit):
+    """Starting from the vertex positions also converges, in dense and sparse mode."""
+    mesh = icosphere(2)
+    result = fit_mesh(mesh, FitConfig(max_iters=400, init="positions", dense_limit=dense_limit,
+                                      threads=1))
+    assert result.exact, result.summary()
+
+
+def test_bad_init_is_a_value_error():
+    with pytest.raises(ValueError, match="unknown init"):
+        fit_mesh(icosphere(1), FitConfig(init="spectral"))
+    with pytest.raises(ValueError, match="space coordinates"):
+        fit_mesh(icosphere(1), FitConfig(init="positions", distance="dot"))

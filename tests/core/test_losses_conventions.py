@@ -97,3 +97,29 @@ def test_edge_loss_is_eq3_with_lambda():
     assert float(got_pairs) == pytest.approx(expected, rel=1e-9)
     # and an edge is d < tau in both worlds
     assert np.array_equal(d[iu] < tau, (dense_distance(xt)[iu] < tau).numpy())
+
+
+@pytest.mark.parametrize("form", ["dense", "pairs"])
+def test_false_positive_margin_keeps_the_weight_just_above_the_threshold(form):
+    """A non-edge just out (tau < d < tau + margin) keeps the false-positive weight."""
+    x = torch.tensor([[0.0, 0.0], [1.0, 0.0], [0.0, 1.05]], dtype=torch.float64,
+                     requires_grad=True)
+    tau = torch.tensor(1.0, dtype=torch.float64)  # squared euclidean: d01 = 1, d02 = 1.1025
+    edges = torch.tensor([[0, 1]])
+
+    def grad_on_vertex_2(margin: float) -> float:
+        x.grad = None
+        if form == "dense":
+            adj = torch.zeros(1, 3, 3, dtype=torch.bool)
+            adj[0, 0, 1] = adj[0, 1, 0] = True
+            loss = edge_loss_dense(x[None], tau, adj, None, "euclidean", None, 1.0, margin)
+        else:
+            negatives = torch.tensor([[0, 2], [1, 2]])
+            loss = edge_loss_pairs(x, tau, edges, negatives, torch.ones(2, dtype=torch.float64),
+                                   4 / 9, "euclidean", None, 1.0, margin)
+        loss.backward()
+        return float(x.grad[2].norm())
+
+    without, within = grad_on_vertex_2(0.0), grad_on_vertex_2(0.5)
+    assert within > 1.5 * without  # weight 1 instead of lambda = 4/9
+    assert grad_on_vertex_2(0.05) == pytest.approx(without)  # beyond the margin: lambda again

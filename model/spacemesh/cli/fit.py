@@ -30,6 +30,13 @@ class ReductionChoice(str, Enum):
     concat = "concat"
 
 
+class InitChoice(str, Enum):
+    """Initial adjacency embeddings."""
+
+    random = "random"
+    positions = "positions"
+
+
 @app.command()
 def fit(
     mesh_path: Annotated[Path, typer.Argument(metavar="MESH", help="Closed manifold mesh file.")],
@@ -43,6 +50,11 @@ def fit(
     reduction: Annotated[ReductionChoice, typer.Option(help="Permutation reduction.")] = (
         ReductionChoice.product
     ),
+    init: Annotated[
+        InitChoice,
+        typer.Option(help="Start from random embeddings (the paper) or from the vertex "
+                     "positions (about 2x fewer iterations; spacetime and euclidean only)."),
+    ] = InitChoice.random,
     max_iters: Annotated[int, typer.Option(min=1, help="Iteration budget.")] = 1000,
     seed: Annotated[int, typer.Option(help="Random seed of the initial embeddings.")] = 0,
     threads: Annotated[int, typer.Option(min=0, help="Torch threads (0: torch's default).")] = 0,
@@ -54,6 +66,8 @@ def fit(
     from spacemesh.io import load_mesh, save_mesh
     from spacemesh.io.errors import MeshFormatError
 
+    if init is InitChoice.positions and distance is DistanceChoice.dot:
+        fail("--init positions needs a distance with space coordinates (spacetime, euclidean)")
     if not mesh_path.is_file():
         fail(f"{mesh_path}: no such file")
     if output is not None and not output.parent.exists():
@@ -72,12 +86,19 @@ def fit(
         )
     from tqdm import tqdm
 
+    from spacemesh.encode import require_closed_manifold
+
+    try:  # before the progress bar, so that a refusal is one line
+        require_closed_manifold(mesh)
+    except SpaceMeshError as error:
+        fail(f"{mesh_path}: {error}")
     config = FitConfig(
         distance=distance.value,
         reduction=reduction.value,
         max_iters=max_iters,
         seed=seed,
         threads=threads or None,
+        init=init.value,
     )
     bar = tqdm(total=max_iters, desc="fit", unit="it", disable=as_json, leave=False)
 

@@ -88,6 +88,7 @@ def edge_loss_dense(
     distance: Distance = "spacetime",
     n_space: int | None = None,
     false_positive_weight: float | None = None,
+    false_positive_margin: float = 0.0,
 ) -> Tensor:
     """Eq. 3 over every pair of valid vertices, averaged over the batch.
 
@@ -107,6 +108,10 @@ def edge_loss_dense(
         Weight of the non-edges currently below the threshold (instead of ``lambda``),
         scaled down so that together they weigh at most as much as the edges; None
         keeps the paper's loss exactly.
+    false_positive_margin : float
+        Non-edges count as false positives up to ``d < tau + margin``: a hysteresis
+        that keeps their weight until they are clearly out (without it they sit on the
+        threshold, flipping in and out).
 
     Returns
     -------
@@ -129,7 +134,7 @@ def edge_loss_dense(
     pos_term = (F.softplus(-logit) * pos).sum((1, 2))
     neg_weight = lam.reshape(-1, 1, 1) * neg
     if false_positive_weight is not None:
-        false_pos = neg & (logit > 0)
+        false_pos = neg & (logit > -false_positive_margin)
         # together the false positives weigh at most as much as the edges
         share = (n_edges / false_pos.sum((1, 2)).clamp_min(1)).clamp(max=1.0)
         fp_weight = (false_positive_weight * share).reshape(-1, 1, 1).detach()
@@ -148,6 +153,7 @@ def edge_loss_pairs(
     distance: Distance = "spacetime",
     n_space: int | None = None,
     false_positive_weight: float | None = None,
+    false_positive_margin: float = 0.0,
 ) -> Tensor:
     """Eq. 3 on explicit pairs: all positives, a weighted subset of negatives.
 
@@ -163,6 +169,8 @@ def edge_loss_pairs(
         ``4 E / V^2``.
     false_positive_weight : float, optional
         See :func:`edge_loss_dense`; applies to the negatives of weight 1 (mined ones).
+    false_positive_margin : float
+        See :func:`edge_loss_dense`.
 
     Returns
     -------
@@ -176,7 +184,7 @@ def edge_loss_pairs(
     weights = lam * negative_weights
     if false_positive_weight is not None:
         # only pairs that stand for themselves: sampled stand-ins stay unbiased
-        hard = (d_neg < tau) & (negative_weights <= 1)
+        hard = (d_neg < tau + false_positive_margin) & (negative_weights <= 1)
         share = min(1.0, len(positives) / max(int(hard.sum()), 1))
         fp_weight = torch.full_like(weights, false_positive_weight * share)
         weights = torch.where(hard, torch.maximum(fp_weight, weights), weights)
