@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import itertools
 import os
 import subprocess
 import sys
@@ -79,3 +80,17 @@ def test_ddp_on_cpu_with_two_processes(toy_data, tmp_path):
     assert done.returncode == 0, done.stderr[-3000:]
     state = load_checkpoint(latest_checkpoint(run))
     assert state["step"] == 2 and state["extra"]["world_size"] == 2
+
+
+def test_learning_rate_warms_up_then_decays_to_the_final_ratio():
+    from spacemesh.nn.config import TrainConfig
+    from spacemesh.train.loop import learning_rate
+
+    train = TrainConfig(lr=1e-3, warmup=10, steps=100, final_lr_ratio=0.1)
+    rates = [learning_rate(train, step) for step in range(101)]
+    assert rates[0] == pytest.approx(1e-4)  # 1/10 of the way through the warm-up
+    assert max(rates) <= 1e-3
+    assert all(a >= b for a, b in itertools.pairwise(rates[10:]))  # decays
+    assert rates[100] == pytest.approx(1e-4)
+    constant = TrainConfig(lr=1e-3, warmup=1, steps=100)  # final_lr_ratio 1: no decay
+    assert {learning_rate(constant, s) for s in (0, 50, 100)} == {1e-3}

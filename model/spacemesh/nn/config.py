@@ -143,6 +143,9 @@ class TrainConfig:
         Meshes per step, per process.
     lr : float
         Adam learning rate (after a linear warm-up of ``warmup`` steps).
+    final_lr_ratio : float
+        The rate decays along a half cosine from ``lr`` to ``lr * final_lr_ratio`` at
+        ``steps`` (1.0 keeps it constant).
     steps : int
         Diffusion steps; each is followed by ``connectivity_steps`` connectivity steps.
     connectivity_steps : int
@@ -167,6 +170,7 @@ class TrainConfig:
     batch_size: int = 8
     lr: float = 3e-4
     warmup: int = 100
+    final_lr_ratio: float = 1.0
     steps: int = 2000
     connectivity_steps: int = 10
     edge_weight: float = 200.0
@@ -268,7 +272,8 @@ SMALL = ModelConfig(
         fourier=4, position_prior=True,
     ),
     diffusion=DiffusionConfig(timesteps=1024, schedule="cosine", sampler="ddim", steps=50),
-    train=TrainConfig(batch_size=6, lr=7e-4, warmup=20, steps=600, connectivity_steps=10,
+    train=TrainConfig(batch_size=6, lr=7e-4, warmup=20, final_lr_ratio=0.1, steps=2000,
+                      connectivity_steps=10,
                       connectivity_trains_encoder=False, val_every=20, checkpoint_every=20,
                       val_shapes=24),
 )

@@ -32,7 +32,7 @@ import numpy as np
 import torch
 
 from spacemesh.data.shards import MANIFEST, open_dataset
-from spacemesh.nn.config import ModelConfig, model_from_config
+from spacemesh.nn.config import ModelConfig, TrainConfig, model_from_config
 from spacemesh.nn.model import SpaceMeshModel
 from spacemesh.train.batching import Sample, collate, prepare_sample
 from spacemesh.train.checkpoint import (
@@ -53,6 +53,25 @@ from spacemesh.train.distributed import (
 )
 from spacemesh.train.evaluate import connectivity_metrics
 from spacemesh.train.logging import MetricsLog, plot_curves
+
+
+def learning_rate(train: TrainConfig, step: int) -> float:
+    """A linear warm-up, then a half cosine from ``lr`` to ``lr * final_lr_ratio``.
+
+    Parameters
+    ----------
+    train : TrainConfig
+    step : int
+        Diffusion step, from 0.
+
+    Returns
+    -------
+    float
+    """
+    warm = min(1.0, (step + 1) / max(train.warmup, 1))
+    progress = min(1.0, step / max(train.steps, 1))
+    ratio = train.final_lr_ratio
+    return train.lr * warm * (ratio + (1.0 - ratio) * 0.5 * (1.0 + math.cos(math.pi * progress)))
 
 
 @dataclass
@@ -198,8 +217,11 @@ class Trainer:
                 log(f"no checkpoint in {self.out}; starting from scratch")
             else:
                 state = load_checkpoint(last, map_location="cpu")
-                # the stored architecture wins; the step budget may be extended
-                config = state["config"].with_train(steps=config.train.steps)
+                # the stored architecture wins; the step budget and the decay come from
+                # the requested config (a run may be extended)
+                config = state["config"].with_train(
+                    steps=config.train.steps, final_lr_ratio=config.train.final_lr_ratio
+                )
         self.config = config
         self.rng = np.random.default_rng(options.seed + 1000 * info.rank)
         self.generator = torch.Generator().manual_seed(options.seed + 1000 * info.rank)
@@ -238,9 +260,8 @@ class Trainer:
             (self.out / "data.json").write_text(json.dumps(self.card, indent=2))
 
     def lr_at(self, step: int) -> float:
-        """Learning rate after a linear warm-up."""
-        train = self.config.train
-        return train.lr * min(1.0, (step + 1) / max(train.warmup, 1))
+        """Learning rate at ``step`` (see :func:`learning_rate`)."""
+        return learning_rate(self.config.train, step)
 
     def _pick(self, diffusion: bool) -> np.ndarray:
         """Indices of one batch; connectivity batches take shapes of similar size (a random
