@@ -27,6 +27,42 @@ from spacemesh.topology import check_topology
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def write_markdown(rows: list[dict], threads: int, path: Path) -> str:
+    """The per-mesh table with a header that says how it was made; returns the summary."""
+    n_exact = sum(r["exact"] for r in rows)
+    small = [r for r in rows if r["n_vertices"] <= 2000]
+    largest = max(rows, key=lambda r: r["n_vertices"])
+    slowest = max(rows, key=lambda r: r["iterations"])
+    summary = (
+        f"{n_exact} of {len(rows)} meshes exact; max iterations at <= 2,000 vertices: "
+        f"{max(r['iterations'] for r in small)}; overall {slowest['iterations']} "
+        f"({slowest['file']}); the largest ({largest['n_vertices']} vertices) took "
+        f"{largest['iterations']} iterations, {largest['seconds']:.1f} s; threads: {threads}."
+    )
+    lines = [
+        "# Fitting the closed manifold meshes of ../shared/meshes",
+        "",
+        f"`python experiments/fit_real_meshes.py --threads {threads}` with the default settings "
+        "of `spacemesh fit` (k = 16, 8 + 8; k_p = 6; Adam lr 0.1; random start; at most 1,000 "
+        "iterations; mined negatives above 1,024 vertices; false-positive weight 1 with a 0.5 "
+        "margin). Seconds are wall time of the fit on this 2-core machine, while another job "
+        "used the other core.",
+        "",
+        f"**{summary}**",
+        "",
+        "| mesh | category | V | F | face degrees | exact | iterations | seconds |",
+        "|---|---|---:|---:|---|:-:|---:|---:|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['file']} | {r['category']} | {r['n_vertices']} | {r['n_faces']} | "
+            f"{r['degrees']} | {'yes' if r['exact'] else 'NO'} | {r['iterations']} | "
+            f"{r['seconds']:.1f} |"
+        )
+    path.write_text("\n".join(lines) + "\n")
+    return summary
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--meshes", type=Path, default=ROOT.parent / "shared" / "meshes")
@@ -68,26 +104,9 @@ def main() -> int:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    lines = [
-        "| mesh | category | V | F | face degrees | exact | iterations | seconds |",
-        "|---|---|---:|---:|---|:-:|---:|---:|",
-    ]
-    for r in rows:
-        lines.append(
-            f"| {r['file']} | {r['category']} | {r['n_vertices']} | {r['n_faces']} | "
-            f"{r['degrees']} | {'yes' if r['exact'] else 'NO'} | {r['iterations']} | "
-            f"{r['seconds']:.1f} |"
-        )
-    n_exact = sum(r["exact"] for r in rows)
-    small = [r for r in rows if r["n_vertices"] <= 2000]
-    summary = (
-        f"\n{n_exact} of {len(rows)} meshes exact; "
-        f"max iterations at <= 2,000 vertices: {max(r['iterations'] for r in small)}; "
-        f"threads: {args.threads}.\n"
-    )
-    (args.out / "real_meshes.md").write_text("\n".join(lines) + "\n" + summary)
+    summary = write_markdown(rows, args.threads, args.out / "real_meshes.md")
     print(summary)
-    return 0 if n_exact == len(rows) else 1
+    return 0 if all(r["exact"] for r in rows) else 1
 
 
 if __name__ == "__main__":
