@@ -70,7 +70,7 @@ def plot(results: dict, key: str, metric: str, path: Path, title: str) -> None:
     for ax, mesh_name in zip(axes[0], meshes, strict=True):
         for variant, data in results[mesh_name][key].items():
             ax.plot(range(1, len(data[metric]) + 1), data[metric], label=variant)
-        ax.set_title(mesh_name[-38:], fontsize=8)
+        ax.set_title(mesh_name.split("__")[-1], fontsize=9)
         ax.set_xlabel("iteration")
         ax.set_ylabel(metric.replace("_", " "))
         ax.set_ylim(0, 1.02)
