@@ -32,7 +32,7 @@ from scipy.optimize import linear_sum_assignment
 
 from spacemesh.permutation import log_sinkhorn
 from spacemesh.runtime.backend import Backend
-from spacemesh.runtime.sampler import ProgressFn
+from spacemesh.runtime.sampler import ProgressFn, reverse_step
 from spacemesh.runtime.schedule import METHODS, SamplingSteps
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
@@ -144,11 +144,7 @@ def inpaint_tokens(
         t = np.full(1, steps.timesteps[i], dtype=np.int64)
         eps = np.asarray(backend.denoise(x[None].astype(np.float32), t, volumes),
                          np.float64)[0]  # (N, 4)
-        if method == "ddim":
-            x = steps.ddim_step(i, x, eps)
-        else:
-            mean, std = steps.ddpm_mean_std(i, x, eps)
-            x = mean + std * rng.standard_normal(x.shape) if i > 0 else mean
+        x = reverse_step(steps, i, x, eps, method, lambda: rng.standard_normal((n, 4)))
         if progress is not None:
             progress(done, total)
     token = align(x[:, :3], targets)[:n_known]

@@ -61,19 +61,45 @@ def sample(
     for done, i in enumerate(reversed(range(total)), start=1):
         t = np.full(len(rngs), steps.timesteps[i], dtype=np.int64)  # (B,)
         eps = np.asarray(denoise(x, t), dtype=np.float64)  # (B, N, 4)
-        if method == "ddim":
-            x_next = steps.ddim_step(i, x.astype(np.float64), eps)
-        else:
-            mean, std = steps.ddpm_mean_std(i, x.astype(np.float64), eps)
-            if i > 0:
-                noise = np.stack([r.standard_normal(shape) for r in rngs])
-                x_next = mean + std * noise
-            else:
-                x_next = mean
-        x = x_next.astype(np.float32)
+        x = reverse_step(
+            steps, i, x.astype(np.float64), eps, method,
+            lambda: np.stack([r.standard_normal(shape) for r in rngs]),
+        ).astype(np.float32)
         if progress is not None:
             progress(done, total)
     return x
+
+
+def reverse_step(
+    steps: SamplingSteps,
+    i: int,
+    x: FloatArray,
+    eps: FloatArray,
+    method: str,
+    noise: Callable[[], FloatArray],
+) -> FloatArray:
+    """One reverse step from respaced step ``i`` to ``i - 1`` (DDIM, or DDPM with noise).
+
+    Parameters
+    ----------
+    steps : SamplingSteps
+    i : int
+        Index into ``steps`` (``len(steps) - 1`` down to 0).
+    x, eps : (..., 4) float64 arrays
+        Current tokens and the predicted noise.
+    method : {"ddim", "ddpm"}
+    noise : callable
+        Draws the DDPM noise, shaped like ``x``; called only when ``method`` is ``ddpm``
+        and ``i > 0`` (so random streams advance exactly as before).
+
+    Returns
+    -------
+    (..., 4) float64
+    """
+    if method == "ddim":
+        return steps.ddim_step(i, x, eps)
+    mean, std = steps.ddpm_mean_std(i, x, eps)
+    return mean + std * noise() if i > 0 else mean
 
 
 def split_tokens(tokens: FloatArray) -> tuple[FloatArray, BoolArray]:
