@@ -23,11 +23,13 @@ embedding entries are treated as "no edge" for that vertex. See docs/REPRESENTAT
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
+from spacemesh.angular import oriented_angular_cycles
 from spacemesh.connectivity import Connectivity, csr_from_edges
-from spacemesh.matching import match_cycles
+from spacemesh.matching import FallbackFn, greedy_single_cycle, match_cycles
 from spacemesh.mesh import PolygonMesh
 from spacemesh.permutation import (
     SINKHORN_ITERS,
@@ -40,6 +42,8 @@ from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Rounds of one-vertex-per-face removal before every repeated vertex goes at once.
 GENTLE_ROUNDS = 12
+#: Fallbacks for a vertex whose optimal assignment is not a single orbit.
+Fallback = Literal["angular", "greedy"]
 
 #: Degree bound applied while decoding arbitrary embeddings (see edges_below_threshold).
 MAX_DEGREE = 64
@@ -73,7 +77,10 @@ class Embeddings:
 
 @dataclass(frozen=True)
 class DecodeOptions:
-    """How embeddings are read: distance, reduction, Sinkhorn iterations, degree bound."""
+    """How embeddings are read: distance, reduction, Sinkhorn iterations, degree bound,
+    and the fallback for a vertex whose optimal assignment is not one orbit: ``angular``
+    (its neighbours by angle, in the direction ``Phi_bar`` prefers; needs positions) or
+    ``greedy`` (the paper's greedy single orbit, used without positions)."""
 
     distance: Distance = "spacetime"
     n_space: int | None = None
@@ -81,6 +88,7 @@ class DecodeOptions:
     reduction_params: dict[str, FloatArray] | None = None
     sinkhorn_iters: int = SINKHORN_ITERS
     max_degree: int | None = MAX_DEGREE
+    fallback: Fallback = "angular"
 
 
 @dataclass
@@ -162,6 +170,30 @@ def _pinched_vertices(
     return np.unique(rep_vertex[order][first])
 
 
+def _angular_fallback(
+    positions: FloatArray, vertices: IntArray, neighbours: IntArray, log_phi_bar: FloatArray
+) -> FallbackFn:
+    """The ``angular`` fallback for one degree group (greedy where positions are not finite)."""
+
+    def fallback(rows: IntArray) -> IntArray:
+        nb = neighbours[rows]  # (R, d)
+        finite = np.isfinite(positions[nb]).all(axis=(1, 2)) & np.isfinite(
+            positions[vertices[rows]]
+        ).all(axis=1)
+        perms = np.empty(nb.shape, dtype=np.int64)
+        if finite.any():
+            perms[finite] = oriented_angular_cycles(
+                positions, vertices[rows[finite]], nb[finite], log_phi_bar[rows[finite]]
+            )
+        for r in np.flatnonzero(~finite):
+            cost = -np.exp(log_phi_bar[rows[r]])
+            cost[np.diag_indices_from(cost)] = np.inf
+            perms[r] = greedy_single_cycle(cost)
+        return perms
+
+    return fallback
+
+
 def _match_all(
     emb: Embeddings,
     offsets: IntArray,
@@ -169,6 +201,7 @@ def _match_all(
     todo: BoolArray,
     local: IntArray,
     options: DecodeOptions,
+    positions: FloatArray | None = None,
 ) -> int:
     """Fill ``local`` (local successor per slot) for vertices flagged in ``todo``."""
     fallbacks = 0
@@ -188,8 +221,11 @@ def _match_all(
             options.reduction_params,
             options.sinkhorn_iters,
         )
-        perms, n_fb = match_cycles(log_phi_bar)  # (B, d)
-        slots = offsets[vertices][:, None] + np.arange(degree)[None, :]
+        slots = offsets[vertices][:, None] + np.arange(degree)[None, :]  # (B, d)
+        fallback = None
+        if options.fallback == "angular" and positions is not None:
+            fallback = _angular_fallback(positions, vertices, neighbours[slots], log_phi_bar)
+        perms, n_fb = match_cycles(log_phi_bar, fallback)  # (B, d)
         local[slots] = perms
         fallbacks += n_fb
     return fallbacks
@@ -209,7 +245,10 @@ def _sanitise(emb: Embeddings, alive: BoolArray) -> tuple[Embeddings, BoolArray]
 
 
 def decode_connectivity(
-    emb: Embeddings, options: DecodeOptions | None = None, alive: BoolArray | None = None
+    emb: Embeddings,
+    options: DecodeOptions | None = None,
+    alive: BoolArray | None = None,
+    positions: FloatArray | None = None,
 ) -> tuple[Connectivity, dict]:
     """Edges and single-orbit cyclic orders for the embeddings (see module docstring).
 
@@ -219,6 +258,8 @@ def decode_connectivity(
     options : DecodeOptions, optional
     alive : (N,) bool, optional
         Vertices that take part (for example the diffusion's padding mask).
+    positions : (N, 3) float, optional
+        Vertex positions, for the ``angular`` fallback (greedy without them).
 
     Returns
     -------
@@ -253,7 +294,9 @@ def decode_connectivity(
             local[np.repeat(offsets[clean], d) + within] = old_local[
                 np.repeat(old_offsets[clean], d) + within
             ]
-        stats["n_fallbacks"] += _match_all(emb, offsets, neighbours, dirty, local, options)
+        stats["n_fallbacks"] += _match_all(
+            emb, offsets, neighbours, dirty, local, options, positions
+        )
         stats["rounds"] += 1
         successor = np.repeat(offsets[:-1], degree) + local
         connectivity = Connectivity(n, offsets, neighbours, successor)
@@ -293,8 +336,9 @@ def decode(
     -------
     DecodeResult
     """
-    connectivity, stats = decode_connectivity(emb, options, alive)
-    full = connectivity.to_mesh(np.asarray(positions, dtype=np.float64).reshape(-1, 3))
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    connectivity, stats = decode_connectivity(emb, options, alive, positions)
+    full = connectivity.to_mesh(positions)
     mesh, kept = full.remove_unreferenced_vertices()
     return DecodeResult(
         mesh=mesh,

@@ -8,10 +8,15 @@ that would close a cycle shorter than the degree.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from spacemesh.typed import BoolArray, FloatArray, IntArray
+
+#: ``fallback(rows) -> (len(rows), d)`` replacement cycles (see :func:`match_cycles`).
+FallbackFn = Callable[[IntArray], IntArray]
 
 
 def is_single_cycle(perm: IntArray) -> bool:
@@ -79,13 +84,18 @@ def greedy_single_cycle(cost: FloatArray) -> IntArray:
     return np.asarray(succ, dtype=np.int64)
 
 
-def match_cycles(log_phi_bar: FloatArray) -> tuple[IntArray, int]:
+def match_cycles(
+    log_phi_bar: FloatArray, fallback: FallbackFn | None = None
+) -> tuple[IntArray, int]:
     """Single-orbit matchings for a batch of same-degree vertices.
 
     Parameters
     ----------
     log_phi_bar : (B, d, d) array
         Log of the Sinkhorn-normalised matrices.
+    fallback : callable, optional
+        ``fallback(rows) -> (len(rows), d)`` single-cycle permutations for the rows whose
+        assignment is not a single orbit (default: :func:`greedy_single_cycle` on each).
 
     Returns
     -------
@@ -108,6 +118,9 @@ def match_cycles(log_phi_bar: FloatArray) -> tuple[IntArray, int]:
         perms[n] = cols
     ok = single_cycle_mask(perms)
     bad = np.flatnonzero(~ok)
-    for n in bad:
-        perms[n] = greedy_single_cycle(cost[n])
+    if fallback is not None and bad.size:
+        perms[bad] = fallback(bad)
+    else:
+        for n in bad:
+            perms[n] = greedy_single_cycle(cost[n])
     return perms, len(bad)

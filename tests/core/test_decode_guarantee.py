@@ -48,14 +48,21 @@ def embeddings(draw):
         root[rng.random((n, kp)) < 0.05] = np.nan
     emb = Embeddings(x, tau, root, prev, nxt)
     alive = rng.random(n) < 0.9 if draw(st.booleans()) else None
-    return emb, DecodeOptions(distance=distance), alive
+    # positions for the angular fallback: generic, all coincident, or partly non-finite
+    positions = rng.normal(size=(n, 3))
+    kind = draw(st.sampled_from(["generic", "coincident", "non-finite"]))
+    if kind == "coincident":
+        positions[:] = 0.5
+    elif kind == "non-finite" and n:
+        positions[rng.random(n) < 0.2] = np.nan
+    fallback = draw(st.sampled_from(["angular", "greedy"]))
+    return emb, DecodeOptions(distance=distance, fallback=fallback), alive, positions
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(embeddings())
 def test_any_embedding_decodes_to_valid_mesh(case):
-    emb, options, alive = case
-    positions = np.random.default_rng(0).normal(size=(emb.n_vertices, 3))
+    emb, options, alive, positions = case
     result = decode(positions, emb, options, alive)
     assert_valid(result, emb.n_vertices)
     if alive is not None:
