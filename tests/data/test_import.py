@@ -110,3 +110,31 @@ def test_cleanups_repair_cad_defects():
     cracked = PolygonMesh.from_faces(vertices, faces)
     assert "open_boundary" in validate_mesh(cracked)
     assert validate_mesh(weld_close_vertices(cracked)) == []
+
+
+def test_self_intersecting_meshes_are_skipped_or_kept_flagged(tmp_path):
+    """A closed manifold whose faces cross: skipped by default, kept with the flag."""
+    from spacemesh.examples import icosphere
+
+    sphere = icosphere(1)
+    vertices = sphere.vertices.copy()
+    vertices[0] *= -1.6  # pushed through the far side of the sphere
+    folder = tmp_path / "in"
+    folder.mkdir()
+    save_mesh(PolygonMesh.from_faces(vertices, [f.tolist() for f in sphere.faces]),
+              folder / "crossed.obj")
+    save_mesh(PolygonMesh.from_faces(CUBE_V, CUBE_Q), folder / "cube.obj")
+
+    strict = import_folder(folder, tmp_path / "strict", points=16, progress=False)
+    assert strict["skipped"] == [{"file": "crossed.obj", "reasons": ["self_intersection"]}]
+
+    result = CliRunner().invoke(app, ["data", "import", str(folder), "--out",
+                                      str(tmp_path / "kept"), "--keep-self-intersecting",
+                                      "--no-progress"])
+    assert result.exit_code == 0 and "imported 2 of 2 files" in result.output, result.output
+    kept = {r.shape_id: r for r in open_dataset(tmp_path / "kept")}
+    assert kept["crossed.obj"].tolerated == ("self_intersection",)
+    assert kept["cube.obj"].tolerated == ()
+    assert validate_mesh(kept["crossed.obj"].mesh) == ["self_intersection"]  # only that
+    manifest = json.loads((tmp_path / "kept" / "manifest.json").read_text())
+    assert manifest["tolerated"] == ["self_intersection"]

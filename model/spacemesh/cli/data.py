@@ -109,6 +109,11 @@ def import_(
     ] = None,
     points: Annotated[int, typer.Option("--points", help="Points per shape.")] = 2048,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the point sampling.")] = 0,
+    keep_self_intersecting: Annotated[
+        bool,
+        typer.Option("--keep-self-intersecting",
+                     help="Keep closed manifold meshes whose faces intersect (flagged)."),
+    ] = False,
     progress: Annotated[
         bool, typer.Option("--progress/--no-progress", help="Progress bar.")
     ] = True,
@@ -122,7 +127,8 @@ def import_(
     if not src_dir.is_dir():
         raise UserError(f"{src_dir} is not a folder")
     manifest = import_folder(
-        src_dir, out, decimate_to=decimate_to, points=points, seed=seed, progress=progress
+        src_dir, out, decimate_to=decimate_to, points=points, seed=seed, progress=progress,
+        keep_self_intersecting=keep_self_intersecting,
     )
     kept, skipped = manifest["counts"]["stored"], manifest["skipped"]
     _echo(f"imported {kept} of {kept + len(skipped)} files into {out}")

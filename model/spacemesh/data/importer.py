@@ -198,7 +198,8 @@ def _file_rng(relative: str, seed: int) -> np.random.Generator:
 
 
 def import_file(
-    path: Path, relative: str, *, decimate_to: int | None, points: int, seed: int
+    path: Path, relative: str, *, decimate_to: int | None, points: int, seed: int,
+    tolerate: frozenset[str] = frozenset(),
 ) -> tuple[dict | None, list[str]]:
     """Read, clean, (decimate,) validate and describe one file.
 
@@ -211,6 +212,9 @@ def import_file(
         Decimate meshes with more vertices than this.
     points : int
     seed : int
+    tolerate : frozenset of str
+        Validator causes that do not reject a file (see
+        :func:`spacemesh.data.pipeline.prepare_shape`).
 
     Returns
     -------
@@ -251,6 +255,7 @@ def import_file(
             rng=np.random.default_rng(rng.bit_generator.seed_seq),
             n_points=points,
             extra={"source_file": relative, "welded": weld},
+            tolerate=tolerate,
         )
         if shape is not None:
             return shape, []
@@ -268,6 +273,7 @@ def import_folder(
     seed: int = 0,
     shard_size: int = 256,
     progress: bool = True,
+    keep_self_intersecting: bool = False,
 ) -> dict:
     """Import every mesh file under ``source`` into a dataset in ``out``.
 
@@ -287,6 +293,9 @@ def import_folder(
         Files per shard.
     progress : bool
         Show a progress bar on stderr.
+    keep_self_intersecting : bool
+        Keep closed manifold meshes whose faces intersect (real collections have many;
+        their records say ``"tolerated": ["self_intersection"]``).
 
     Returns
     -------
@@ -304,6 +313,7 @@ def import_folder(
     out.mkdir(parents=True, exist_ok=True)
     for old in out.glob("shard-*.npz"):
         old.unlink()
+    tolerate = frozenset({"self_intersection"} if keep_self_intersecting else ())
     names = []
     bar = tqdm(total=len(files), unit="file", disable=not progress)
     try:
@@ -312,7 +322,8 @@ def import_folder(
             for path in files[first : first + shard_size]:
                 relative = path.relative_to(source).as_posix()
                 shape, reasons = import_file(
-                    path, relative, decimate_to=decimate_to, points=points, seed=seed
+                    path, relative, decimate_to=decimate_to, points=points, seed=seed,
+                    tolerate=tolerate,
                 )
                 if shape is None:
                     skipped.append({"file": relative, "reasons": reasons})
@@ -345,6 +356,7 @@ def import_folder(
         "seed": seed,
         "style": "import-qem" if decimate_to is not None else "import",
         "decimate_to": decimate_to,
+        "tolerated": sorted(tolerate),
         "vertex_range": None,
         "points": points,
         "count_requested": len(files),

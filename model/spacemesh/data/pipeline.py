@@ -27,6 +27,7 @@ def prepare_shape(
     n_points: int,
     vertex_range: tuple[int, int] | None = None,
     extra: dict | None = None,
+    tolerate: frozenset[str] = frozenset(),
 ) -> tuple[dict | None, list[str]]:
     """Canonicalise, validate and describe one shape.
 
@@ -44,6 +45,9 @@ def prepare_shape(
         Reject shapes with fewer or more vertices than this.
     extra : dict, optional
         More JSON-ready fields for the shape's record.
+    tolerate : frozenset of str
+        Validator causes that do not reject the shape (only ``self_intersection`` is
+        meant for this); the record lists the ones found under ``tolerated``.
 
     Returns
     -------
@@ -62,9 +66,11 @@ def prepare_shape(
         if mesh.n_vertices > vertex_range[1]:
             return None, ["too_many_vertices"]
     stored = canonical(mesh)
-    causes = validate_mesh(stored)
+    found = validate_mesh(stored)
+    causes = [cause for cause in found if cause not in tolerate]
     if causes:
         return None, causes
+    tolerated = [cause for cause in found if cause in tolerate]
     points, normals = sample_surface(stored, n_points, rng)
     genus = check_topology(stored).genus
     record = {
@@ -75,6 +81,7 @@ def prepare_shape(
         "n_vertices": stored.n_vertices,
         "n_faces": stored.n_faces,
         "features": shape_features(stored),
+        **({"tolerated": tolerated} if tolerated else {}),
         **(extra or {}),
     }
     return {"mesh": stored, "points": points, "normals": normals, "record": record}, []

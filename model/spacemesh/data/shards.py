@@ -67,6 +67,9 @@ class MeshRecord:
     genus : int
     features : dict
         e.g. ``{"concave_sharp": True, ...}``.
+    tolerated : tuple of str
+        Validator causes the import was told to tolerate and found (e.g.
+        ``("self_intersection",)`` with ``--keep-self-intersecting``).
     """
 
     shape_id: str
@@ -77,6 +80,7 @@ class MeshRecord:
     style: str
     genus: int
     features: dict = field(default_factory=dict)
+    tolerated: tuple[str, ...] = ()
 
 
 def split_of(mesh: PolygonMesh, fractions: tuple[float, float] = (0.8, 0.9)) -> str:
@@ -286,6 +290,7 @@ class _Shard:
             style=meta["style"],
             genus=int(meta["genus"]),
             features=dict(meta.get("features", {})),
+            tolerated=tuple(meta.get("tolerated", ())),
         )
 
 
