@@ -4,7 +4,7 @@ Readers for every output format of the service (JSON, OBJ, OFF, PLY, GLB, glTF) 
 ``(vertices, faces)``: a (V, 3) float64 array and a list of int64 index arrays, one per
 polygon. GLB and glTF carry triangles only (the service triangulates them), so polygons
 survive in ``json``, ``obj``, ``ply`` and ``off``. Writers keep polygons in the same four
-and write GLB and glTF from a fan triangulation.
+and write GLB and glTF from a fan triangulation that keeps manifold meshes manifold.
 
 This is the client's own small reader, not the model package's ``spacemesh.io``: the SDK
 depends on no other SpaceMesh package.
@@ -219,17 +219,61 @@ def _rows(vertices: np.ndarray) -> list[str]:
     return [f"{x!r} {y!r} {z!r}" for x, y, z in vertices.tolist()]
 
 
-def fan_triangles(faces: Faces) -> np.ndarray:
-    """(T, 3) int64 triangles: each polygon fanned from its first vertex (orientation kept;
-    exact for convex faces)."""
-    tris = [np.stack([np.full(len(f) - 2, f[0]), f[1:-1], f[2:]], axis=1)
-            for f in faces if len(f) >= 3]
-    return np.concatenate(tris).astype(np.int64) if tris else np.zeros((0, 3), np.int64)
+def triangulate(vertices: np.ndarray, faces: Faces, centroids: bool = True
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Triangles of the polygons, as manifold as the polygons are.
+
+    Each polygon is fanned from its first corner whose fan adds only new edges (a fan
+    whose diagonal is already an edge, or another face's diagonal, would put four
+    triangles on one edge of a valid polygon mesh). When no corner's fan is free, a
+    vertex at the face's centroid is fanned to every side (``centroids=True``) or the
+    first corner is used anyway (``centroids=False``). Orientation is kept; the fans
+    are exact for convex faces.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+    faces : list of (k,) int
+    centroids : bool
+        Add centroid vertices where no fan is free.
+
+    Returns
+    -------
+    vertices : (V + C, 3) float64
+        The input vertices, then the ``C`` centroids added.
+    triangles : (T, 3) int64
+    """
+    edge_set = {(min(a, b), max(a, b)) for f in faces
+                for a, b in zip(f.tolist(), np.roll(f, -1).tolist(), strict=True)}
+    extra: list[np.ndarray] = []
+    tris: list[np.ndarray] = []
+    for f in faces:
+        k = len(f)
+        if k < 3:
+            continue
+        chosen = None
+        for apex in range(k) if k > 3 else (0,):
+            ring = np.roll(f, -apex)  # (k,) apex first
+            diagonals = {(min(ring[0], b), max(ring[0], b)) for b in ring[2:-1].tolist()}
+            if k == 3 or not diagonals & edge_set:
+                chosen = ring
+                edge_set |= diagonals
+                break
+        if chosen is not None or not centroids:
+            ring = f if chosen is None else chosen
+            tris.append(np.stack([np.full(k - 2, ring[0]), ring[1:-1], ring[2:]], axis=1))
+        else:
+            centre = len(vertices) + len(extra)
+            extra.append(vertices[f].mean(axis=0))
+            tris.append(np.stack([f, np.roll(f, -1), np.full(k, centre)], axis=1))
+    out = np.concatenate([vertices, np.array(extra)]) if extra else vertices
+    triangles = np.concatenate(tris).astype(np.int64) if tris else np.zeros((0, 3), np.int64)
+    return out, triangles
 
 
 def write_mesh(vertices: np.ndarray, faces: Faces, fmt: str) -> bytes:
     """A mesh file: ``json``, ``obj``, ``off`` and ASCII ``ply`` keep the polygons;
-    ``glb`` and ``gltf`` hold their fan triangulation.
+    ``glb`` and ``gltf`` hold their triangulation (:func:`triangulate`).
 
     Parameters
     ----------
@@ -243,7 +287,7 @@ def write_mesh(vertices: np.ndarray, faces: Faces, fmt: str) -> bytes:
     bytes
     """
     if fmt in ("glb", "gltf"):
-        return _write_gltf(vertices, fan_triangles(faces), fmt)
+        return _write_gltf(*triangulate(vertices, faces), fmt)
     face_rows = [" ".join(map(str, f.tolist())) for f in faces]
     if fmt == "json":
         body = {"vertices": vertices.tolist(), "faces": [f.tolist() for f in faces]}

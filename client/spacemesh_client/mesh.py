@@ -161,9 +161,23 @@ class Mesh:
         return np.array([len(f) for f in self.faces], dtype=np.int64)
 
     def triangles(self) -> np.ndarray:
-        """(T, 3) int64 triangles: each polygon fanned from its first vertex (orientation
-        kept; exact for convex faces)."""
-        return _formats.fan_triangles(self.faces)
+        """(T, 3) int64 triangles over :attr:`vertices`: each polygon fanned from its first
+        corner whose fan adds no edge twice (orientation kept; exact for convex faces).
+
+        Where no corner's fan is free (rare, folded meshes) the first corner's is used and
+        an edge repeats; :meth:`triangulate` adds a centroid vertex there instead."""
+        return _formats.triangulate(self.vertices, self.faces, centroids=False)[1]
+
+    def triangulate(self) -> tuple[np.ndarray, np.ndarray]:
+        """Vertices and triangles that are a manifold wherever the polygon mesh is one.
+
+        Returns
+        -------
+        vertices : (V + C, 3) float64
+            :attr:`vertices`, then a centroid for each face none of whose fans was free.
+        triangles : (T, 3) int64
+        """
+        return _formats.triangulate(self.vertices, self.faces)
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the mesh; the file's extension picks the format.
@@ -204,4 +218,5 @@ class Mesh:
             raise ModuleNotFoundError(
                 "Mesh.to_trimesh needs trimesh: pip install 'spacemesh-client[trimesh]'"
             ) from None
-        return trimesh.Trimesh(vertices=self.vertices, faces=self.triangles(), process=False)
+        vertices, triangles = self.triangulate()
+        return trimesh.Trimesh(vertices=vertices, faces=triangles, process=False)

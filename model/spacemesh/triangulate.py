@@ -337,4 +337,136 @@ def triangulate_faces(mesh: PolygonMesh) -> tuple[IntArray, IntArray]:
     return triangles[order], source_face[order]
 
 
-__all__ = ["newell_normal", "triangulate_faces", "triangulate_polygon"]
+def _diagonal_keys(
+    mesh: PolygonMesh, triangles: IntArray, source: IntArray
+) -> tuple[IntArray, IntArray]:
+    """The inner edges (diagonals) a triangulation adds, one row per face and diagonal.
+
+    Returns
+    -------
+    face : (D,) int64
+        The face each diagonal lies in.
+    key : (D,) int64
+        ``min * V + max`` of its two vertices.
+    """
+    n = max(mesh.n_vertices, 1)
+    a = triangles.reshape(-1)  # (3T,) edge origins
+    b = triangles[:, [1, 2, 0]].reshape(-1)  # (3T,) edge targets
+    face = np.repeat(source, 3)  # (3T,)
+    # Position of each vertex within its face, found by (face, vertex) lookup.
+    corner_key = mesh.face_of_corner * n + mesh.face_indices  # (S,)
+    order = np.argsort(corner_key, kind="stable")
+    local = (np.arange(mesh.face_indices.size) - mesh.face_offsets[mesh.face_of_corner])[order]
+    sorted_key = corner_key[order]
+    pos_a = local[np.searchsorted(sorted_key, face * n + a)]
+    pos_b = local[np.searchsorted(sorted_key, face * n + b)]
+    size = mesh.face_sizes[face]
+    step = (pos_b - pos_a) % size
+    inner = (step != 1) & (step != size - 1)
+    key = np.minimum(a, b)[inner] * n + np.maximum(a, b)[inner]
+    pairs = np.unique(np.stack([face[inner], key], axis=1), axis=0)  # (D, 2)
+    return pairs[:, 0], pairs[:, 1]
+
+
+def _fan_order(points: FloatArray) -> list[int]:
+    """Fan apexes of a polygon, those whose fan flips the fewest triangles first."""
+    n = len(points)
+    normal = newell_normal(points - points.mean(axis=0))
+    flips = []
+    for apex in range(n):
+        tri = points[_fan(n, apex)]  # (n - 2, 3, 3)
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        flips.append(int(np.sum(cross @ normal <= 0)))
+    return sorted(range(n), key=lambda apex: (flips[apex], apex))
+
+
+def triangulate_manifold(mesh: PolygonMesh) -> tuple[FloatArray, IntArray, IntArray]:
+    """Triangulate a polygon mesh so that the triangles are as manifold as the polygons.
+
+    :func:`triangulate_faces` chooses each face's diagonals from its geometry alone,
+    so a diagonal can coincide with an edge of the mesh or with a diagonal of another
+    face (two faces sharing three vertices, as small or folded polygon meshes do); the
+    triangle mesh then has an edge with four triangles although the polygon mesh is a
+    valid manifold. Here every face with such a diagonal is re-triangulated: as a fan
+    from the apex, of those whose diagonals are all new edges, that flips the fewest
+    triangles against the face normal; when no fan is free, a new vertex at the face's
+    centroid is fanned to every side, which is always free. The result is then an
+    edge- and vertex-manifold, consistently oriented triangle mesh wherever the polygon
+    mesh is one (a closed oriented manifold stays closed, oriented and manifold).
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+
+    Returns
+    -------
+    vertices : (V + C, 3) float64
+        The mesh's vertices, then one centroid per face that needed one (``C`` is
+        zero unless no fan of some face was free).
+    triangles : (T, 3) int64
+        Counter-clockwise like their faces; sorted by source face.
+    source_face : (T,) int64
+        The face each triangle came from.
+    """
+    triangles, source = triangulate_faces(mesh)
+    if triangles.size == 0 or not np.any(mesh.face_sizes > 3):
+        return mesh.vertices, triangles, source
+    n = max(mesh.n_vertices, 1)
+    diag_face, diag_key = _diagonal_keys(mesh, triangles, source)
+    side_key = mesh.edges[:, 0] * n + mesh.edges[:, 1]
+    keys, owners = np.unique(diag_key, return_counts=True)
+    shared = keys[owners > 1]
+    suspect = np.unique(diag_face[np.isin(diag_key, side_key) | np.isin(diag_key, shared)])
+    if suspect.size == 0:
+        return mesh.vertices, triangles, source
+
+    sides = set(side_key.tolist())
+    uses: dict[int, int] = {}
+    for key in diag_key.tolist():
+        uses[key] = uses.get(key, 0) + 1
+    face_diagonals: dict[int, list[int]] = {int(f): [] for f in suspect}
+    for f, key in zip(diag_face.tolist(), diag_key.tolist(), strict=True):
+        if f in face_diagonals:
+            face_diagonals[f].append(key)
+
+    vertices = [mesh.vertices]
+    replaced: list[int] = []
+    parts: list[IntArray] = []
+    part_sources: list[IntArray] = []
+    next_vertex = mesh.n_vertices
+    for f in face_diagonals:
+        own = face_diagonals[f]
+        if not any(k in sides or uses[k] > 1 for k in own):
+            continue  # freed by a face re-triangulated before it
+        for k in own:
+            uses[k] -= 1
+        face = mesh.face_indices[mesh.face_offsets[f] : mesh.face_offsets[f + 1]]
+        size = len(face)
+        chosen: IntArray | None = None
+        chosen_keys: list[int] = []
+        for apex in _fan_order(mesh.vertices[face]):
+            others = face[(apex + np.arange(2, size - 1)) % size]  # the apex's non-neighbours
+            lo, hi = np.minimum(face[apex], others), np.maximum(face[apex], others)
+            fan_keys = (lo * n + hi).tolist()
+            if not any(k in sides or uses.get(k, 0) > 0 for k in fan_keys):
+                chosen, chosen_keys = face[_fan(size, apex)], fan_keys
+                break
+        if chosen is None:  # no free fan: a centroid vertex, whose spokes are all new
+            vertices.append(mesh.vertices[face].mean(axis=0, keepdims=True))
+            chosen = np.stack([face, np.roll(face, -1), np.full(size, next_vertex)], axis=1)
+            next_vertex += 1
+        for k in chosen_keys:
+            uses[k] = uses.get(k, 0) + 1
+        replaced.append(f)
+        parts.append(chosen)
+        part_sources.append(np.full(len(chosen), f, dtype=np.int64))
+    if not replaced:
+        return mesh.vertices, triangles, source
+    keep = ~np.isin(source, replaced)
+    triangles = np.concatenate([triangles[keep], *parts]).astype(np.int64)
+    source = np.concatenate([source[keep], *part_sources])
+    order = np.argsort(source, kind="stable")
+    return np.concatenate(vertices), triangles[order], source[order]
+
+
+__all__ = ["newell_normal", "triangulate_faces", "triangulate_manifold", "triangulate_polygon"]

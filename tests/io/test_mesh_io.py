@@ -518,3 +518,18 @@ def test_gltf_external_buffer_next_to_the_file(tmp_path):
     mesh = load_mesh(tmp_path / "scene.gltf")
     assert np.array_equal(mesh.vertices, positions)
     assert [f.tolist() for f in mesh.faces] == [[0, 1, 2]]
+
+
+@pytest.mark.parametrize("fmt", ["glb", "gltf", "stl"])
+def test_triangle_formats_keep_folded_polygon_meshes_manifold(fmt):
+    """A valid 5-vertex polygon sphere whose geometric fans would put four triangles on
+    one edge: GLB, glTF and STL still hold a closed oriented manifold."""
+    vertices = np.array(
+        [[-2.444, 0.253, -0.580], [-1.696, 2.112, -0.300], [-2.028, 1.715, -0.219],
+         [-1.938, 1.617, -0.570], [-1.934, 0.739, -0.609]]
+    )
+    mesh = PolygonMesh.from_faces(vertices, [[0, 2, 3, 4], [0, 4, 3, 1, 2], [1, 3, 2]])
+    loaded = load_mesh(export_mesh(mesh, fmt), fmt)
+    report = check_topology(loaded)
+    assert report.is_closed_oriented_manifold, report.defects()
+    assert loaded.n_faces == 6

@@ -8,8 +8,17 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import spacemesh.triangulate as tri
+from spacemesh.decode import DecodeOptions, Embeddings, decode
+from spacemesh.examples import torus_grid
 from spacemesh.mesh import PolygonMesh
-from spacemesh.triangulate import newell_normal, triangulate_faces, triangulate_polygon
+from spacemesh.spacetime import pairwise_distance
+from spacemesh.topology import check_topology
+from spacemesh.triangulate import (
+    newell_normal,
+    triangulate_faces,
+    triangulate_manifold,
+    triangulate_polygon,
+)
 
 L_SHAPE = np.array(
     [[0, 0, 0], [2, 0, 0], [2, 1, 0], [1, 1, 0], [1, 2, 0], [0, 2, 0]], dtype=np.float64
@@ -213,3 +222,78 @@ def test_faces_with_fewer_than_three_corners_give_nothing():
 def test_empty_mesh():
     triangles, source = triangulate_faces(PolygonMesh.empty())
     assert triangles.shape == (0, 3) and source.shape == (0,)
+
+
+# --------------------------------------------------------------- manifold triangulation
+def edge_uses(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How often each undirected and each directed triangle edge occurs."""
+    directed = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    _, undirected_counts = np.unique(np.sort(directed, axis=1), axis=0, return_counts=True)
+    _, directed_counts = np.unique(directed, axis=0, return_counts=True)
+    return undirected_counts, directed_counts
+
+
+def test_shared_diagonal_is_re_fanned():
+    """A valid 5-vertex polygon sphere (the shipped model once returned it) whose
+    geometric fans share the diagonal 0-3: four triangles on one edge. The manifold
+    triangulation picks other fans and adds no vertex."""
+    vertices = np.array(
+        [[-2.444, 0.253, -0.580], [-1.696, 2.112, -0.300], [-2.028, 1.715, -0.219],
+         [-1.938, 1.617, -0.570], [-1.934, 0.739, -0.609]]
+    )
+    mesh = PolygonMesh.from_faces(vertices, [[0, 2, 3, 4], [0, 4, 3, 1, 2], [1, 3, 2]])
+    assert check_topology(mesh).is_closed_oriented_manifold
+    plain, _ = triangulate_faces(mesh)
+    assert edge_uses(plain)[0].max() == 4  # the defect this guards against
+    out_vertices, triangles, source = triangulate_manifold(mesh)
+    assert len(out_vertices) == 5
+    assert np.array_equal(np.bincount(source), mesh.face_sizes - 2)
+    report = check_topology(PolygonMesh.from_faces(out_vertices, triangles))
+    assert report.is_closed_oriented_manifold, report.defects()
+
+
+def test_blocked_face_gets_a_centroid():
+    """Both diagonals of the quad are sides of other faces: no fan is free."""
+    vertices = np.array(
+        [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 1], [0.5, 0.5, -1]], float
+    )
+    mesh = PolygonMesh.from_faces(vertices, [[0, 1, 2, 3], [0, 2, 4], [1, 3, 5]])
+    out_vertices, triangles, source = triangulate_manifold(mesh)
+    assert len(out_vertices) == 7
+    assert np.allclose(out_vertices[6], [0.5, 0.5, 0])  # the quad's centroid
+    assert np.array_equal(np.bincount(source), [4, 1, 1])
+    undirected, directed = edge_uses(triangles)
+    assert undirected.max() == 2 and directed.max() == 1
+    # every side of the quad is kept with its direction
+    quad_triangles = triangles[source == 0]
+    sides = {tuple(e) for t in quad_triangles for e in (t[[0, 1]], t[[1, 2]], t[[2, 0]])}
+    assert {(0, 1), (1, 2), (2, 3), (3, 0)} <= sides
+
+
+def test_clean_meshes_are_unchanged():
+    mesh = torus_grid(6, 4)
+    triangles, source = triangulate_faces(mesh)
+    out_vertices, same_triangles, same_source = triangulate_manifold(mesh)
+    assert out_vertices is mesh.vertices
+    assert np.array_equal(triangles, same_triangles) and np.array_equal(source, same_source)
+
+
+@settings(max_examples=120, deadline=None)
+@given(st.integers(4, 40), st.integers(0, 2**32 - 1), st.sampled_from([0.0, 0.1, 0.3]))
+def test_decoded_meshes_triangulate_to_manifolds(n, seed, quantile):
+    """Random embeddings decode to closed oriented polygon manifolds (often tiny and
+    folded); their manifold triangulation is a closed oriented triangle manifold too."""
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=(n, 8))
+    d = pairwise_distance(x)[np.triu_indices(n, 1)]
+    tau = float(np.quantile(d, quantile))
+    emb = Embeddings(x, tau, *(rng.normal(size=(n, 4)) for _ in range(3)))
+    mesh = decode(rng.normal(size=(n, 3)), emb, DecodeOptions(fallback="greedy")).mesh
+    if mesh.n_faces == 0:
+        return
+    out_vertices, triangles, _ = triangulate_manifold(mesh)
+    assert np.array_equal(out_vertices[: mesh.n_vertices], mesh.vertices)
+    centroids = len(out_vertices) - mesh.n_vertices
+    assert len(triangles) == int((mesh.face_sizes - 2).sum()) + 2 * centroids
+    report = check_topology(PolygonMesh.from_faces(out_vertices, triangles))
+    assert report.is_closed_oriented_manifold, report.defects()

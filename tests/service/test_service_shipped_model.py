@@ -42,4 +42,12 @@ def test_generate_on_2048_points_gives_an_oriented_manifold(start_server):
         assert response.headers["x-spacemesh-oriented"] == "true"
         lo, hi = points.min(axis=0), points.max(axis=0)
         assert np.all(mesh.vertices > lo - (hi - lo)) and np.all(mesh.vertices < hi + (hi - lo))
+        # the triangulated GLB of the same mesh is a closed oriented manifold too
+        glb = httpx.post(server.url + "/generate", timeout=120,
+                         json={"points": points.tolist(), "seed": seed, "format": "glb"})
+        triangles = load_mesh(glb.content, file_type="glb")
+        assert triangles.n_faces == int((mesh.face_sizes - 2).sum()) + 2 * (
+            triangles.n_vertices - mesh.n_vertices)
+        glb_report = check_topology(triangles)
+        assert glb_report.is_closed_oriented_manifold, glb_report.defects()
     assert 200 in statuses, statuses

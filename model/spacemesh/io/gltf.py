@@ -8,8 +8,10 @@ Buffers: the GLB ``BIN`` chunk, base64 data URIs, and, when reading from a path,
 files next to the ``.gltf``. Vertices are not welded: a seam in the file stays open.
 
 Written: one mesh with one primitive, ``POSITION`` float32 (with min/max) and
-``uint32`` indices, triangulated with :func:`spacemesh.triangulate.triangulate_faces`
-so every triangle keeps its polygon's orientation. ``.gltf`` embeds the buffer as a
+``uint32`` indices, triangulated with :func:`spacemesh.triangulate.triangulate_manifold`
+so every triangle keeps its polygon's orientation and a manifold polygon mesh gives a
+manifold triangle mesh (a face whose every fan would duplicate an edge gets a centroid
+vertex, appended after the mesh's vertices). ``.gltf`` embeds the buffer as a
 base64 data URI.
 """
 
@@ -27,7 +29,7 @@ import numpy as np
 
 from spacemesh.io.errors import MeshFormatError, check_vertices, require_nonempty
 from spacemesh.mesh import PolygonMesh
-from spacemesh.triangulate import triangulate_faces
+from spacemesh.triangulate import triangulate_manifold
 from spacemesh.typed import FloatArray, IntArray
 
 _GLB_MAGIC = b"glTF"
@@ -311,8 +313,8 @@ def _build(mesh: PolygonMesh, uri: str | None) -> tuple[dict, bytes]:
     """The glTF document and its binary buffer for a triangulated mesh."""
     if mesh.n_vertices == 0:
         raise ValueError("glTF cannot store a mesh without vertices")
-    triangles, _ = triangulate_faces(mesh)  # (T, 3)
-    positions = np.ascontiguousarray(mesh.vertices, dtype="<f4")  # (V, 3)
+    vertices, triangles, _ = triangulate_manifold(mesh)  # (V + C, 3), (T, 3)
+    positions = np.ascontiguousarray(vertices, dtype="<f4")  # (V + C, 3)
     indices = np.ascontiguousarray(triangles.reshape(-1), dtype="<u4")  # (3 T,)
     blob = indices.tobytes() + positions.tobytes()  # both multiples of 4 bytes
     accessors = [

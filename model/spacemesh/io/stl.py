@@ -4,7 +4,8 @@ STL stores every triangle with its own three positions, so connectivity is recov
 by merging rows that are exactly equal (``np.unique`` on the float64 rows); nothing
 is snapped within a tolerance. Binary STL is recognised by its size
 (``84 + 50 * n`` bytes), even when its 80-byte header starts with ``solid``.
-Written: binary, triangulated with :func:`spacemesh.triangulate.triangulate_faces`.
+Written: binary, triangulated with :func:`spacemesh.triangulate.triangulate_manifold`
+(manifold polygon meshes give manifold triangle meshes once welded).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import numpy as np
 
 from spacemesh.io.errors import MeshFormatError, check_vertices, decode_text, require_nonempty
 from spacemesh.mesh import PolygonMesh
-from spacemesh.triangulate import triangulate_faces
+from spacemesh.triangulate import triangulate_manifold
 from spacemesh.typed import FloatArray, IntArray
 
 _RECORD = np.dtype(
@@ -122,8 +123,8 @@ def export_stl(mesh: PolygonMesh) -> bytes:
     -------
     bytes
     """
-    triangles, _ = triangulate_faces(mesh)  # (T, 3)
-    corners = mesh.vertices[triangles]  # (T, 3, 3)
+    vertices, triangles, _ = triangulate_manifold(mesh)  # (V + C, 3), (T, 3)
+    corners = vertices[triangles]  # (T, 3, 3)
     normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     length = np.linalg.norm(normals, axis=1, keepdims=True)
     records = np.zeros(len(triangles), dtype=_RECORD)
