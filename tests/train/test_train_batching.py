@@ -38,6 +38,18 @@ def test_collate_pads_and_marks_real_vertices(samples):
         collate(samples, n_points=10, normals=False, pad_to=3)
 
 
+def test_jitter_moves_the_vertices_but_not_the_targets(samples):
+    exact = collate(samples, n_points=10, normals=False, rng=np.random.default_rng(3))
+    noisy = collate(samples, n_points=10, normals=False, rng=np.random.default_rng(3),
+                    jitter=0.02)
+    valid = exact.valid.numpy()
+    moved = (noisy.positions - exact.positions).numpy()[valid]  # (sum n_i, 3)
+    assert 0.015 < moved.std() < 0.025 and np.abs(moved).max() < 0.2
+    assert not (noisy.positions.numpy()[~valid]).any()  # padding stays zero
+    assert torch.equal(exact.adjacency, noisy.adjacency)
+    assert exact.table.rows == noisy.table.rows
+
+
 def test_concatenated_connectivity_keeps_each_mesh(samples):
     n = 50
     graph = concat_connectivity([s.connectivity for s in samples], n)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import itertools
+import json
 import os
 import subprocess
 import sys
@@ -61,6 +62,18 @@ def test_resume_continues_exactly(toy_data, tmp_path, one_thread):
         assert torch.equal(a[key], b[key]), key
     steps = [float(r["step"]) for r in csv.DictReader(open(split / "metrics.csv"))]
     assert steps == sorted(set(steps))
+
+
+def test_resume_takes_the_requested_jitter(toy_data, tmp_path, one_thread):
+    run = tmp_path / "run"
+    train(TrainOptions(config=_config(), data=toy_data, out=run, steps=2, progress=False),
+          log=lambda m: None)
+    noisy = _config().with_train(connectivity_jitter=0.03)
+    summary = train(TrainOptions(config=noisy, data=toy_data, out=run, steps=3, resume=True,
+                                 progress=False), log=lambda m: None)
+    state = load_checkpoint(summary.checkpoint)
+    assert state["step"] == 3 and state["config"].train.connectivity_jitter == 0.03
+    assert json.loads((run / "config.json").read_text())["train"]["connectivity_jitter"] == 0.03
 
 
 def test_ddp_on_cpu_with_two_processes(toy_data, tmp_path):

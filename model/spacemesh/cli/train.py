@@ -38,6 +38,12 @@ def train(
     val_data: Annotated[
         Path | None, typer.Option("--val-data", help="Held-out dataset (default: the val split).")
     ] = None,
+    connectivity_jitter: Annotated[
+        float | None,
+        typer.Option("--connectivity-jitter", min=0.0,
+                     help="Noise (std, [-1, 1] frame) on the vertices the connectivity "
+                     "network trains on (default: the config's; applies on --resume too)."),
+    ] = None,
     device: Annotated[
         str | None, typer.Option("--device", help="cpu or cuda (default: cuda if available).")
     ] = None,
@@ -63,6 +69,8 @@ def train(
         model_config = get_config(config)
     except ValueError as error:
         fail(str(error))
+    if connectivity_jitter is not None:
+        model_config = model_config.with_train(connectivity_jitter=connectivity_jitter)
     if not (data / "manifest.json").is_file():
         fail(f"{data}: not a dataset folder (no manifest.json)")
     if val_data is not None and not (val_data / "manifest.json").is_file():

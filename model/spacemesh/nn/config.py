@@ -155,6 +155,12 @@ class TrainConfig:
         epsilon loss on positions and on the mask channel, as in the paper.
     scale_range : (float, float)
         Random per-axis scaling of each shape (then renormalised to [-1, 1]).
+    connectivity_jitter : float
+        Standard deviation of Gaussian noise added to the vertex positions that the
+        connectivity network sees in training (the targets are unchanged), in the
+        [-1, 1] frame; 0 trains on exact ground-truth positions as the paper does. At
+        inference the network sees sampled vertices, which lie about 0.05 off the surface
+        (median, ``small`` model), so some noise makes it robust to them.
     grad_clip : float
         Gradient norm clip (0 disables).
     connectivity_trains_encoder : bool
@@ -178,6 +184,7 @@ class TrainConfig:
     epsilon_weight: float = 1.0
     mask_weight: float = 1.0
     scale_range: tuple[float, float] = (0.75, 1.25)
+    connectivity_jitter: float = 0.0
     grad_clip: float = 1.0
     connectivity_trains_encoder: bool = True
     val_every: int = 100

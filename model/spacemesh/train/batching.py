@@ -169,6 +169,7 @@ def collate(
     connectivity: bool = True,
     rng: np.random.Generator | None = None,
     scale_range: tuple[float, float] | None = None,
+    jitter: float = 0.0,
 ) -> Batch:
     """Pad samples into a :class:`Batch`.
 
@@ -187,6 +188,9 @@ def collate(
         For point subsets and augmentation (deterministic subsets when None).
     scale_range : (float, float), optional
         Per-axis random scaling (no augmentation when None).
+    jitter : float
+        Standard deviation of Gaussian noise added to the vertex positions after
+        scaling (the adjacency and the neighbour table are those of the exact mesh).
 
     Returns
     -------
@@ -211,6 +215,8 @@ def collate(
         points[i, :, :3] = p[pick]
         if normals:
             points[i, :, 3:] = nrm[pick]
+        if jitter > 0:
+            v = v + rng.normal(scale=jitter, size=v.shape)  # (n_i, 3)
         positions[i, : s.n_vertices] = v
         valid[i, : s.n_vertices] = True
         if adjacency is not None:

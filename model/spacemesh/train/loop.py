@@ -220,7 +220,8 @@ class Trainer:
                 # the stored architecture wins; the step budget and the decay come from
                 # the requested config (a run may be extended)
                 config = state["config"].with_train(
-                    steps=config.train.steps, final_lr_ratio=config.train.final_lr_ratio
+                    steps=config.train.steps, final_lr_ratio=config.train.final_lr_ratio,
+                    connectivity_jitter=config.train.connectivity_jitter,
                 )
         self.config = config
         self.rng = np.random.default_rng(options.seed + 1000 * info.rank)
@@ -282,6 +283,7 @@ class Trainer:
             samples, n_points=enc.n_points, normals=enc.normals,
             pad_to=self.config.max_vertices if diffusion else None,
             connectivity=not diffusion, rng=self.rng, scale_range=train.scale_range,
+            jitter=0.0 if diffusion else train.connectivity_jitter,
         )
         return batch.to(self.info.device)
 
