@@ -88,11 +88,14 @@ def generate_request(source: Upload | Arrays, fmt: str | None, seed: int | None,
 
 
 def repair_request(mesh: Upload, region: Mapping[str, Any], fmt: str | None, seed: int | None,
-                   steps: int | None) -> Call:
+                   steps: int | None, weld: bool = False) -> Call:
     """``POST /repair``: the mesh as multipart field ``file``, the region as field
-    ``region`` (JSON)."""
+    ``region`` (JSON); ``weld=true`` in the query when asked for."""
     files = {"file": (mesh.filename, mesh.data, "application/octet-stream")}
-    return Call("POST", "/repair", _options(fmt, seed, steps), files=files,
+    params = _options(fmt, seed, steps)
+    if weld:
+        params["weld"] = "true"
+    return Call("POST", "/repair", params, files=files,
                 data={"region": json.dumps(dict(region))})
 
 
@@ -204,8 +207,8 @@ class HttpTransport:
         return mesh_from_response(self.send(call), fmt)
 
     def repair(self, mesh: Upload, region: Mapping[str, Any], fmt: str | None,
-               seed: int | None, steps: int | None) -> Mesh:
-        call = repair_request(mesh, region, fmt, seed, steps)
+               seed: int | None, steps: int | None, weld: bool = False) -> Mesh:
+        call = repair_request(mesh, region, fmt, seed, steps, weld)
         return mesh_from_response(self.send(call), fmt)
 
     def health(self) -> Health:
@@ -243,8 +246,8 @@ class AsyncHttpTransport:
         return mesh_from_response(await self.send(call), fmt)
 
     async def repair(self, mesh: Upload, region: Mapping[str, Any], fmt: str | None,
-                     seed: int | None, steps: int | None) -> Mesh:
-        call = repair_request(mesh, region, fmt, seed, steps)
+                     seed: int | None, steps: int | None, weld: bool = False) -> Mesh:
+        call = repair_request(mesh, region, fmt, seed, steps, weld)
         return mesh_from_response(await self.send(call), fmt)
 
     async def health(self) -> Health:

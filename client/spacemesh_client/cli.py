@@ -4,6 +4,7 @@
 
     spacemesh-client generate points.ply -o mesh.glb --url http://localhost:8000 --seed 7
     spacemesh-client repair mesh.obj -o fixed.obj --faces 3,4,10-20
+    spacemesh-client repair scan.glb -o fixed.glb --sphere 0,0,1,0.3 --weld
     spacemesh-client health
     spacemesh-client info
 
@@ -143,6 +144,8 @@ def _report(mesh: Mesh, output: Path, seconds: float, as_json: bool) -> None:
         repaired = (f"; {r.get('region_faces')} faces re-generated ({r.get('grown_faces')} "
                     f"added to the region), {r.get('new_vertices')} new vertices, "
                     f"{r.get('new_faces')} new faces, fallback {r.get('fallback')}")
+        if r.get("welded_vertices"):
+            repaired += f", {r['welded_vertices']} vertices welded"
     print(f"{output}: {s.vertices} vertices, {s.faces} faces ({degrees}), {shape}, "
           f"genus {s.genus}{repaired}; seed {mesh.seed}, {mesh.steps} steps, {mesh.model} "
           f"({seconds:.2f} s)")
@@ -187,7 +190,8 @@ def cmd_repair(args: argparse.Namespace) -> None:
     fmt = _output_format(output, args.format)
     started = time.perf_counter()
     with _client(args) as client:
-        mesh = client.repair(source, region, format=fmt, seed=args.seed, steps=args.steps)
+        mesh = client.repair(source, region, format=fmt, seed=args.seed, steps=args.steps,
+                             weld=args.weld)
     _save(mesh, output)
     _report(mesh, output, time.perf_counter() - started, args.json)
 
@@ -274,6 +278,10 @@ def build_parser() -> argparse.ArgumentParser:
     region.add_argument("--sphere", help="cx,cy,cz,r: every face with a vertex inside")
     region.add_argument("--box", help="x0,y0,z0,x1,y1,z1: every face with a vertex inside")
     region.add_argument("--region", help='the region as JSON, e.g. {"faces": [1, 2]}')
+    rep.add_argument("--weld", action="store_true",
+                     help="merge vertices at exactly equal positions first (meshes split at "
+                     "UV seams or hard edges, e.g. GLB); region indices stay the file's, the "
+                     "output's vertex indices do not")
     rep.set_defaults(run=cmd_repair)
 
     health = commands.add_parser("health", parents=[common],

@@ -168,7 +168,7 @@ class Client(_Options):
 
     def repair(self, mesh: MeshLike, region: RegionLike, *, format: str | None = DEFAULT_FORMAT,
                seed: int | None = None, steps: int | None = None,
-               filename: str | None = None) -> Mesh:
+               filename: str | None = None, weld: bool = False) -> Mesh:
         """Regenerate a region of a mesh; faces outside it stay unchanged.
 
         Parameters
@@ -184,12 +184,19 @@ class Client(_Options):
             face indices; the same over REST and gRPC.
         format, seed, steps, filename
             As for :meth:`generate`.
+        weld : bool
+            Ask the server to merge vertices at exactly equal positions before the repair
+            (meshes split at UV seams or hard edges, as GLB files often are, look open
+            otherwise and are refused with ``DefectsOutsideRegion``). Region vertex
+            indices stay this file's; the result is the welded mesh repaired, so its
+            vertex indices differ from the file's (``repair["welded_vertices"]`` says how
+            many vertices were merged away).
 
         Returns
         -------
         Mesh
             With :attr:`Mesh.repair`, what the repair did (faces re-generated, new
-            vertices and faces, fallback...).
+            vertices and faces, fallback, welded vertices...).
 
         Raises
         ------
@@ -201,7 +208,8 @@ class Client(_Options):
         """
         upload = mesh_input(mesh, filename)
         shape = region_input(region)
-        return self._retrying(lambda: self._transport.repair(upload, shape, format, seed, steps))
+        return self._retrying(
+            lambda: self._transport.repair(upload, shape, format, seed, steps, weld))
 
     def health(self) -> Health:
         """Liveness and readiness (not retried; a refused connection raises
@@ -301,12 +309,13 @@ class AsyncClient(_Options):
 
     async def repair(self, mesh: MeshLike, region: RegionLike, *,
                      format: str | None = DEFAULT_FORMAT, seed: int | None = None,
-                     steps: int | None = None, filename: str | None = None) -> Mesh:
+                     steps: int | None = None, filename: str | None = None,
+                     weld: bool = False) -> Mesh:
         """See :meth:`Client.repair`."""
         upload = mesh_input(mesh, filename)
         shape = region_input(region)
         return await self._retrying(
-            lambda: self._transport.repair(upload, shape, format, seed, steps))
+            lambda: self._transport.repair(upload, shape, format, seed, steps, weld))
 
     async def health(self) -> Health:
         """See :meth:`Client.health`."""

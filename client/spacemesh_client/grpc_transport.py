@@ -130,10 +130,10 @@ def _index(value: Any) -> int:
 
 
 def repair_message(pb: Any, mesh: Upload, region: Mapping[str, Any], fmt: str | None,
-                   seed: int | None, steps: int | None) -> Any:
+                   seed: int | None, steps: int | None, weld: bool = False) -> Any:
     """A ``RepairRequest`` (the region in any of its four forms)."""
     request = pb.RepairRequest(mesh=mesh.data, filename=mesh.filename, format=fmt or "",
-                               region=region_message(pb, region))
+                               region=region_message(pb, region), weld=bool(weld))
     if seed is not None:
         request.seed = seed
     if steps is not None:
@@ -250,8 +250,8 @@ class GrpcTransport(_Base):
         raise ConnectionFailed(f"{self.target}: the stream ended without a mesh")
 
     def repair(self, mesh: Upload, region: Mapping[str, Any], fmt: str | None,
-               seed: int | None, steps: int | None) -> Mesh:
-        request = repair_message(self.pb, mesh, region, fmt, seed, steps)
+               seed: int | None, steps: int | None, weld: bool = False) -> Mesh:
+        request = repair_message(self.pb, mesh, region, fmt, seed, steps, weld)
         try:
             return mesh_from_reply(self.stub.Repair(request, **self._call_kwargs()))
         except self.grpc.RpcError as error:
@@ -302,8 +302,8 @@ class AsyncGrpcTransport(_Base):
         raise ConnectionFailed(f"{self.target}: the stream ended without a mesh")
 
     async def repair(self, mesh: Upload, region: Mapping[str, Any], fmt: str | None,
-                     seed: int | None, steps: int | None) -> Mesh:
-        request = repair_message(self.pb, mesh, region, fmt, seed, steps)
+                     seed: int | None, steps: int | None, weld: bool = False) -> Mesh:
+        request = repair_message(self.pb, mesh, region, fmt, seed, steps, weld)
         try:
             return mesh_from_reply(await self.stub.Repair(request, **self._call_kwargs()))
         except self.grpc.RpcError as error:

@@ -120,8 +120,9 @@ class Mesh:
         ``boundary_vertices``, ``loops``, ``new_vertices``, ``new_faces``,
         ``new_face_degrees`` (size -> count), ``patch_faces``, ``patch_rings``,
         ``known_vertices``, ``tokens``, ``candidates``, ``fallback`` (``none``,
-        ``removed-new-vertices`` or ``polygon``), ``fill``, ``inpaint`` and
-        ``flipped_orientation``; the same over REST and gRPC.
+        ``removed-new-vertices`` or ``polygon``), ``fill``, ``inpaint``,
+        ``flipped_orientation`` and ``welded_vertices`` (vertices merged away by
+        ``repair(..., weld=True)``, 0 without); the same over REST and gRPC.
     """
 
     data: bytes = field(repr=False)

@@ -56,6 +56,8 @@ except PackageNotFoundError:  # pragma: no cover - running from a source tree
     SERVICE_VERSION = "0.0.0"
 
 _OPTION_NAMES = ("format", "seed", "steps")
+#: A repair's options (in the query or its form): those of a generation, and ``weld``.
+_REPAIR_OPTION_NAMES = (*_OPTION_NAMES, "weld")
 
 
 # ---------------------------------------------------------------------- errors
@@ -189,7 +191,8 @@ async def _read_repair_form(request: Request, limit: int
         raise Problem(P.UNSUPPORTED_FORMAT, f"cannot read a {shown} body; send "
                       "multipart/form-data with the mesh in 'file' and the region (JSON) "
                       "in 'region'")
-    form = await _limited(request, limit).form(max_files=2, max_fields=len(_OPTION_NAMES) + 4)
+    form = await _limited(request, limit).form(max_files=2,
+                                               max_fields=len(_REPAIR_OPTION_NAMES) + 4)
     try:
         upload = form.get("file")
         if not isinstance(upload, UploadFile):
@@ -201,7 +204,8 @@ async def _read_repair_form(request: Request, limit: int
                           'region as JSON, e.g. {"faces": [0, 1]})')
         region = await field.read() if isinstance(field, UploadFile) else field
         mesh = MeshUpload(await upload.read(), upload.filename)
-        options = {k: form.get(k) for k in _OPTION_NAMES if isinstance(form.get(k), str)}
+        options = {k: form.get(k) for k in _REPAIR_OPTION_NAMES
+                   if isinstance(form.get(k), str)}
     finally:
         await form.close()
     return mesh, region, options
@@ -280,6 +284,10 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
                                  examples=[7]),
         steps: int | None = Query(None, description="Sampler steps (the model's default "
                                   "when absent).", examples=[25]),
+        weld: bool | None = Query(None, description="Merge vertices at exactly equal "
+                                  "positions before the repair (meshes split at UV seams or "
+                                  "hard edges, e.g. GLB); default false. The output is the "
+                                  "welded mesh repaired.", examples=[True]),
     ) -> Response:
         """A mesh and a region in; the region's vertices and faces generated again, every
         other face unchanged.
@@ -288,14 +296,18 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
         the region as JSON in `region`: `{"faces": [...]}`, `{"vertices": [...]}`,
         `{"sphere": {"center": [x, y, z], "radius": r}}` or
         `{"box": {"min": [x, y, z], "max": [x, y, z]}}` (mesh coordinates, indices into
-        the file's faces and vertices). Options as for `/generate`, in the query or the
-        form (the form wins). A region the server cannot use answers 422 with its kind
-        as the problem type, before the request is queued.
+        the file's faces and vertices). Options as for `/generate`, and `weld`, in the
+        query or the form (the form wins). With `weld=true`, vertices at exactly equal
+        positions are merged first (vertex indices of the region stay the file's); the
+        output is the welded mesh repaired and `X-SpaceMesh-Welded-Vertices` says how
+        many vertices were merged away. A region the server cannot use answers 422 with
+        its kind as the problem type, before the request is queued.
         """
         with engine.admit():
             upload, region, form_options = await _read_repair_form(
                 request, settings.max_upload_bytes)
-            options = {"format": format, "seed": seed, "steps": steps, **form_options}
+            options = {"format": format, "seed": seed, "steps": steps, "weld": weld,
+                       **form_options}
             reply = await engine.repair(upload, region, options)
         headers = reply.headers()
         headers["Content-Disposition"] = (

@@ -11,7 +11,7 @@ the same inputs, raise the same errors and return the same bytes.
 
 :meth:`Engine.repair` is the same for a repair (:mod:`spacemesh.repair`):
 
-    read mesh + region, cut and plan (thread; region errors: 422 before queueing)
+    read mesh + region, (weld,) cut and plan (thread; region errors: 422 before queueing)
       -> queue -> repair_mesh alone (inference thread) -> encode output (thread)
 """
 
@@ -391,7 +391,8 @@ class Engine:
         shape = read_region(region)
         mesh, _ = read_mesh_upload(upload.data, upload.filename)
         try:
-            plan = plan_repair(mesh, shape, self.generator.spec.max_vertices)
+            plan = plan_repair(mesh, shape, self.generator.spec.max_vertices,
+                               weld=opts.weld)
         except RegionError as error:
             raise P.region_problem(error) from None
         return _RepairJob(mesh, shape, plan, opts)
@@ -411,7 +412,10 @@ class Engine:
         region : str, bytes or dict
             The region's JSON text (REST) or JSON form (gRPC).
         options : dict
-            ``format``, ``seed``, ``steps`` (None: not given).
+            ``format``, ``seed``, ``steps``, ``weld`` (None: not given). With ``weld``
+            the mesh's vertices at equal positions are merged before the cut (the
+            region's vertex indices are the file's), and the output is the welded mesh
+            repaired.
         progress : callable, optional
             ``progress(done, total)`` after each sampler step (on the event loop).
 
@@ -443,7 +447,7 @@ class Engine:
         def run(report: ProgressFn) -> Any:  # in the inference thread
             return repair_mesh(job.mesh, job.region, self.generator, seed=opts.seed,
                                steps=steps, method=spec.method, progress=report,
-                               plan=job.plan)
+                               plan=job.plan, weld=opts.weld)
 
         outcome = await self._queued(self.batcher.submit_call(run, progress=progress),
                                      decode_s)

@@ -118,6 +118,11 @@ def request_options(request: Any) -> dict[str, Any]:
     }
 
 
+def repair_options(request: pb.RepairRequest) -> dict[str, Any]:
+    """``format``, ``seed``, ``steps`` and ``weld`` of a RepairRequest."""
+    return {**request_options(request), "weld": request.weld}
+
+
 class SpaceMeshServicer(pb_grpc.SpaceMeshServicer):
     """``spacemesh.v1.SpaceMesh`` over an :class:`Engine`."""
 
@@ -190,7 +195,7 @@ class SpaceMeshServicer(pb_grpc.SpaceMeshServicer):
         try:
             with self.engine.admit():
                 upload, region = repair_input(request, self.engine.settings.max_upload_bytes)
-                reply = await self.engine.repair(upload, region, request_options(request))
+                reply = await self.engine.repair(upload, region, repair_options(request))
             return reply_to_pb(reply)
         except Problem as problem:
             code = problem.kind.grpc_code

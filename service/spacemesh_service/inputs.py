@@ -6,7 +6,7 @@ same inputs. Every rejection is a :class:`~spacemesh_service.problems.Problem`:
 - unreadable file or JSON: 400 ``malformed-input``; unknown format: 415;
 - too many points: 413; too few, NaN/Inf, or degenerate geometry (all points identical,
   collinear or coplanar, from the singular values of the centred points): 422;
-- bad ``format``/``seed``/``steps``: 400 ``invalid-parameter``.
+- bad ``format``/``seed``/``steps``/``weld``: 400 ``invalid-parameter``.
 
 Repair requests (:func:`read_mesh_upload`, :func:`read_region`): an unreadable mesh
 file, a file without faces, or a region that is not JSON: 400 ``malformed-input``;
@@ -45,6 +45,9 @@ RANDOM_SEED_BITS = 31
 INPUT_FORMATS: tuple[str, ...] = SUPPORTED_POINTS_READ
 #: Mesh upload formats of a repair (also reported by the model metadata).
 MESH_FORMATS: tuple[str, ...] = SUPPORTED_MESH_READ
+#: Spellings of a boolean option (case-insensitive; those FastAPI reads in a query).
+TRUE_WORDS = ("true", "1", "yes", "on", "t", "y")
+FALSE_WORDS = ("false", "0", "no", "off", "f", "n")
 
 
 @dataclass(frozen=True)
@@ -76,11 +79,14 @@ class Options:
         The request's, or one picked at random.
     steps : int or None
         Sampler steps (None: the model's default).
+    weld : bool
+        Repair only: merge vertices at equal positions first (default False).
     """
 
     format: str
     seed: int
     steps: int | None
+    weld: bool = False
 
 
 def _int_option(name: str, value: Any, low: int, high: int) -> int | None:
@@ -102,10 +108,24 @@ def _int_option(name: str, value: Any, low: int, high: int) -> int | None:
     return number
 
 
+def _bool_option(name: str, value: Any) -> bool:
+    """A boolean option: a bool, or one of :data:`TRUE_WORDS` / :data:`FALSE_WORDS`
+    (None or empty: False)."""
+    if value is None or isinstance(value, bool):
+        return bool(value)
+    word = str(value).strip().lower()
+    if word in ("", *FALSE_WORDS):
+        return False
+    if word in TRUE_WORDS:
+        return True
+    raise Problem(P.INVALID_PARAMETER, f"{name} must be true or false, not {value!r}",
+                  parameter=name)
+
+
 def parse_options(
     raw: dict[str, Any], settings: Settings, *, max_model_steps: int
 ) -> Options:
-    """Validate ``format``, ``seed`` and ``steps`` (strings or numbers).
+    """Validate ``format``, ``seed``, ``steps`` and ``weld`` (strings or numbers).
 
     Parameters
     ----------
@@ -131,7 +151,7 @@ def parse_options(
     steps = _int_option("steps", raw.get("steps"), 1, min(settings.max_steps, max_model_steps))
     if steps is None and settings.default_steps is not None:
         steps = min(settings.default_steps, max_model_steps)
-    return Options(fmt, seed, steps)
+    return Options(fmt, seed, steps, _bool_option("weld", raw.get("weld")))
 
 
 # ---------------------------------------------------------------------- reading

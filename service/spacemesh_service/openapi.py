@@ -203,12 +203,14 @@ _REPAIR_HEADERS = {
                "`boundary_vertices`, `loops`, `new_vertices`, `new_faces`, "
                "`new_face_degrees`, `patch_faces`, `patch_rings`, `known_vertices`, "
                "`tokens`, `candidates`, `fallback`, `fill`, `inpaint`, "
-               "`flipped_orientation`."),
+               "`flipped_orientation`, `welded_vertices`."),
     "Region-Faces": ("integer", "Faces re-generated (the region after growth)."),
     "Grown-Faces": ("integer", "Faces added to the region so that no hole is pinched."),
     "New-Vertices": ("integer", "Vertices generated."),
     "New-Faces": ("integer", "Faces generated."),
     "Fallback": ("string", "`none`, `removed-new-vertices` or `polygon`."),
+    "Welded-Vertices": ("integer", "Vertices merged into another at the same position "
+                        "(`weld=true`; 0 without)."),
 }
 
 _REPAIR_200 = {
@@ -231,6 +233,7 @@ REPAIR_RESPONSES: dict[int | str, dict[str, Any]] = {
                                       "1 column 1 (char 0))"),
         "missing": (P.MALFORMED_INPUT, "the multipart body has no field 'region'"),
         "option": (P.INVALID_PARAMETER, "steps must be in 1..1024, not 0"),
+        "weld": (P.INVALID_PARAMETER, "weld must be true or false, not 'maybe'"),
     }, instance="/repair"),
     413: problem_response("Body too large", {
         "bytes": (P.PAYLOAD_TOO_LARGE, "the body exceeds 33554432 bytes"),
@@ -247,6 +250,11 @@ REPAIR_RESPONSES: dict[int | str, dict[str, Any]] = {
         "defects": (P.DEFECTS_OUTSIDE_REGION, "the mesh has defects outside the region; "
                     "extend the region to cover them: 4 open boundary edges (e.g. vertices 0, "
                     "42, 43, 46)"),
+        "seams": (P.DEFECTS_OUTSIDE_REGION, "the mesh has defects outside the region; "
+                  "extend the region to cover them: 2592 open boundary edges (e.g. vertices "
+                  "96, 97, 98, 99, 100). 2238 vertices share their exact position with another "
+                  "vertex (a mesh split at UV seams or hard edges looks open there): the "
+                  "repair option weld=true (--weld) merges them first"),
         "large": (P.REGION_TOO_LARGE, "the region's boundary has 300 vertices; the model "
                                       "holds at most 248"),
         "nan": (P.NON_FINITE, "OBJ: vertex 3 has a NaN or infinite coordinate"),
@@ -304,6 +312,10 @@ REPAIR_REQUEST_BODY: dict[str, Any] = {
                     "format": _FORMAT_ENUM,
                     "seed": {"type": "integer", "minimum": 0},
                     "steps": {"type": "integer", "minimum": 1},
+                    "weld": {"type": "boolean", "default": False,
+                             "description": "Merge vertices at exactly equal positions "
+                                            "first (the output is the welded mesh "
+                                            "repaired)."},
                 },
             },
             "examples": {

@@ -146,7 +146,7 @@ def encode_mesh(mesh: PolygonMesh, fmt: str, info: dict[str, Any]) -> EncodedMes
 #: The repair statistics that also get a header of their own (all are in ``Repair``).
 REPAIR_HEADERS = {"Region-Faces": "region_faces", "Grown-Faces": "grown_faces",
                   "New-Vertices": "new_vertices", "New-Faces": "new_faces",
-                  "Fallback": "fallback"}
+                  "Fallback": "fallback", "Welded-Vertices": "welded_vertices"}
 #: Keys of ``RepairStats.to_dict()`` reported elsewhere (seed, steps, sampler, timings).
 _REPORTED_ELSEWHERE = ("seed", "steps", "method", "timings")
 

@@ -17,6 +17,7 @@ from spacemesh_client import AsyncClient, Client, Mesh, RetryPolicy
 from spacemesh_client import errors as E
 from spacemesh_client.cli import main
 from spacemesh_client.mesh import repair_summary
+from tests.repair.repair_testing import flat_shaded
 from tests.repair.test_repair_cut import open_icosphere
 
 pytestmark = pytest.mark.slow
@@ -178,3 +179,57 @@ def test_cli_repair(rest_url, grpc_url, tmp_path, capsys):
         main(["repair", str(source), "--faces", "1"])
     lines = capsys.readouterr().err.strip().splitlines()
     assert caught.value.code == 2 and len(lines) == 1 and "-o/--output" in lines[0], lines
+
+
+# ---------------------------------------------------------------------- weld
+SMOOTH, BALL = CASES["sphere"]
+FLAT_GLB = mesh_file(flat_shaded(SMOOTH), "glb")  # every triangle on vertices of its own
+MERGED = 3 * SMOOTH.n_faces - SMOOTH.n_vertices
+
+
+def test_weld_repairs_a_split_glb(client, rest_url):
+    with pytest.raises(E.DefectsOutsideRegion) as caught:
+        client.repair(FLAT_GLB, BALL, filename="flat.glb", seed=SEED, steps=REPAIR_STEPS)
+    assert caught.value.extra["coincident_vertices"] == MERGED
+    assert "weld=true" in caught.value.detail
+    repaired = client.repair(FLAT_GLB, BALL, filename="flat.glb", format="obj", seed=SEED,
+                             steps=REPAIR_STEPS, weld=True)
+    response = httpx.post(rest_url + "/repair", params={"steps": REPAIR_STEPS, "seed": SEED,
+                                                        "format": "obj", "weld": "true"},
+                          files={"file": ("flat.glb", FLAT_GLB)},
+                          data={"region": json.dumps(BALL)}, timeout=60)
+    assert response.status_code == 200, response.text
+    assert repaired.data == response.content
+    assert repaired.repair["welded_vertices"] == MERGED == int(
+        response.headers["x-spacemesh-welded-vertices"])
+    assert repaired.stats.closed and repaired.stats.manifold and repaired.stats.oriented
+    check_repair(SMOOTH, BALL, repaired.vertices, repaired.faces, repaired.repair)
+
+
+def test_async_client_welds(url):
+    async def run() -> Mesh:
+        async with AsyncClient(url, retry=RetryPolicy.never()) as client:
+            with pytest.raises(E.DefectsOutsideRegion):
+                await client.repair(FLAT_GLB, BALL, filename="flat.glb", steps=REPAIR_STEPS)
+            return await client.repair(FLAT_GLB, BALL, filename="flat.glb", seed=SEED,
+                                       steps=REPAIR_STEPS, weld=True)
+
+    repaired = asyncio.run(run())
+    assert repaired.repair["welded_vertices"] == MERGED and repaired.stats.closed
+
+
+def test_cli_repair_weld(rest_url, grpc_url, tmp_path, capsys):
+    source = tmp_path / "flat.glb"
+    source.write_bytes(FLAT_GLB)
+    center, radius = BALL["sphere"]["center"], BALL["sphere"]["radius"]
+    args = ["repair", str(source), "-o", str(tmp_path / "fixed.obj"), "--sphere",
+            ",".join(map(repr, [*center, radius])), "--seed", str(SEED), "--steps",
+            str(REPAIR_STEPS)]
+    with pytest.raises(SystemExit) as caught:
+        main([*args, "--url", rest_url])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert caught.value.code == 2 and len(lines) == 1 and "weld=true" in lines[0], lines
+    for url in (rest_url, grpc_url):
+        main([*args, "--url", url, "--weld"])
+        out = capsys.readouterr().out
+        assert f"{MERGED} vertices welded" in out and "closed oriented manifold" in out, out

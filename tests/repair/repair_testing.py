@@ -153,3 +153,10 @@ def assert_outside_identical(original: PolygonMesh, result) -> None:
     in_indices = original.face_indices[corners_in]
     assert np.array_equal(result.vertex_map[in_indices], out_indices)
     assert np.array_equal(out.vertices[out_indices], original.vertices[in_indices])
+
+
+def flat_shaded(mesh: PolygonMesh) -> PolygonMesh:
+    """``mesh`` with every face on vertices of its own (as a flat-shaded GLB stores it):
+    the same positions and faces, split at every corner, so the mesh reads as fully open."""
+    return PolygonMesh(mesh.vertices[mesh.face_indices], np.arange(len(mesh.face_indices)),
+                       mesh.face_offsets)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 import pytest
-from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
+from repair_testing import NoiseBackend, assert_closed_manifold, flat_shaded, make_spec
 from typer.testing import CliRunner
 
 from spacemesh.cli import _register
@@ -68,3 +68,17 @@ def test_user_errors_are_one_line(fake_model, tmp_path, args, message):
                                       str(tmp_path / "o.obj")])
     assert result.exit_code == 2
     assert message in result.output
+
+
+def test_weld_repairs_a_flat_shaded_glb(fake_model, tmp_path):
+    source, out = tmp_path / "flat.glb", tmp_path / "fixed.obj"
+    save_mesh(flat_shaded(icosphere(2)), source)
+    args = ["repair", str(source), "--sphere", "0,0,1,0.5", "-o", str(out), "--no-progress"]
+    refused = CliRunner().invoke(app, args)
+    assert refused.exit_code == 2
+    assert "defects-outside-region" in refused.output and "--weld" in refused.output
+    result = CliRunner().invoke(app, [*args, "--weld", "--json"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output)
+    assert summary["welded_vertices"] == 3 * 320 - 162
+    assert_closed_manifold(load_mesh(out))

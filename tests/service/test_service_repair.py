@@ -21,6 +21,7 @@ from spacemesh.examples import icosphere
 from spacemesh.io import load_mesh
 from spacemesh_service.pb import spacemesh_pb2 as pb
 from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
+from tests.repair.repair_testing import flat_shaded
 from tests.repair.test_repair_cut import open_icosphere, with_fin
 
 pytestmark = pytest.mark.slow
@@ -96,6 +97,7 @@ def test_every_region_form_over_rest_and_grpc(http, stub, form):
     assert h["x-spacemesh-region-faces"] == str(repair["region_faces"])
     assert h["x-spacemesh-new-faces"] == str(repair["new_faces"])
     assert h["x-spacemesh-fallback"] == repair["fallback"]
+    assert h["x-spacemesh-welded-vertices"] == "0" == str(repair["welded_vertices"])
     assert {"cut", "patch", "encoder", "sampler", "connectivity", "splice",
             "encode_output"} <= {part.split(";")[0].strip()
                                  for part in h["server-timing"].split(",")}
@@ -305,7 +307,8 @@ def test_openapi_describes_repair(http):
     form = repair["requestBody"]["content"]["multipart/form-data"]
     assert set(form["schema"]["required"]) == {"file", "region"}
     assert set(form["examples"]) == {"faces", "vertices", "sphere", "box"}
-    assert {p["name"] for p in repair["parameters"]} == {"format", "seed", "steps"}
+    assert {p["name"] for p in repair["parameters"]} == {"format", "seed", "steps", "weld"}
+    assert "weld" in form["schema"]["properties"]
     for status in ("200", "400", "413", "415", "422", "503"):
         assert status in repair["responses"], status
     kinds = {e["value"]["type"].rsplit("/", 1)[1]
@@ -313,4 +316,85 @@ def test_openapi_describes_repair(http):
     assert {"invalid-region", "empty-region", "whole-mesh-region", "defects-outside-region",
             "region-too-large"} <= kinds
     assert "X-SpaceMesh-Repair" in repair["responses"]["200"]["headers"]
+    assert "X-SpaceMesh-Welded-Vertices" in repair["responses"]["200"]["headers"]
     assert "501" not in repair["responses"]
+
+
+# ---------------------------------------------------------------------- weld
+#: A closed mesh stored flat-shaded (every triangle on vertices of its own), as GLB.
+SMOOTH, BALL = CASES["sphere"]
+FLAT = flat_shaded(SMOOTH)
+FLAT_GLB = mesh_file(FLAT, "glb")
+MERGED = FLAT.n_vertices - SMOOTH.n_vertices
+
+
+def post_flat(http, region, **params):
+    return post_repair(http, FLAT, region, filename="flat.glb", data=FLAT_GLB, seed=SEED,
+                       **params)
+
+
+def flat_pb(region: dict, **fields) -> pb.RepairRequest:
+    fields.setdefault("steps", REPAIR_STEPS)
+    return pb.RepairRequest(mesh=FLAT_GLB, filename="flat.glb", region=region_pb(region),
+                            seed=SEED, format="obj", **fields)
+
+
+def test_a_split_mesh_is_refused_with_a_hint_to_weld(http, stub):
+    for params in ({}, {"weld": "false"}):  # never welded unless asked
+        body = assert_problem(post_flat(http, BALL, **params), 422, "defects-outside-region")
+        assert body["coincident_vertices"] == MERGED
+        assert f"{MERGED} vertices share their exact position" in body["detail"]
+        assert "weld=true" in body["detail"]
+        assert "open-boundary" in {d["kind"] for d in body["defects"]}
+    metadata = assert_rpc_problem(lambda: stub.Repair(flat_pb(BALL)),
+                                  grpc.StatusCode.FAILED_PRECONDITION, "defects-outside-region")
+    assert json.loads(metadata["problem-extensions"])["coincident_vertices"] == MERGED
+
+
+def test_weld_repairs_a_split_glb_over_rest_and_grpc(http, stub):
+    response = post_flat(http, BALL, weld="true")
+    assert response.status_code == 200, response.text
+    h = response.headers
+    assert h["x-spacemesh-welded-vertices"] == str(MERGED)
+    assert h["x-spacemesh-closed"] == h["x-spacemesh-manifold"] == h["x-spacemesh-oriented"] == (
+        "true")
+    repair = json.loads(h["x-spacemesh-repair"])
+    assert repair["welded_vertices"] == MERGED
+    out = load_mesh(response.content, file_type="obj")
+    # the welded mesh repaired: faces outside the region keep their positions
+    check_repair(SMOOTH, BALL, out.vertices, out.faces, repair)
+    as_form = http.post("/repair", params={"format": "obj", "steps": REPAIR_STEPS},
+                        files={"file": ("flat.glb", FLAT_GLB)},
+                        data={"region": json.dumps(BALL), "seed": str(SEED), "weld": "on"})
+    assert as_form.status_code == 200 and as_form.content == response.content
+    reply = stub.Repair(flat_pb(BALL, weld=True))
+    assert reply.mesh == response.content  # the same bytes over gRPC
+    assert reply.repair.welded_vertices == MERGED and reply.stats.closed
+    plain = stub.Repair(repair_pb(SMOOTH, BALL, seed=SEED))
+    assert plain.repair.welded_vertices == 0
+
+
+def test_weld_maps_vertex_regions_from_the_files_indices(http):
+    position = int(SMOOTH.face_indices[-1])  # the last copy of this position in FLAT
+    copy = len(FLAT.face_indices) - 1
+    response = post_flat(http, {"vertices": [copy]}, weld="1")
+    assert response.status_code == 200, response.text
+    repair = json.loads(response.headers["x-spacemesh-repair"])
+    around = sum(position in face for face in SMOOTH.face_indices.reshape(-1, 3).tolist())
+    assert repair["requested_faces"] == around  # every face around it, not the one copy
+    out = load_mesh(response.content, file_type="obj")
+    check_repair(SMOOTH, {"vertices": [position]}, out.vertices, out.faces, repair)
+    body = assert_problem(post_flat(http, {"vertices": [FLAT.n_vertices]}, weld="true"),
+                          422, "invalid-region")
+    assert f"the mesh has {FLAT.n_vertices} vertices" in body["detail"]  # the file's count
+
+
+def test_invalid_weld_values_are_400(http):
+    for where in ("query", "form"):
+        if where == "query":
+            response = post_flat(http, BALL, weld="maybe")
+        else:
+            response = http.post("/repair", files={"file": ("flat.glb", FLAT_GLB)},
+                                 data={"region": json.dumps(BALL), "weld": "maybe"})
+        body = assert_problem(response, 400, "invalid-parameter")
+        assert "weld" in body["detail"], where

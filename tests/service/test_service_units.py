@@ -108,6 +108,21 @@ def test_options():
     assert set(OUTPUT_FORMATS) == {"glb", "gltf", "obj", "ply", "off", "json"}
 
 
+def test_weld_option():
+    settings = Settings.from_env({}, max_steps=100)
+
+    def weld(value):
+        return parse_options({"weld": value}, settings, max_model_steps=64).weld
+
+    assert parse_options({}, settings, max_model_steps=64).weld is False
+    for value in (True, "true", "True", " 1 ", "yes", "on", 1):
+        assert weld(value) is True, value
+    for value in (False, None, "", "false", "0", "no", "OFF", 0):
+        assert weld(value) is False, value
+    for bad in ("maybe", "2", 2, "tru"):
+        assert kind_of(lambda b=bad: weld(b)) == "invalid-parameter", bad
+
+
 def test_uploads_and_json():
     points, normals, source = read_upload(b"0 0 0\n1 0 0\n0 1 0\n", "a.xyz")
     assert source == "xyz" and points.shape == (3, 3) and normals is None

@@ -101,7 +101,7 @@ class MeshReply(_message.Message):
     def __init__(self, mesh: _Optional[bytes] = ..., format: _Optional[str] = ..., media_type: _Optional[str] = ..., stats: _Optional[_Union[MeshStats, _Mapping]] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., model_name: _Optional[str] = ..., model_version: _Optional[str] = ..., timings: _Optional[_Mapping[str, float]] = ..., batch_size: _Optional[int] = ..., repair: _Optional[_Union[RepairStats, _Mapping]] = ...) -> None: ...
 
 class RepairStats(_message.Message):
-    __slots__ = ("requested_faces", "region_faces", "grown_faces", "removed_vertices", "boundary_vertices", "loops", "new_vertices", "new_faces", "new_face_degrees", "patch_faces", "patch_rings", "known_vertices", "tokens", "candidates", "fallback", "fill", "inpaint", "flipped_orientation")
+    __slots__ = ("requested_faces", "region_faces", "grown_faces", "removed_vertices", "boundary_vertices", "loops", "new_vertices", "new_faces", "new_face_degrees", "patch_faces", "patch_rings", "known_vertices", "tokens", "candidates", "fallback", "fill", "inpaint", "flipped_orientation", "welded_vertices")
     class NewFaceDegreesEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -141,6 +141,7 @@ class RepairStats(_message.Message):
     FILL_FIELD_NUMBER: _ClassVar[int]
     INPAINT_FIELD_NUMBER: _ClassVar[int]
     FLIPPED_ORIENTATION_FIELD_NUMBER: _ClassVar[int]
+    WELDED_VERTICES_FIELD_NUMBER: _ClassVar[int]
     requested_faces: int
     region_faces: int
     grown_faces: int
@@ -159,7 +160,8 @@ class RepairStats(_message.Message):
     fill: _containers.ScalarMap[str, int]
     inpaint: _containers.ScalarMap[str, int]
     flipped_orientation: bool
-    def __init__(self, requested_faces: _Optional[int] = ..., region_faces: _Optional[int] = ..., grown_faces: _Optional[int] = ..., removed_vertices: _Optional[int] = ..., boundary_vertices: _Optional[int] = ..., loops: _Optional[int] = ..., new_vertices: _Optional[int] = ..., new_faces: _Optional[int] = ..., new_face_degrees: _Optional[_Mapping[int, int]] = ..., patch_faces: _Optional[int] = ..., patch_rings: _Optional[int] = ..., known_vertices: _Optional[int] = ..., tokens: _Optional[int] = ..., candidates: _Optional[int] = ..., fallback: _Optional[str] = ..., fill: _Optional[_Mapping[str, int]] = ..., inpaint: _Optional[_Mapping[str, int]] = ..., flipped_orientation: _Optional[bool] = ...) -> None: ...
+    welded_vertices: int
+    def __init__(self, requested_faces: _Optional[int] = ..., region_faces: _Optional[int] = ..., grown_faces: _Optional[int] = ..., removed_vertices: _Optional[int] = ..., boundary_vertices: _Optional[int] = ..., loops: _Optional[int] = ..., new_vertices: _Optional[int] = ..., new_faces: _Optional[int] = ..., new_face_degrees: _Optional[_Mapping[int, int]] = ..., patch_faces: _Optional[int] = ..., patch_rings: _Optional[int] = ..., known_vertices: _Optional[int] = ..., tokens: _Optional[int] = ..., candidates: _Optional[int] = ..., fallback: _Optional[str] = ..., fill: _Optional[_Mapping[str, int]] = ..., inpaint: _Optional[_Mapping[str, int]] = ..., flipped_orientation: _Optional[bool] = ..., welded_vertices: _Optional[int] = ...) -> None: ...
 
 class Progress(_message.Message):
     __slots__ = ("step", "total")
@@ -178,7 +180,7 @@ class GenerateEvent(_message.Message):
     def __init__(self, progress: _Optional[_Union[Progress, _Mapping]] = ..., mesh: _Optional[_Union[MeshReply, _Mapping]] = ...) -> None: ...
 
 class RepairRequest(_message.Message):
-    __slots__ = ("mesh", "filename", "faces", "format", "seed", "steps", "region")
+    __slots__ = ("mesh", "filename", "faces", "format", "seed", "steps", "region", "weld")
     MESH_FIELD_NUMBER: _ClassVar[int]
     FILENAME_FIELD_NUMBER: _ClassVar[int]
     FACES_FIELD_NUMBER: _ClassVar[int]
@@ -186,6 +188,7 @@ class RepairRequest(_message.Message):
     SEED_FIELD_NUMBER: _ClassVar[int]
     STEPS_FIELD_NUMBER: _ClassVar[int]
     REGION_FIELD_NUMBER: _ClassVar[int]
+    WELD_FIELD_NUMBER: _ClassVar[int]
     mesh: bytes
     filename: str
     faces: _containers.RepeatedScalarFieldContainer[int]
@@ -193,7 +196,8 @@ class RepairRequest(_message.Message):
     seed: int
     steps: int
     region: Region
-    def __init__(self, mesh: _Optional[bytes] = ..., filename: _Optional[str] = ..., faces: _Optional[_Iterable[int]] = ..., format: _Optional[str] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., region: _Optional[_Union[Region, _Mapping]] = ...) -> None: ...
+    weld: bool
+    def __init__(self, mesh: _Optional[bytes] = ..., filename: _Optional[str] = ..., faces: _Optional[_Iterable[int]] = ..., format: _Optional[str] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., region: _Optional[_Union[Region, _Mapping]] = ..., weld: _Optional[bool] = ...) -> None: ...
 
 class Region(_message.Message):
     __slots__ = ("faces", "vertices", "sphere", "box")

@@ -71,6 +71,9 @@ def repair(
         "--sphere", help="cx,cy,cz,r: every face with a vertex inside.")] = None,
     box: Annotated[str | None, typer.Option(
         "--box", help="x0,y0,z0,x1,y1,z1: every face with a vertex inside.")] = None,
+    weld: Annotated[bool, typer.Option(
+        "--weld", help="Merge vertices at exactly equal positions first (meshes split at UV "
+        "seams or hard edges, e.g. GLB); --vertices are the file's indices.")] = False,
     model: Annotated[Path | None, typer.Option(
         "--model", help="Model repository (default: the shipped model or $SPACEMESH_MODEL).")
     ] = None,
@@ -109,7 +112,7 @@ def repair(
     except ModelRepositoryError as error:
         fail(str(error))
     try:
-        plan = plan_repair(mesh, region, generator.spec.max_vertices)
+        plan = plan_repair(mesh, region, generator.spec.max_vertices, weld=weld)
     except RegionError as error:
         fail(f"{error.kind}: {error}")
     bar = tqdm(desc="inpainting", unit="step", disable=not progress or as_json, leave=False)
@@ -121,7 +124,7 @@ def repair(
 
     try:
         result = repair_mesh(mesh, region, generator, seed=seed, steps=steps, method=sampler,
-                             progress=report, plan=plan)
+                             progress=report, plan=plan, weld=weld)
     except ValueError as error:
         fail(str(error))
     finally:
@@ -138,5 +141,7 @@ def repair(
         typer.echo(
             f"{output}: {stats.region_faces} faces re-generated ({stats.grown_faces} added "
             f"to the region), {stats.new_vertices} new vertices, {stats.new_faces} new faces, "
-            f"fallback {stats.fallback} ({stats.timings['total']:.2f} s)"
+            f"fallback {stats.fallback}"
+            + (f", {stats.welded_vertices} vertices welded" if weld else "")
+            + f" ({stats.timings['total']:.2f} s)"
         )

@@ -2,6 +2,8 @@
 
 - :mod:`~spacemesh.repair.region`: the region a user marks (:class:`Region`,
   :func:`parse_region`) and :class:`RegionError` with its stable ``kind``.
+- :mod:`~spacemesh.repair.weld`: merging vertices split at seams (``weld=True``), and
+  mapping a region onto the welded mesh.
 - :mod:`~spacemesh.repair.cut`: cutting the region out, growth, boundary loops, and
   the defects left outside.
 - :mod:`~spacemesh.repair.patch`: the local patch the model sees, and its point sets.
@@ -15,6 +17,7 @@ numpy, scipy and onnxruntime only (never torch). See docs/REPAIR.md.
 
 from spacemesh.repair.api import RepairPlan, RepairResult, RepairStats, plan_repair, repair_mesh
 from spacemesh.repair.region import ERROR_KINDS, Region, RegionError, parse_region
+from spacemesh.repair.weld import weld_vertices
 
 __all__ = [
     "ERROR_KINDS",
@@ -26,4 +29,5 @@ __all__ = [
     "parse_region",
     "plan_repair",
     "repair_mesh",
+    "weld_vertices",
 ]

@@ -3,6 +3,7 @@
 The data flow (docs/REPAIR.md)::
 
     mesh + region
+      -> (weld=True) vertices at equal positions merged, region mapped spacemesh.repair.weld
       -> cut (grow until no pinched hole; defects outside -> 422)     spacemesh.repair.cut
       -> patch: region + rings of kept faces, renormalised            spacemesh.repair.patch
       -> conditioning points on the patch's original surface -> encoder
@@ -39,6 +40,7 @@ from spacemesh.repair.patch import (
 )
 from spacemesh.repair.region import Region
 from spacemesh.repair.splice import fill_hole, splice
+from spacemesh.repair.weld import weld_region, weld_vertices
 from spacemesh.runtime.backend import Backend, ConnectivityOutputs
 from spacemesh.runtime.pipeline import MeshGenerator, ModelSpec, drop_duplicates
 from spacemesh.runtime.sampler import ProgressFn
@@ -57,12 +59,38 @@ class RepairPlan:
     :func:`plan_repair` raises every :class:`spacemesh.repair.region.RegionError` a
     repair can raise, without running a network, so a service can answer 422 before
     queueing the request.
+
+    Attributes
+    ----------
+    cut : Cut
+        The region cut out of the input, or out of its weld (``weld=True``).
+    patch : Patch
+    hole : PolygonMesh
+    seconds : float
+        Time spent planning (welding included).
+    source : PolygonMesh or None
+        The input mesh the plan was made for (None: ``cut.mesh``).
+    weld_map : (V,) int64 or None
+        With ``weld=True``: the index in ``cut.mesh`` of each input vertex
+        (:func:`spacemesh.repair.weld.weld_vertices`); None without.
     """
 
     cut: Cut
     patch: Patch
     hole: PolygonMesh
     seconds: float = 0.0
+    source: PolygonMesh | None = None
+    weld_map: IntArray | None = None
+
+    @property
+    def input_mesh(self) -> PolygonMesh:
+        """The mesh the plan was made for."""
+        return self.cut.mesh if self.source is None else self.source
+
+    @property
+    def welded_vertices(self) -> int:
+        """Input vertices merged away by the weld (0 without ``weld=True``)."""
+        return 0 if self.weld_map is None else len(self.weld_map) - self.cut.mesh.n_vertices
 
 
 @dataclass
@@ -91,6 +119,9 @@ class RepairStats:
     flipped_orientation : bool
         The input's faces wind clockwise (negative volume), so the network's cyclic
         orders were read reversed.
+    welded_vertices : int
+        Input vertices merged into another at the same position (``weld=True``; 0
+        without).
     seed, steps : int
     method : str
     timings : dict of str to float
@@ -116,6 +147,7 @@ class RepairStats:
     fill: dict[str, int] = field(default_factory=dict)
     inpaint: dict[str, int] = field(default_factory=dict)
     flipped_orientation: bool = False
+    welded_vertices: int = 0
     seed: int = 0
     steps: int = 0
     method: str = ""
@@ -137,8 +169,11 @@ class RepairResult:
     mesh : PolygonMesh
         Kept vertices in input order, then new vertices; kept faces in input order
         (each identical to its input face up to the vertex renumbering), then new faces.
+        With ``weld=True`` the welded mesh is the input here: its vertices (the first
+        copy of each position, in order of first occurrence) are renumbered.
     vertex_map : (V,) int64
-        Output index of each input vertex, -1 for removed ones.
+        Output index of each input vertex, -1 for removed ones (with ``weld=True``, every
+        copy of a position maps to the same output vertex).
     face_source : (F_out,) int64
         Input face of each output face, -1 for new faces.
     region : (F,) bool
@@ -154,17 +189,22 @@ class RepairResult:
 
 
 def plan_repair(mesh: PolygonMesh, region: Region | Mapping[str, Any] | BoolArray,
-                n_tokens: int, *, max_rings: int = MAX_RINGS) -> RepairPlan:
+                n_tokens: int, *, max_rings: int = MAX_RINGS, weld: bool = False
+                ) -> RepairPlan:
     """Cut the region and choose the patch (no network runs).
 
     Parameters
     ----------
     mesh : PolygonMesh
     region : Region, dict (JSON form) or (F,) bool face mask
+        In ``mesh``'s indices (also with ``weld``).
     n_tokens : int
         The model's vertex tokens (``ModelSpec.max_vertices``).
     max_rings : int
         Most rings of kept faces around the region.
+    weld : bool
+        Merge vertices at exactly equal positions first and repair the welded mesh
+        (:mod:`spacemesh.repair.weld`); vertex indices of the region are mapped.
 
     Returns
     -------
@@ -177,10 +217,14 @@ def plan_repair(mesh: PolygonMesh, region: Region | Mapping[str, Any] | BoolArra
         ``whole-mesh-region``, ``defects-outside-region``, ``region-too-large``.
     """
     start = time.perf_counter()
-    cut = cut_region(mesh, region)
+    work, weld_map = mesh, None
+    if weld:
+        work, weld_map = weld_vertices(mesh)
+        region = weld_region(region, weld_map)
+    cut = cut_region(work, region)
     hole = hole_surface(cut)
     patch = plan_patch(cut, n_tokens, max_rings=max_rings, hole=hole)
-    return RepairPlan(cut, patch, hole, time.perf_counter() - start)
+    return RepairPlan(cut, patch, hole, time.perf_counter() - start, mesh, weld_map)
 
 
 def enclosed_volume(mesh: PolygonMesh) -> float:
@@ -278,6 +322,7 @@ def repair_mesh(
     method: str | None = None,
     progress: ProgressFn | None = None,
     plan: RepairPlan | None = None,
+    weld: bool = False,
 ) -> RepairResult:
     """Re-generate the vertices and faces of ``region`` (paper Sec. 5.5, Supplement D).
 
@@ -301,7 +346,11 @@ def repair_mesh(
     progress : callable, optional
         ``progress(done, total)`` after each denoiser step.
     plan : RepairPlan, optional
-        From :func:`plan_repair` (computed when None).
+        From :func:`plan_repair` (computed when None), made with the same ``weld``.
+    weld : bool
+        Merge vertices at exactly equal positions (split at UV seams, hard edges) before
+        the cut, and repair the welded mesh (:mod:`spacemesh.repair.weld`). Without it,
+        such a mesh is open along every seam.
 
     Returns
     -------
@@ -314,17 +363,20 @@ def repair_mesh(
     RegionError
         See :func:`plan_repair`.
     ValueError
-        Bad ``steps`` or ``method``.
+        Bad ``steps`` or ``method``, or a plan made for another mesh, model or ``weld``.
     """
     t_start = time.perf_counter()
     plan_given = plan is not None
     backend, spec = _resolve(generator, backend, spec)
     steps, method = _sampler_options(spec, steps, method)
     if plan is None:
-        plan = plan_repair(mesh, region, spec.max_vertices)
-    elif plan.cut.mesh is not mesh or plan.patch.n_tokens != spec.max_vertices:
+        plan = plan_repair(mesh, region, spec.max_vertices, weld=weld)
+    elif plan.input_mesh is not mesh or plan.patch.n_tokens != spec.max_vertices:
         raise ValueError("the plan was made for another mesh or model")
+    elif (plan.weld_map is not None) != bool(weld):
+        raise ValueError(f"the plan was made with weld={plan.weld_map is not None}")
     cut, patch = plan.cut, plan.patch
+    mesh = cut.mesh  # the input, or its weld
     timings = {"cut": plan.seconds}
 
     t0 = time.perf_counter()
@@ -375,8 +427,9 @@ def repair_mesh(
         known_vertices=len(patch.known), tokens=patch.n_tokens, candidates=len(candidates),
         fallback=fallback, fill=dict(fs),
         inpaint=dropped,
-        flipped_orientation=flipped, seed=int(seed), steps=steps, method=method,
-        timings=timings,
+        flipped_orientation=flipped, welded_vertices=plan.welded_vertices, seed=int(seed),
+        steps=steps, method=method, timings=timings,
     )
-    return RepairResult(spliced.mesh, spliced.vertex_map, spliced.face_source, cut.region,
-                        stats)
+    vertex_map = spliced.vertex_map if plan.weld_map is None else (
+        spliced.vertex_map[plan.weld_map])
+    return RepairResult(spliced.mesh, vertex_map, spliced.face_source, cut.region, stats)

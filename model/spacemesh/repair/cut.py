@@ -14,7 +14,9 @@ Rules (see docs/REPAIR.md):
    boundary edge, non-manifold or
    misoriented edge, pinched vertex, or face with fewer than three distinct vertices
    among the kept faces is a defect outside the region (``defects-outside-region``,
-   with the defects listed). Defects inside the region are simply removed with it.
+   with the defects listed, and the count of vertices that share their exact position
+   with another: a mesh split at seams, which ``weld=True`` merges first, see
+   :mod:`spacemesh.repair.weld`). Defects inside the region are simply removed with it.
 4. The hole's boundary is a set of simple loops. A loop lists its vertices in the order
    the filling faces traverse them: the hole halfedge ``i -> loop_next[i]`` is the twin
    of the kept boundary halfedge ``loop_next[i] -> i``.
@@ -36,6 +38,7 @@ from spacemesh.repair.region import (
     RegionError,
     region_faces,
 )
+from spacemesh.repair.weld import coincident_vertices
 from spacemesh.typed import BoolArray, IntArray
 
 #: Indices listed per defect kind in a ``defects-outside-region`` error.
@@ -267,16 +270,31 @@ def defect_vertices(mesh: PolygonMesh) -> BoolArray:
     return marked
 
 
-def defects_message(defects: list[dict]) -> str:
-    """One sentence naming the defects outside the region."""
+def defects_message(defects: list[dict], coincident: int = 0) -> str:
+    """One sentence naming the defects outside the region.
+
+    Parameters
+    ----------
+    defects : list of dict
+        From :func:`outside_defects`.
+    coincident : int
+        Vertices at exactly the position of another vertex
+        (:func:`spacemesh.repair.weld.coincident_vertices`); when positive, the sentence
+        ends with the hint that ``weld=true`` merges them.
+    """
     parts = []
     for d in defects:
         where = d.get("vertices", d.get("faces", []))
         noun = "vertices" if "vertices" in d else "faces"
         parts.append(f"{d['count']} {d['description']} (e.g. {noun} "
                      f"{', '.join(str(i) for i in where[:5])})")
-    return ("the mesh has defects outside the region; extend the region to cover them: "
-            + "; ".join(parts))
+    message = ("the mesh has defects outside the region; extend the region to cover them: "
+               + "; ".join(parts))
+    if coincident > 0:
+        message += (f". {coincident} vertices share their exact position with another "
+                    "vertex (a mesh split at UV seams or hard edges looks open there): "
+                    "the repair option weld=true (--weld) merges them first")
+    return message
 
 
 # ---------------------------------------------------------------------- the cut
@@ -287,7 +305,7 @@ class Cut:
     Attributes
     ----------
     mesh : PolygonMesh
-        The input mesh.
+        The mesh cut: the repair's input, or its weld (``weld=True``).
     region : (F,) bool
         Faces removed (after growth).
     requested : (F,) bool
@@ -387,7 +405,9 @@ def cut_region(mesh: PolygonMesh, region: Region | dict | BoolArray) -> Cut:
     ------
     RegionError
         ``invalid-region``, ``empty-region``, ``whole-mesh-region`` or
-        ``defects-outside-region`` (with ``details["defects"]``).
+        ``defects-outside-region`` (with ``details["defects"]``, and
+        ``details["coincident_vertices"]``: vertices at exactly the position of another,
+        which ``weld=True`` would merge; the message says so when there are any).
     """
     if isinstance(region, np.ndarray) and region.dtype == bool:
         if region.shape != (mesh.n_faces,):
@@ -401,8 +421,9 @@ def cut_region(mesh: PolygonMesh, region: Region | dict | BoolArray) -> Cut:
                           "vertex next to it would be pinched; mark a smaller region")
     defects = outside_defects(mesh, grown)
     if defects:
-        raise RegionError(DEFECTS_OUTSIDE_REGION, defects_message(defects),
-                          {"defects": defects})
+        coincident = coincident_vertices(mesh)
+        raise RegionError(DEFECTS_OUTSIDE_REGION, defects_message(defects, coincident),
+                          {"defects": defects, "coincident_vertices": coincident})
     touched = _region_vertices(mesh, grown)
     local = np.flatnonzero(_faces_touching(mesh, touched) & ~grown)
     hole = _hole_halfedges(FaceSubset.of(mesh, local), touched)

@@ -93,6 +93,23 @@ def _indices(values: Any, what: str) -> IntArray:
     return array.astype(np.int64)
 
 
+def check_range(indices: IntArray, count: int, noun: str, plural: str) -> None:
+    """Raise ``invalid-region`` unless every index is in ``0 .. count - 1``.
+
+    Parameters
+    ----------
+    indices : (K,) int64
+    count : int
+        Faces or vertices of the mesh.
+    noun, plural : str
+        ``"face", "faces"`` or ``"vertex", "vertices"`` (for the message).
+    """
+    bad = indices[(indices < 0) | (indices >= count)]
+    if bad.size:
+        raise _invalid(f"{noun} index {int(bad[0])} is out of range: the mesh has "
+                       f"{count} {plural}")
+
+
 def _point(values: Any, what: str) -> FloatArray:
     """A finite (3,) float64 point."""
     try:
@@ -178,18 +195,12 @@ class Region:
             ``invalid-region`` when an index is out of range.
         """
         if self.kind == "faces":
-            bad = self.indices[(self.indices < 0) | (self.indices >= mesh.n_faces)]
-            if bad.size:
-                raise _invalid(f"face index {int(bad[0])} is out of range: the mesh has "
-                               f"{mesh.n_faces} faces")
+            check_range(self.indices, mesh.n_faces, "face", "faces")
             mask = np.zeros(mesh.n_faces, dtype=bool)
             mask[self.indices] = True
             return mask
         if self.kind == "vertices":
-            bad = self.indices[(self.indices < 0) | (self.indices >= mesh.n_vertices)]
-            if bad.size:
-                raise _invalid(f"vertex index {int(bad[0])} is out of range: the mesh has "
-                               f"{mesh.n_vertices} vertices")
+            check_range(self.indices, mesh.n_vertices, "vertex", "vertices")
             inside = np.zeros(mesh.n_vertices, dtype=bool)
             inside[self.indices] = True
         else:
