@@ -51,3 +51,22 @@ def test_sha256_mismatch_and_missing_files_are_refused(toy_model, tmp_path):
     (copy / "manifest.json").write_text("{}")
     with pytest.raises(ModelRepositoryError, match="not a spacemesh-model"):
         ModelRepository.load(copy)
+
+
+def test_vertex_spacing_is_calibrated_on_the_val_split(toy_model, tmp_path):
+    from spacemesh.export.repository import calibrate_vertex_spacing
+    from spacemesh.runtime.pipeline import ModelSpec
+
+    found = calibrate_vertex_spacing(toy_model.repository, toy_model.data, shapes=3,
+                                     threads=1, grid=(1e-4, 0.1, 10.0))
+    assert found["grid"] == [1e-4, 0.1, 10.0] and len(found["chamfer_mean"]) == 3
+    assert found["empty"][2] == 1.0  # one vertex left: never a surface
+    assert found["vertex_spacing"] in (1e-4, 0.1)  # an all-empty spacing cannot win
+    assert "val split" in found["calibration"]
+    # the runtime reads the field from the manifest, with the old default when absent
+    copy = tmp_path / "repo"
+    shutil.copytree(toy_model.repository, copy)
+    manifest = json.loads((copy / "manifest.json").read_text())
+    assert ModelSpec.from_manifest(manifest).vertex_spacing == 1e-4
+    manifest["sampler"]["vertex_spacing"] = 0.05
+    assert ModelSpec.from_manifest(manifest).vertex_spacing == 0.05

@@ -95,3 +95,21 @@ def test_helpers():
     positions = np.array([[0.0, 0, 0], [0, 0, 1e-6], [1, 1, 1], [0.5, 0, 0]])
     alive = drop_duplicates(positions, np.array([True, True, True, False]))
     assert alive.tolist() == [True, False, True, False]
+
+
+def test_vertex_spacing_thins_the_sampled_vertices(generator, cloud):
+    from dataclasses import replace
+
+    spec = generator.spec
+    assert spec.vertex_spacing == generator.repository.manifest["sampler"].get(
+        "vertex_spacing", 1e-4)
+    dense = generator.generate(cloud, seed=3)
+    try:
+        generator.spec = replace(spec, vertex_spacing=0.5)
+        sparse = generator.generate(cloud, seed=3)
+        generator.spec = replace(spec, vertex_spacing=10.0)  # one vertex survives
+        single = generator.generate(cloud, seed=3)
+    finally:
+        generator.spec = spec
+    assert sparse.n_sampled_vertices < dense.n_sampled_vertices
+    assert single.n_sampled_vertices == 1 and single.mesh.n_faces == 0

@@ -102,7 +102,8 @@ def export_(
     ] = None,
     calibrate_data: Annotated[
         Path | None,
-        typer.Option("--calibrate-data", help="Dataset whose val split recalibrates tau."),
+        typer.Option("--calibrate-data", help="Dataset whose val split recalibrates tau "
+                     "and chooses the vertex spacing."),
     ] = None,
     eval_shapes: Annotated[
         int, typer.Option("--eval-shapes", min=1, help="Shapes for connectivity metrics.")

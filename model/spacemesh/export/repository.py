@@ -44,9 +44,11 @@ from __future__ import annotations
 import json
 import math
 import shutil
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 
 from spacemesh.export.onnx_export import GRAPH_FILES, OPSET, export_onnx
@@ -305,6 +307,72 @@ def heldout_metrics(
     }
 
 
+#: Vertex spacings tried by :func:`calibrate_vertex_spacing` ([-1, 1] frame).
+SPACING_GRID = (1e-4, 0.025, 0.05, 0.075, 0.1, 0.125, 0.15)
+
+
+def calibrate_vertex_spacing(
+    version_dir: str | Path, data: str | Path, *, shapes: int = 48, threads: int = 0,
+    grid: tuple[float, ...] = SPACING_GRID, progress: bool = False,
+) -> dict[str, Any]:
+    """Choose the model's ``vertex_spacing`` on a dataset's ``val`` split.
+
+    Runs the full onnxruntime pipeline (the model's default sampler) on ``shapes``
+    shapes for each spacing and keeps the one with the lowest mean Chamfer distance;
+    empty outputs count with the largest Chamfer distance seen, so a spacing cannot win
+    by emptying hard shapes.
+
+    Parameters
+    ----------
+    version_dir : path
+        The model repository version folder (its manifest is read, not changed).
+    data : path
+        A dataset folder; its ``val`` split is used (never the held-out set).
+    shapes : int
+    threads : int
+        onnxruntime intra-op threads.
+    grid : tuple of float
+    progress : bool
+        A progress bar over the grid.
+
+    Returns
+    -------
+    dict
+        ``vertex_spacing`` (the choice) and ``grid``, ``chamfer_mean``, ``empty``
+        (one entry per spacing), ``calibration`` (a sentence).
+    """
+    from tqdm.auto import tqdm
+
+    from spacemesh.data.shards import open_dataset
+    from spacemesh.runtime.pipeline import MeshGenerator
+    from spacemesh.train.evaluate import pipeline_metrics
+
+    generator = MeshGenerator.from_repository(version_dir, intra_op_threads=threads)
+    spec = generator.spec
+    records = [r for r in open_dataset(data, "val") if r.mesh.n_vertices <= spec.max_vertices]
+    records = records[:shapes]
+    rows = []
+    for spacing in tqdm(grid, desc="vertex spacing", disable=not progress):
+        generator.spec = replace(spec, vertex_spacing=float(spacing))
+        rows.append(pipeline_metrics(generator, records))
+    worst = max((r["chamfer_mean"] for r in rows if np.isfinite(r["chamfer_mean"])),
+                default=float("inf"))
+
+    def score(row: dict[str, float]) -> float:
+        mean = row["chamfer_mean"] if np.isfinite(row["chamfer_mean"]) else worst
+        return (1 - row["empty"]) * mean + row["empty"] * worst
+
+    best = int(np.argmin([score(r) for r in rows]))
+    return {
+        "vertex_spacing": float(grid[best]),
+        "grid": [float(s) for s in grid],
+        "chamfer_mean": [round(float(r["chamfer_mean"]), 5) for r in rows],
+        "empty": [round(float(r["empty"]), 4) for r in rows],
+        "calibration": f"min mean pipeline Chamfer on {len(records)} shapes of the val "
+                       f"split of {Path(data).name}",
+    }
+
+
 def export_run(
     run: str | Path,
     root: str | Path,
@@ -333,8 +401,9 @@ def export_run(
         manifest records the run's last validation metrics.
     calibrate_data : path, optional
         Dataset whose ``val`` split recalibrates the edge threshold ``tau`` (see
-        :func:`spacemesh.train.evaluate.calibrate_threshold`); the learned and the
-        calibrated values go into the manifest's ``training`` section.
+        :func:`spacemesh.train.evaluate.calibrate_threshold`) and then chooses the
+        sampler's ``vertex_spacing`` (:func:`calibrate_vertex_spacing`); the values and
+        how they were found go into the manifest's ``training`` section.
     connectivity_shapes, pipeline_shapes : int
     threads : int
         onnxruntime threads for the measurement.
@@ -375,6 +444,12 @@ def export_run(
     directory = write_model_repository(model, root, name=name, version=version,
                                        data=extra.get("data", {}), training=training,
                                        metrics=metrics)
+    if calibrate_data is not None:
+        spacing = calibrate_vertex_spacing(directory, calibrate_data, threads=threads)
+        training["vertex_spacing"] = spacing
+        sampler = json.loads((Path(directory) / MANIFEST).read_text())["sampler"]
+        update_manifest(directory, training=training,
+                        sampler={**sampler, "vertex_spacing": spacing["vertex_spacing"]})
     if eval_data is not None:
         metrics["heldout"] = heldout_metrics(
             model, directory, eval_data, connectivity_shapes=connectivity_shapes,

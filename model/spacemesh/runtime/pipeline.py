@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -64,6 +64,15 @@ class ModelSpec:
         Default sampler steps.
     decode : DecodeOptions
         How embeddings are read.
+    vertex_spacing : float
+        Sampled vertices closer than this (in the normalised [-1, 1] frame) to an
+        earlier one are dropped before the connectivity network runs. Diffusion places
+        vertices in clumps (median nearest-neighbour distance half the ground truth's on
+        the ``small`` model), and a clump of near-duplicates cannot be joined into
+        manifold faces, so the decode would have to drop them and their neighbours.
+        Calibrated on the training set's val split at export
+        (:func:`spacemesh.export.repository.calibrate_vertex_spacing`);
+        ``manifest["sampler"]["vertex_spacing"]``, default :data:`DUPLICATE_TOLERANCE`.
     """
 
     n_points: int
@@ -73,6 +82,7 @@ class ModelSpec:
     method: str
     steps: int
     decode: DecodeOptions
+    vertex_spacing: float = DUPLICATE_TOLERANCE
 
     @classmethod
     def from_config(cls, config: dict[str, Any], betas: Sequence[float] | None = None,
@@ -115,10 +125,12 @@ class ModelSpec:
     @classmethod
     def from_manifest(cls, manifest: dict[str, Any]) -> ModelSpec:
         """From a model repository's ``manifest.json``."""
-        return cls.from_config(
+        spec = cls.from_config(
             manifest["config"], manifest["schedule"]["betas"],
             manifest.get("embedding", {}).get("reduction_params"),
         )
+        spacing = manifest.get("sampler", {}).get("vertex_spacing", DUPLICATE_TOLERANCE)
+        return replace(spec, vertex_spacing=float(spacing))
 
 
 @dataclass(frozen=True)
@@ -428,7 +440,9 @@ class MeshGenerator:
             steps=self.spec.schedule.respaced(steps), method=method, progress=progress,
         )
         positions, alive = split_tokens(tokens)  # (B, N, 3), (B, N)
-        alive = np.stack([drop_duplicates(p, a) for p, a in zip(positions, alive, strict=True)])
+        spacing = self.spec.vertex_spacing
+        alive = np.stack([drop_duplicates(p, a, spacing)
+                          for p, a in zip(positions, alive, strict=True)])
         t2 = time.perf_counter()
         emb = self.backend.connect(positions, alive, volumes)
         t3 = time.perf_counter()
