@@ -7,6 +7,6 @@ URL="${SPACEMESH_URL:-http://localhost:8000}"
 POINTS="${1:-examples/points.ply}"
 
 curl -sS --fail-with-body "$URL/v2/health/ready"; echo
-curl -sS --fail-with-body -X POST "$URL/generate?format=glb&seed=${SEED:-7}" \
+curl -sS --fail-with-body -X POST "$URL/generate?format=glb&seed=${SEED:-0}" \
      -F "file=@$POINTS" -o mesh.glb -D headers.txt
 grep -i '^x-spacemesh-' headers.txt

@@ -16,7 +16,7 @@ from spacemesh_client.pb import spacemesh_pb2_grpc as pb_grpc
 target = os.environ.get("SPACEMESH_GRPC_TARGET", "localhost:8001")
 path = Path(sys.argv[1] if len(sys.argv) > 1 else "examples/points.ply")
 request = pb.GenerateRequest(file=pb.PointCloudFile(data=path.read_bytes(), filename=path.name),
-                             format="glb", seed=int(os.environ.get("SEED", 7)))
+                             format="glb", seed=int(os.environ.get("SEED", 0)))
 
 with grpc.insecure_channel(target) as channel:
     stub = pb_grpc.SpaceMeshStub(channel)

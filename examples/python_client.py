@@ -13,7 +13,7 @@ points = sys.argv[1] if len(sys.argv) > 1 else "examples/points.ply"
 
 with Client(url) as client:
     try:
-        mesh = client.generate(points, seed=int(os.environ.get("SEED", 7)))
+        mesh = client.generate(points, seed=int(os.environ.get("SEED", 0)))
     except NoSurface as error:  # every error kind has its exception class
         sys.exit(f"{error}: try another seed")
 mesh.save("mesh.obj")  # polygons kept; .glb, .ply, .off, .json too

@@ -42,3 +42,23 @@ def test_shipped_model_generates_a_valid_mesh(shipped):
     result = generator.generate(d / np.linalg.norm(d, axis=1, keepdims=True), seed=0, steps=10)
     report = check_topology(result.mesh)
     assert report.is_manifold and report.is_closed and report.is_oriented
+
+
+def test_the_readme_examples_make_a_surface_with_the_shipped_model(shipped):
+    """examples/*.py and curl_generate.sh send examples/points.ply with SEED (default 0):
+    a newcomer's first call must give a mesh, not 422 no-surface."""
+    import re
+    from pathlib import Path
+
+    from spacemesh.io.points import load_points
+
+    root = Path(__file__).resolve().parents[2]
+    defaults = {int(s) for s in re.findall(
+        r'SEED(?::-|", )(\d+)',
+        "".join((root / "examples" / n).read_text()
+                for n in ("curl_generate.sh", "python_client.py", "grpc_generate.py")))}
+    assert len(defaults) == 1, defaults
+    points, _ = load_points(root / "examples" / "points.ply")
+    generator = MeshGenerator(shipped.backend, ModelSpec.from_manifest(shipped.manifest))
+    mesh = generator.generate(points, seed=defaults.pop()).mesh
+    assert mesh.n_faces > 0 and check_topology(mesh).is_closed_oriented_manifold

@@ -308,7 +308,7 @@ def heldout_metrics(
 
 
 #: Vertex spacings tried by :func:`calibrate_vertex_spacing` ([-1, 1] frame).
-SPACING_GRID = (1e-4, 0.025, 0.05, 0.075, 0.1, 0.125, 0.15)
+SPACING_GRID = (1e-4, 0.025, 0.05, 0.075, 0.1, 0.125, 0.15, 0.2)
 
 
 def calibrate_vertex_spacing(
