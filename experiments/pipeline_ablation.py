@@ -6,12 +6,16 @@ held-out shapes with the same seeds and prints one Markdown row of
 :func:`spacemesh.train.evaluate.pipeline_metrics` (Chamfer mean and median, F1, vertices,
 empty and valid shares). docs/MODEL.md's ablation table came from::
 
-    spacemesh export runs/small-qem/checkpoints/step-0002000.pt --out /tmp/m2000
+    spacemesh export runs/small-qem/checkpoints/step-0002000.pt --out /tmp/m2000 \\
+        --calibrate-data data/qem-small-s1
     spacemesh export runs/small-qem/checkpoints/step-0003000.pt --out /tmp/m3000 \\
         --calibrate-data data/qem-small-s1
     python experiments/pipeline_ablation.py --data data/qem-heldout-s2 --shapes 48 \\
-        --case /tmp/m2000/spacemesh-small --case /tmp/m3000/spacemesh-small@0.0001 \\
+        --case /tmp/m2000/spacemesh-small@0.0001 --case /tmp/m3000/spacemesh-small@0.0001 \\
         --case /tmp/m3000/spacemesh-small --case models/spacemesh-small
+
+(The export's own ``tau`` calibration is part of every row; ``@0.0001`` switches the
+vertex spacing off, as the models before it had none.)
 """
 
 from __future__ import annotations
