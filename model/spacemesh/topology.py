@@ -97,8 +97,19 @@ class TopologyReport:
         return data
 
 
-def _edge_keys(halfedges: IntArray, n_vertices: int) -> IntArray:
-    """(S,) integer key of the undirected edge of each halfedge."""
+def edge_keys(halfedges: IntArray, n_vertices: int) -> IntArray:
+    """(S,) integer key ``min * V + max`` of the undirected edge of each vertex pair.
+
+    Parameters
+    ----------
+    halfedges : (S, 2) int
+        Vertex pairs, in either order.
+    n_vertices : int
+
+    Returns
+    -------
+    (S,) int64
+    """
     lo = np.minimum(halfedges[:, 0], halfedges[:, 1])
     hi = np.maximum(halfedges[:, 0], halfedges[:, 1])
     return lo * max(n_vertices, 1) + hi
@@ -115,7 +126,7 @@ def count_vertex_fans(mesh: PolygonMesh) -> IntArray:
     n_corners = len(halfedges)
     if n_corners == 0:
         return np.zeros(mesh.n_vertices, dtype=np.int64)
-    keys = _edge_keys(halfedges, mesh.n_vertices)
+    keys = edge_keys(halfedges, mesh.n_vertices)
     order = np.argsort(keys, kind="stable")
     sorted_keys = keys[order]
     _, start, counts = np.unique(sorted_keys, return_index=True, return_counts=True)
@@ -150,7 +161,7 @@ def face_components(mesh: PolygonMesh) -> tuple[int, IntArray]:
         return 0, np.zeros(0, dtype=np.int64)
     halfedges = mesh.halfedges
     face = mesh.face_of_corner
-    keys = _edge_keys(halfedges, mesh.n_vertices)
+    keys = edge_keys(halfedges, mesh.n_vertices)
     order = np.argsort(keys, kind="stable")
     sk = keys[order]
     same = sk[1:] == sk[:-1]
@@ -182,7 +193,7 @@ def check_topology(mesh: PolygonMesh) -> TopologyReport:
     dup_pairs = np.unique(fv[np.isin(fv, np.unique(fv)[fv_counts > 1])] // max(mesh.n_vertices, 1))
     n_repeated = len(dup_pairs)
 
-    keys = _edge_keys(halfedges, mesh.n_vertices)
+    keys = edge_keys(halfedges, mesh.n_vertices)
     uniq, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
     n_edges = len(uniq)
     boundary = int(np.sum(counts == 1))

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from spacemesh.mesh import PolygonMesh
+from spacemesh.topology import edge_keys
 from spacemesh.typed import ArrayLike, FloatArray, IntArray
 
 try:  # optional: the C++ earcut, faster on large non-convex polygons
@@ -363,7 +364,7 @@ def _diagonal_keys(
     size = mesh.face_sizes[face]
     step = (pos_b - pos_a) % size
     inner = (step != 1) & (step != size - 1)
-    key = np.minimum(a, b)[inner] * n + np.maximum(a, b)[inner]
+    key = edge_keys(np.stack([a[inner], b[inner]], axis=1), mesh.n_vertices)
     pairs = np.unique(np.stack([face[inner], key], axis=1), axis=0)  # (D, 2)
     return pairs[:, 0], pairs[:, 1]
 
@@ -411,9 +412,8 @@ def triangulate_manifold(mesh: PolygonMesh) -> tuple[FloatArray, IntArray, IntAr
     triangles, source = triangulate_faces(mesh)
     if triangles.size == 0 or not np.any(mesh.face_sizes > 3):
         return mesh.vertices, triangles, source
-    n = max(mesh.n_vertices, 1)
     diag_face, diag_key = _diagonal_keys(mesh, triangles, source)
-    side_key = mesh.edges[:, 0] * n + mesh.edges[:, 1]
+    side_key = edge_keys(mesh.edges, mesh.n_vertices)
     keys, owners = np.unique(diag_key, return_counts=True)
     shared = keys[owners > 1]
     suspect = np.unique(diag_face[np.isin(diag_key, side_key) | np.isin(diag_key, shared)])
@@ -421,9 +421,7 @@ def triangulate_manifold(mesh: PolygonMesh) -> tuple[FloatArray, IntArray, IntAr
         return mesh.vertices, triangles, source
 
     sides = set(side_key.tolist())
-    uses: dict[int, int] = {}
-    for key in diag_key.tolist():
-        uses[key] = uses.get(key, 0) + 1
+    uses = dict(zip(keys.tolist(), owners.tolist(), strict=True))  # diagonal -> faces using it
     face_diagonals: dict[int, list[int]] = {int(f): [] for f in suspect}
     for f, key in zip(diag_face.tolist(), diag_key.tolist(), strict=True):
         if f in face_diagonals:
@@ -446,8 +444,8 @@ def triangulate_manifold(mesh: PolygonMesh) -> tuple[FloatArray, IntArray, IntAr
         chosen_keys: list[int] = []
         for apex in _fan_order(mesh.vertices[face]):
             others = face[(apex + np.arange(2, size - 1)) % size]  # the apex's non-neighbours
-            lo, hi = np.minimum(face[apex], others), np.maximum(face[apex], others)
-            fan_keys = (lo * n + hi).tolist()
+            spokes = np.stack([np.full(len(others), face[apex]), others], axis=1)
+            fan_keys = edge_keys(spokes, mesh.n_vertices).tolist()
             if not any(k in sides or uses.get(k, 0) > 0 for k in fan_keys):
                 chosen, chosen_keys = face[_fan(size, apex)], fan_keys
                 break
