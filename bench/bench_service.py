@@ -218,10 +218,9 @@ def bench_steps(url: str, generator, cloud: np.ndarray, sweep: list[int], reques
     rows = []
     records = []
     if data is not None:
-        from spacemesh.data.shards import open_dataset
+        from spacemesh.data.shards import first_records
 
-        limit = generator.spec.max_vertices
-        records = [r for r in open_dataset(data) if r.mesh.n_vertices <= limit][:shapes]
+        records = first_records(data, max_vertices=generator.spec.max_vertices, limit=shapes)
     for steps in sweep:
         row: dict[str, Any] = {"steps": steps,
                                **bench_latency(url, cloud, requests, steps)["end_to_end_ms"]}

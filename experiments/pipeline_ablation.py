@@ -42,7 +42,7 @@ def main() -> int:
     parser.add_argument("--threads", type=int, default=1, help="onnxruntime threads")
     args = parser.parse_args()
 
-    from spacemesh.data.shards import open_dataset
+    from spacemesh.data.shards import first_records
     from spacemesh.runtime.pipeline import MeshGenerator
     from spacemesh.train.evaluate import pipeline_metrics
 
@@ -62,9 +62,8 @@ def main() -> int:
         if spacing is not None:
             generator.spec = replace(generator.spec, vertex_spacing=spacing)
         if records is None:
-            limit = generator.spec.max_vertices
-            records = [r for r in open_dataset(args.data) if r.mesh.n_vertices <= limit]
-            records = records[: args.shapes]
+            records = first_records(args.data, max_vertices=generator.spec.max_vertices,
+                                    limit=args.shapes)
         m = pipeline_metrics(generator, records, steps=args.steps)
         print(f"| {path} | {generator.spec.vertex_spacing:g} | {m['chamfer_mean']:.3f} | "
               f"{m['chamfer_median']:.3f} | {m['f1_mean']:.3f} | {m['vertices_mean']:.1f} | "

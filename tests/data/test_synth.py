@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from spacemesh.data.shards import SPLITS, MeshRecord, open_dataset
+from spacemesh.data.shards import SPLITS, MeshRecord, first_records, open_dataset
 from spacemesh.data.synth import SynthConfig, make_shape, synthesize
 from spacemesh.data.validate import validate_mesh
 
@@ -137,3 +137,9 @@ def test_open_dataset_and_independent_check(dataset_pair):
     assert dataset[-1].shape_id == dataset[len(dataset) - 1].shape_id
     with pytest.raises(ValueError):
         open_dataset(one, "training")
+    # the first shapes that fit a model's tokens, in storage order
+    cap = int(np.median([r.mesh.n_vertices for r in dataset]))
+    fitting = [r.shape_id for r in dataset if r.mesh.n_vertices <= cap]
+    assert [r.shape_id for r in first_records(one, max_vertices=cap, limit=3)] == fitting[:3]
+    val = [r.shape_id for r in open_dataset(one, "val")]
+    assert [r.shape_id for r in first_records(one, "val", max_vertices=10**6, limit=99)] == val

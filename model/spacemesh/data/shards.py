@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import hashlib
 import io
+import itertools
 import json
 import os
 import zipfile
@@ -376,3 +377,26 @@ def open_dataset(
         A sequence of :class:`MeshRecord`.
     """
     return Dataset(Path(directory), split, cache_shards)
+
+
+def first_records(
+    directory: str | os.PathLike, split: str | None = None, *, max_vertices: int,
+    limit: int,
+) -> list[MeshRecord]:
+    """The first ``limit`` shapes of a dataset (or split) with at most ``max_vertices``
+    vertices, in storage order, reading no shard past the last one needed.
+
+    Parameters
+    ----------
+    directory : path
+    split : {"train", "val", "test"}, optional
+    max_vertices : int
+        A model's vertex tokens: larger shapes are skipped.
+    limit : int
+
+    Returns
+    -------
+    list of MeshRecord
+    """
+    fitting = (r for r in open_dataset(directory, split) if r.mesh.n_vertices <= max_vertices)
+    return list(itertools.islice(fitting, limit))

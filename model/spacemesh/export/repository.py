@@ -287,7 +287,7 @@ def heldout_metrics(
     -------
     dict
     """
-    from spacemesh.data.shards import open_dataset
+    from spacemesh.data.shards import first_records
     from spacemesh.runtime.pipeline import MeshGenerator
     from spacemesh.train.evaluate import connectivity_metrics, pipeline_metrics
     from spacemesh.train.loop import load_samples
@@ -295,8 +295,7 @@ def heldout_metrics(
     max_vertices = model.config.max_vertices
     samples = load_samples(data, None, max_vertices, limit=connectivity_shapes)
     conn = connectivity_metrics(model, samples)
-    records = [r for r in open_dataset(data) if r.mesh.n_vertices <= max_vertices]
-    records = records[:pipeline_shapes]
+    records = first_records(data, max_vertices=max_vertices, limit=pipeline_shapes)
     generator = MeshGenerator.from_repository(version_dir, intra_op_threads=threads)
     pipe = pipeline_metrics(generator, records, steps=steps)
     return {
@@ -343,14 +342,13 @@ def calibrate_vertex_spacing(
     """
     from tqdm.auto import tqdm
 
-    from spacemesh.data.shards import open_dataset
+    from spacemesh.data.shards import first_records
     from spacemesh.runtime.pipeline import MeshGenerator
     from spacemesh.train.evaluate import pipeline_metrics
 
     generator = MeshGenerator.from_repository(version_dir, intra_op_threads=threads)
     spec = generator.spec
-    records = [r for r in open_dataset(data, "val") if r.mesh.n_vertices <= spec.max_vertices]
-    records = records[:shapes]
+    records = first_records(data, "val", max_vertices=spec.max_vertices, limit=shapes)
     rows = []
     for spacing in tqdm(grid, desc="vertex spacing", disable=not progress):
         generator.spec = replace(spec, vertex_spacing=float(spacing))
