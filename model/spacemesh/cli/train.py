@@ -58,6 +58,11 @@ def train(
     progress: Annotated[
         bool, typer.Option("--progress/--no-progress", help="Progress bar.")
     ] = True,
+    base: Annotated[
+        Path | None,
+        typer.Option("--base", help="A model repository: train only the config's connectivity "
+                     "network, on its frozen encoder (its encoder and denoiser are kept)."),
+    ] = None,
 ) -> None:
     """Train the encoder, denoiser and connectivity network on a dataset."""
     _require_torch()
@@ -75,10 +80,18 @@ def train(
         fail(f"{data}: not a dataset folder (no manifest.json)")
     if val_data is not None and not (val_data / "manifest.json").is_file():
         fail(f"{val_data}: not a dataset folder (no manifest.json)")
+    if base is not None:
+        from spacemesh.nn.base_model import BaseModel
+
+        try:
+            BaseModel.load(base)
+        except ValueError as error:
+            fail(str(error))
     options = TrainOptions(
         config=model_config, data=data, out=out, resume=resume, steps=steps, val_data=val_data,
         device=device, threads=threads or None, seed=seed,
         max_seconds=None if max_minutes is None else max_minutes * 60, progress=progress,
+        base=base,
     )
     try:
         summary = run_training(options, log=lambda m: typer.echo(m, err=True))

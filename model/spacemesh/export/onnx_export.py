@@ -123,7 +123,8 @@ def _export_quietly(module: nn.Module, args: tuple, path: Path, input_names, out
 
 
 def export_onnx(
-    model: SpaceMeshModel, directory: str | Path, *, opset: int = OPSET
+    model: SpaceMeshModel, directory: str | Path, *, opset: int = OPSET,
+    graphs: tuple[str, ...] = tuple(GRAPH_FILES),
 ) -> dict[str, Path]:
     """Write ``encoder.onnx``, ``denoiser.onnx`` and ``connectivity.onnx``.
 
@@ -134,14 +135,20 @@ def export_onnx(
     directory : path
     opset : int
         At least 20.
+    graphs : tuple of str
+        The graphs to write (a connectivity-only run writes ``("connectivity",)``; its
+        encoder may be the base's onnxruntime graph, which is only called).
 
     Returns
     -------
     dict
-        Graph name to file path.
+        Graph name to file path (of the graphs written).
     """
     if opset < 20:
         raise ValueError("opset must be 20 or higher")
+    unknown = set(graphs) - set(GRAPH_FILES)
+    if unknown:
+        raise ValueError(f"unknown graphs: {', '.join(sorted(unknown))}")
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     model = model.to("cpu").float().eval()
@@ -152,20 +159,24 @@ def export_onnx(
     points = torch.export.Dim("points", min=1, max=1 << 20)
     vertices = torch.export.Dim("vertices", min=2, max=1 << 16)
     vol_shapes = tuple({0: batch} for _ in range(n_volumes))
-    paths = {name: directory / file for name, file in GRAPH_FILES.items()}
-    _export(
-        EncoderGraph(model), args["encoder"], paths["encoder"], ENCODER_INPUTS, vols,
-        {"points": {0: batch, 1: points}}, opset,
-    )
-    _export(
-        DenoiserGraph(model), args["denoiser"], paths["denoiser"], [*DENOISER_INPUTS, *vols],
-        ["eps"], {"x_t": {0: batch, 1: vertices}, "t": {0: batch}, "volumes": vol_shapes}, opset,
-    )
-    _export(
-        ConnectivityGraph(model), args["connectivity"], paths["connectivity"],
-        [*CONNECTIVITY_INPUTS, *vols], CONNECTIVITY_OUTPUTS,
-        {"vertices": {0: batch, 1: vertices}, "valid": {0: batch, 1: vertices},
-         "volumes": vol_shapes},
-        opset,
-    )
+    paths = {name: directory / GRAPH_FILES[name] for name in graphs}
+    if "encoder" in paths:
+        _export(
+            EncoderGraph(model), args["encoder"], paths["encoder"], ENCODER_INPUTS, vols,
+            {"points": {0: batch, 1: points}}, opset,
+        )
+    if "denoiser" in paths:
+        _export(
+            DenoiserGraph(model), args["denoiser"], paths["denoiser"],
+            [*DENOISER_INPUTS, *vols], ["eps"],
+            {"x_t": {0: batch, 1: vertices}, "t": {0: batch}, "volumes": vol_shapes}, opset,
+        )
+    if "connectivity" in paths:
+        _export(
+            ConnectivityGraph(model), args["connectivity"], paths["connectivity"],
+            [*CONNECTIVITY_INPUTS, *vols], CONNECTIVITY_OUTPUTS,
+            {"vertices": {0: batch, 1: vertices}, "valid": {0: batch, 1: vertices},
+             "volumes": vol_shapes},
+            opset,
+        )
     return paths

@@ -52,6 +52,7 @@ import numpy as np
 import torch
 
 from spacemesh.export.onnx_export import GRAPH_FILES, OPSET, export_onnx
+from spacemesh.nn.base_model import BaseModel, OnnxEncoder
 from spacemesh.nn.model import SpaceMeshModel
 from spacemesh.permutation import SINKHORN_ITERS
 from spacemesh.runtime.backend import (
@@ -61,7 +62,12 @@ from spacemesh.runtime.backend import (
     ENCODER_INPUTS,
     volume_names,
 )
-from spacemesh.runtime.repository import FORMAT, FORMAT_VERSION, MANIFEST, sha256_file
+from spacemesh.runtime.repository import (
+    FORMAT,
+    FORMAT_VERSION,
+    MANIFEST,
+    sha256_file,
+)
 
 
 def graph_signatures(n_volumes: int) -> dict[str, dict[str, Any]]:
@@ -171,6 +177,7 @@ def write_model_repository(
     training: dict[str, Any] | None = None,
     metrics: dict[str, Any] | None = None,
     overwrite: bool = True,
+    base: BaseModel | None = None,
 ) -> Path:
     """Export the graphs and write ``ROOT/NAME/VERSION`` with its manifest.
 
@@ -186,6 +193,9 @@ def write_model_repository(
         Data card, training record and held-out metrics for the manifest.
     overwrite : bool
         Replace an existing version folder.
+    base : BaseModel, optional
+        A connectivity-only run's base: its encoder and denoiser graphs are copied
+        byte for byte and only the connectivity graph is exported.
 
     Returns
     -------
@@ -193,11 +203,18 @@ def write_model_repository(
         The version folder.
     """
     directory = Path(root) / name / str(version)
+    if base is not None and directory.resolve() == base.path:
+        raise ValueError(f"{directory} is the run's base model; export to another version")
     if directory.exists():
         if not overwrite:
             raise FileExistsError(f"{directory} exists")
         shutil.rmtree(directory)
-    export_onnx(model, directory, opset=opset)
+    if base is None:
+        export_onnx(model, directory, opset=opset)
+    else:
+        export_onnx(model, directory, opset=opset, graphs=("connectivity",))
+        for graph in ("encoder", "denoiser"):
+            shutil.copyfile(base.graph_path(graph), directory / GRAPH_FILES[graph])
     manifest = build_manifest(model, directory, name=name, version=version, opset=opset,
                               data=data, training=training, metrics=metrics)
     write_manifest(directory, manifest)
@@ -251,8 +268,31 @@ def load_trained_model(checkpoint: str | Path) -> tuple[SpaceMeshModel, dict[str
         path = found
     state = load_checkpoint(path, map_location="cpu")
     model = model_from_config(state["config"])
+    base = run_base(state)
+    if base is not None:
+        model.encoder = OnnxEncoder(base.graph_path("encoder"))
     model.load_state_dict(state["model"])
     return model.eval(), state
+
+
+def run_base(state: dict[str, Any]) -> BaseModel | None:
+    """The base model of a connectivity-only run's checkpoint state (None for a full run),
+    checked against the files the run was trained on.
+
+    Raises
+    ------
+    ValueError
+        The base's files changed since training.
+    """
+    card = state["extra"].get("base")
+    if card is None:
+        return None
+    base = BaseModel.load(card["path"])
+    now = {f: e["sha256"] for f, e in base.manifest["files"].items()}
+    for graph in ("encoder.onnx", "denoiser.onnx"):
+        if now.get(graph) != card["files"].get(graph):
+            raise ValueError(f"the base model {base.path} changed since training ({graph})")
+    return base
 
 
 def heldout_metrics(
@@ -412,6 +452,7 @@ def export_run(
         The version folder.
     """
     model, state = load_trained_model(run)
+    base = run_base(state)
     extra = state["extra"]
     config = state["config"]
     name = name or f"spacemesh-{config.name}"
@@ -425,6 +466,13 @@ def export_run(
         "optimizer": f"Adam(lr={config.train.lr})",
         "parameters": sum(p.numel() for p in model.parameters()),
     }
+    if base is not None:
+        training["connectivity_steps"] = state["step"] * config.train.connectivity_steps
+        training["steps"] = 0
+        training["parameters"] = sum(p.numel() for p in model.connectivity.parameters())
+        training["trained"] = "connectivity network only, on the base's frozen encoder"
+        training["base"] = {k: extra["base"][k] for k in ("name", "version", "files")}
+        training["base_training"] = extra["base"].get("training", {})
     if calibrate_data is not None:
         from spacemesh.train.evaluate import calibrate_threshold
         from spacemesh.train.loop import load_samples
@@ -439,9 +487,11 @@ def export_run(
                            "calibration": f"max mean edge F1 on {len(samples)} shapes of the "
                                           f"val split of {Path(calibrate_data).name}"}
     metrics = {"validation": extra.get("validation", {})}
-    directory = write_model_repository(model, root, name=name, version=version,
-                                       data=extra.get("data", {}), training=training,
-                                       metrics=metrics)
+    data = dict(extra.get("data", {}))
+    if "base" in data:  # what the base was trained on, without this machine's path
+        data["base"] = {k: v for k, v in data["base"].items() if k != "path"}
+    directory = write_model_repository(model, root, name=name, version=version, data=data,
+                                       training=training, metrics=metrics, base=base)
     if calibrate_data is not None:
         spacing = calibrate_vertex_spacing(directory, calibrate_data, threads=threads)
         training["vertex_spacing"] = spacing

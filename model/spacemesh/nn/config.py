@@ -6,7 +6,8 @@ Three named configurations:
     For tests: trains in seconds, exports in seconds (width 32, one block, 64 vertices).
 ``small``
     The shipped default: trainable on a 2-core CPU in about an hour, fast at inference
-    (denoiser width 128, connectivity width 64, volumes 16/8, 256 vertices).
+    (denoiser width 128, connectivity width 128 with nearest-neighbour offsets and
+    geometric attention, volumes 16/8, 256 vertices).
 ``paper``
     The sizes of the paper's Supplement C: embeddings 32 and 12, ten blocks of width 256,
     PVConv resolutions 32/16/8 with 64/128/256 channels, 1024 timesteps, 512 vertices.
@@ -95,6 +96,12 @@ class ConnectivityConfig:
         distance below a threshold instead of a random graph.
     point_voxel : tuple of (resolution, channels)
         Optional PVConv layers on the vertex tokens, as in the paper.
+    neighbours : int
+        Offsets to each vertex's ``K`` nearest vertices added to its input (0: none; see
+        :mod:`spacemesh.nn.geometry`).
+    geometric_attention : bool
+        Each attention head also returns the mean and covariance of the offsets to the
+        vertices it attends to.
     """
 
     width: int = 128
@@ -109,6 +116,8 @@ class ConnectivityConfig:
     fourier: int = 0
     position_prior: bool = False
     point_voxel: tuple[tuple[int, int], ...] = ()
+    neighbours: int = 0
+    geometric_attention: bool = False
 
 
 @dataclass(frozen=True)
@@ -260,7 +269,7 @@ TINY = ModelConfig(
     denoiser=DenoiserConfig(width=32, layers=1, heads=2),
     connectivity=ConnectivityConfig(
         width=32, layers=2, heads=2, adjacency_dim=16, n_space=8, permutation_dim=6, fourier=2,
-        position_prior=True,
+        position_prior=True, neighbours=4, geometric_attention=True,
     ),
     diffusion=DiffusionConfig(timesteps=64, steps=8),
     train=TrainConfig(
@@ -275,13 +284,13 @@ SMALL = ModelConfig(
     encoder=EncoderConfig(n_points=2048, stem=32, resolutions=(16, 8), channels=(32, 64)),
     denoiser=DenoiserConfig(width=128, layers=4, heads=4),
     connectivity=ConnectivityConfig(
-        width=64, layers=4, heads=4, adjacency_dim=32, n_space=16, permutation_dim=12,
-        fourier=4, position_prior=True,
+        width=128, layers=4, heads=4, adjacency_dim=32, n_space=16, permutation_dim=12,
+        fourier=4, position_prior=True, neighbours=16, geometric_attention=True,
     ),
     diffusion=DiffusionConfig(timesteps=1024, schedule="cosine", sampler="ddim", steps=50),
     train=TrainConfig(batch_size=6, lr=7e-4, warmup=20, final_lr_ratio=0.1, steps=2000,
                       connectivity_steps=10,
-                      connectivity_trains_encoder=False, val_every=20, checkpoint_every=20,
+                      connectivity_trains_encoder=False, val_every=100, checkpoint_every=100,
                       val_shapes=24),
 )
 

@@ -6,7 +6,10 @@ adjacency embedding ``x`` (``k``) and the permutation embeddings ``y_root``, ``y
 ``y_next`` (``kp`` each); the edge threshold ``tau`` is one learned scalar. Padding
 vertices are masked out of attention. An optional distance prior adds
 ``-s_h |p_i - p_j|^2`` to the logits of head ``h`` (learned ``s_h > 0``): relative and
-permutation-equivariant, so the network stays a function of the vertex *set*.
+permutation-equivariant, so the network stays a function of the vertex *set*. Two
+optional local-geometry features (:mod:`spacemesh.nn.geometry`), also relative and
+permutation-equivariant: the offsets to each vertex's ``K`` nearest vertices added to its
+input, and geometric attention (each head's offset moments added to its output).
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
+from spacemesh.nn.geometry import neighbour_offsets
 from spacemesh.nn.pvcnn import PointVoxelStack, sample_volumes
 from spacemesh.nn.transformer import Transformer, key_padding_bias
 
@@ -54,22 +58,34 @@ class ConnectivityNet(nn.Module):
         coordinates) with a learned ``c``, and start from small network outputs.
     point_voxel : tuple of (resolution, channels)
         Optional PVConv layers on the tokens.
+    neighbours : int
+        ``K`` of the nearest-neighbour offsets added to each token (0: none).
+    geometric_attention : bool
+        Add each head's offset moments to its attention output.
     """
 
     def __init__(
         self, *, width: int, layers: int, heads: int, feature_channels: int,
         adjacency_dim: int, permutation_dim: int, distance_bias: bool = True, fourier: int = 0,
         position_prior: bool = False, point_voxel: tuple[tuple[int, int], ...] = (),
+        neighbours: int = 0, geometric_attention: bool = False,
     ) -> None:
         super().__init__()
         self.adjacency_dim = adjacency_dim
         self.permutation_dim = permutation_dim
         self.heads = heads
         self.fourier = fourier
+        self.neighbours = neighbours
+        self.geometric_attention = geometric_attention
         self.input_proj = nn.Linear(3 + 6 * fourier + feature_channels, width)
+        self.neighbour_mlp = (
+            nn.Sequential(nn.Linear(4 * neighbours, width), nn.GELU(), nn.Linear(width, width))
+            if neighbours else None
+        )
         self.point_voxel = PointVoxelStack(width=width, layers=point_voxel)
         self.ln_pre = nn.LayerNorm(width)
-        self.backbone = Transformer(width=width, layers=layers, heads=heads)
+        self.backbone = Transformer(width=width, layers=layers, heads=heads,
+                                    geometry=geometric_attention)
         self.ln_post = nn.LayerNorm(width)
         self.output_proj = nn.Linear(width, adjacency_dim + 3 * permutation_dim)
         std = (0.1 if position_prior else 1.0) / math.sqrt(width)
@@ -121,8 +137,12 @@ class ConnectivityNet(nn.Module):
         features = sample_volumes(volumes, vertices)  # (B, N, F)
         inputs = [vertices, *fourier_features(vertices, self.fourier), features]
         h = self.input_proj(torch.cat(inputs, dim=-1))  # (B, N, W)
+        if self.neighbour_mlp is not None:
+            h = h + self.neighbour_mlp(neighbour_offsets(vertices, valid, self.neighbours))
         h = self.point_voxel(h, vertices)
-        h = self.ln_post(self.backbone(self.ln_pre(h), self.attention_bias(vertices, valid)))
+        positions = vertices if self.geometric_attention else None
+        bias = self.attention_bias(vertices, valid)
+        h = self.ln_post(self.backbone(self.ln_pre(h), bias, positions))
         out = self.output_proj(h).float()  # (B, N, k + 3 kp)
         k, kp = self.adjacency_dim, self.permutation_dim
         x = out[..., :k]

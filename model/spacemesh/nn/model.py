@@ -63,6 +63,7 @@ class SpaceMeshModel(nn.Module):
             adjacency_dim=con.adjacency_dim, permutation_dim=con.permutation_dim,
             distance_bias=con.distance_bias, fourier=con.fourier,
             position_prior=con.position_prior, point_voxel=con.point_voxel,
+            neighbours=con.neighbours, geometric_attention=con.geometric_attention,
         )
         self.reduction = PermutationReduction(con.reduction, dim=con.permutation_dim)
         self.diffusion = GaussianDiffusion(

@@ -6,6 +6,12 @@ that train the connectivity network (and, if configured, the encoder) on ground-
 vertices: other batches, of shapes of similar size, padded to their own largest shape.
 Steps are counted in diffusion steps.
 
+With a *base* (``TrainOptions.base``, a model repository), only the connectivity network
+trains: on the base's frozen encoder, run in onnxruntime
+(:class:`spacemesh.nn.base_model.OnnxEncoder`); a step is then ``connectivity_steps``
+connectivity steps and no diffusion step, and export keeps the base's encoder and
+denoiser graphs.
+
 A run folder holds::
 
     RUN/config.json              the ModelConfig
@@ -32,6 +38,7 @@ import numpy as np
 import torch
 
 from spacemesh.data.shards import MANIFEST, open_dataset
+from spacemesh.nn.base_model import BaseModel, OnnxEncoder
 from spacemesh.nn.config import ModelConfig, TrainConfig, model_from_config
 from spacemesh.nn.model import SpaceMeshModel
 from spacemesh.train.batching import Sample, collate, prepare_sample
@@ -100,6 +107,9 @@ class TrainOptions:
         Stop (with a checkpoint) once this much wall time has passed in this session.
     progress : bool
         Show a progress bar.
+    base : Path, optional
+        A model repository: train only a new connectivity network (``config``'s) on its
+        frozen encoder; the encoder, denoiser, diffusion and vertex count are the base's.
     """
 
     config: ModelConfig
@@ -113,6 +123,7 @@ class TrainOptions:
     seed: int = 0
     max_seconds: float | None = None
     progress: bool = True
+    base: Path | None = None
 
 
 @dataclass
@@ -211,6 +222,7 @@ class Trainer:
         self.start_step = 0
         self.elapsed_before = 0.0
         state = None
+        base_path = options.base
         if options.resume:
             last = latest_checkpoint(self.out)
             if last is None:
@@ -223,11 +235,24 @@ class Trainer:
                     steps=config.train.steps, final_lr_ratio=config.train.final_lr_ratio,
                     connectivity_jitter=config.train.connectivity_jitter,
                 )
+                stored_base = state["extra"].get("base")
+                if stored_base is not None:
+                    base_path = Path(stored_base["path"])
+        self.base = None if base_path is None else BaseModel.load(base_path)
+        if self.base is not None:
+            if state is None:
+                config = self.base.merged_config(config)
+            log(f"connectivity only, on the frozen encoder of {self.base.path}")
         self.config = config
         self.rng = np.random.default_rng(options.seed + 1000 * info.rank)
         self.generator = torch.Generator().manual_seed(options.seed + 1000 * info.rank)
         self.model: SpaceMeshModel = model_from_config(config).to(info.device)
-        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.train.lr)
+        if self.base is not None:
+            self.model.encoder = OnnxEncoder(self.base.graph_path("encoder"),
+                                             threads=options.threads or 0)
+            self.model.denoiser.requires_grad_(False)
+        trainable = [p for p in self.model.parameters() if p.requires_grad]
+        self.optimizer = torch.optim.Adam(trainable, lr=config.train.lr)
         if state is not None:
             self.model.load_state_dict(state["model"])
             self.optimizer.load_state_dict(state["optimizer"])
@@ -250,6 +275,8 @@ class Trainer:
         val_split = None if options.val_data else "val"
         self.val_samples = load_samples(val_dir, val_split, mv, config.train.val_shapes, log=log)
         self.card = data_card(options.data, mv, len(self.train_samples), len(self.val_samples))
+        if self.base is not None:
+            self.card["base"] = self.base.card()
         self.metrics = MetricsLog(self.out / "metrics.csv")
         self.last_validation: dict[str, float] = (
             dict(state["extra"].get("validation", {})) if state is not None else {}
@@ -311,12 +338,13 @@ class Trainer:
         bs = self.config.train.batch_size
         for start in range(0, len(self.val_samples), bs):
             chunk = self.val_samples[start : start + bs]
-            b = collate(chunk, n_points=enc.n_points, normals=enc.normals,
-                        pad_to=self.config.max_vertices, connectivity=False, rng=rng)
-            b = b.to(self.info.device)
-            out = model("diffusion", b.points, b.positions, b.valid, generator=gen)
-            sums["val_epsilon"].append(float(out["epsilon"]))
-            sums["val_mask"].append(float(out["mask"]))
+            if self.base is None:
+                b = collate(chunk, n_points=enc.n_points, normals=enc.normals,
+                            pad_to=self.config.max_vertices, connectivity=False, rng=rng)
+                b = b.to(self.info.device)
+                out = model("diffusion", b.points, b.positions, b.valid, generator=gen)
+                sums["val_epsilon"].append(float(out["epsilon"]))
+                sums["val_mask"].append(float(out["mask"]))
             b = collate(chunk, n_points=enc.n_points, normals=enc.normals, rng=rng)
             b = b.to(self.info.device)
             out = model("connectivity", b.points, b.positions, b.valid, b.adjacency, b.table)
@@ -335,6 +363,8 @@ class Trainer:
         validation = {k.removeprefix("val_"): v for k, v in self.last_validation.items()}
         extra = {"train_seconds": seconds, "data": self.card, "world_size": self.info.world_size,
                  "device": str(self.info.device), "validation": validation}
+        if self.base is not None:
+            extra["base"] = self.base.card()
         path = save_checkpoint(folder / LAST, model=self.model, optimizer=self.optimizer,
                                step=step, config=self.config, rng=self.rng,
                                torch_generator=self.generator, extra=extra)
@@ -358,17 +388,20 @@ class Trainer:
         while step < train.steps:
             for group in self.optimizer.param_groups:
                 group["lr"] = self.lr_at(step)
-            for k, v in self._step("diffusion").items():
-                running[f"train_{k}" if k != "loss" else "train_diffusion_loss"].append(v)
+            if self.base is None:
+                for k, v in self._step("diffusion").items():
+                    running[f"train_{k}" if k != "loss" else "train_diffusion_loss"].append(v)
             for _ in range(train.connectivity_steps):
                 for k, v in self._step("connectivity").items():
                     running[f"train_{k}" if k != "loss" else "train_connectivity_loss"].append(v)
             step += 1
             seconds = self.elapsed_before + time.perf_counter() - start
             bar.update(1)
-            bar.set_postfix(eps=f"{np.mean(running['train_epsilon'][-20:]):.3f}",
-                            edge=f"{np.mean(running['train_edge'][-20:]):.4f}",
-                            perm=f"{np.mean(running['train_permutation'][-20:]):.3f}")
+            postfix = {"edge": f"{np.mean(running['train_edge'][-20:]):.4f}",
+                       "perm": f"{np.mean(running['train_permutation'][-20:]):.3f}"}
+            if self.base is None:
+                postfix["eps"] = f"{np.mean(running['train_epsilon'][-20:]):.3f}"
+            bar.set_postfix(postfix)
             out_of_time = self.options.max_seconds is not None and (
                 time.perf_counter() - start > self.options.max_seconds
             )
@@ -381,9 +414,11 @@ class Trainer:
                     if step % train.val_every == 0 or stop:
                         self.last_validation = {"step": step, **self.validate()}
                         row.update(self.last_validation)
+                        eps = row.get("val_epsilon")
                         self.log(
                             f"step {step}: val edge F1 {row['val_edge_f1']:.4f}, next "
-                            f"{row['val_next_accuracy']:.4f}, eps {row['val_epsilon']:.4f}"
+                            f"{row['val_next_accuracy']:.4f}"
+                            + ("" if eps is None else f", eps {eps:.4f}")
                         )
                     self.metrics.append(row)
                     plot_curves(self.metrics, self.out / "curves.png")
