@@ -5,10 +5,10 @@ Usage::
     .venv/bin/python bench/bench_denoiser_step.py [--model DIR] [--vertices 512]
         [--batch 1] [--threads 2] [--repeats 20]
 
-Without ``--model`` it measures the shipped model (``models/spacemesh-small/1``). With
-``--config small`` instead it exports a randomly initialised model of that config first
-(needs torch), which is how the width-128 latency is measured before any training.
-Prints one JSON line: the median and 90th percentile of a step, in milliseconds.
+Without ``--model`` it measures the shipped model (``models/spacemesh-small``, its
+highest version). With ``--config small`` instead it exports a randomly initialised model
+of that config first (needs torch), which is how the width-128 latency is measured before
+any training. Prints one JSON line: the median and 90th percentile of a step, in milliseconds.
 """
 
 from __future__ import annotations

@@ -5,7 +5,8 @@ sha256; :meth:`ModelRepository.load` checks them all before creating any session
 raises :class:`ModelRepositoryError` naming the file on a mismatch or a missing file.
 onnxruntime sessions are created once per repository, with explicit thread counts.
 
-The shipped default model lives in the source tree at ``models/spacemesh-small/1`` (see
+The shipped default model lives in the source tree at ``models/spacemesh-small`` (its
+highest version, 2, is loaded; version 1 is version 2's training base; see
 :data:`DEFAULT_MODEL_DIR`); the ``SPACEMESH_MODEL`` environment variable overrides it.
 """
 

@@ -89,16 +89,21 @@ def plot_curves(log: MetricsLog, path: str | Path) -> Path | None:
         import matplotlib.pyplot as plt
     except ImportError:  # pragma: no cover
         return None
-    fig, axes = plt.subplots(1, len(PANELS), figsize=(5 * len(PANELS), 3.6))
-    for ax, (title, columns, log_scale) in zip(axes, PANELS, strict=True):
+    series = {
+        column: [(r["step"], r[column]) for r in log.rows
+                 if column in r and "step" in r and math.isfinite(r[column])]
+        for _, columns, _ in PANELS for column in columns
+    }
+    # a connectivity-only run (on a base model) logs no diffusion losses: no empty panel
+    panels = [p for p in PANELS if any(series[c] for c in p[1])] or list(PANELS)
+    fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 3.6), squeeze=False)
+    for ax, (title, columns, log_scale) in zip(axes[0], panels, strict=True):
         for column in columns:
-            points = [(r["step"], r[column]) for r in log.rows
-                      if column in r and "step" in r and math.isfinite(r[column])]
-            if points:
-                xs, ys = zip(*points, strict=True)
+            if series[column]:
+                xs, ys = zip(*series[column], strict=True)
                 ax.plot(xs, ys, label=column, marker="." if column.startswith("val") else None)
         ax.set_title(title)
-        ax.set_xlabel("diffusion step")
+        ax.set_xlabel("step")
         if log_scale and ax.lines:
             ax.set_yscale("log")
         if ax.lines:
