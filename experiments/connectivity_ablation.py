@@ -10,7 +10,7 @@ validation edge loss, edge F1 and ``next`` accuracy (24 shapes of the val split,
 docs/MODEL.md's variant table came from::
 
     python experiments/connectivity_ablation.py --data data/qem-small-s1 \\
-        --base models/spacemesh-small/1 --steps 200 --threads 2
+        --base models/spacemesh-small/1 --steps 80 --threads 2
 """
 
 from __future__ import annotations
