@@ -52,14 +52,17 @@ def export_model(args: argparse.Namespace, directory: Path) -> tuple[Path, Any]:
         from spacemesh.export.repository import load_trained_model, write_model_repository
         from spacemesh.nn.config import model_from_config
 
+        base = None  # a connectivity-only run keeps its base's encoder and denoiser graphs
         if args.checkpoint:
-            model, _ = load_trained_model(args.checkpoint)
+            model, state = load_trained_model(args.checkpoint)
+            base = state["base"]
         else:
             import torch
 
             torch.manual_seed(0)
             model = model_from_config(args.config).eval()
-        path = write_model_repository(model, directory, name=f"bench-{model.config.name}")
+        path = write_model_repository(model, directory, name=f"bench-{model.config.name}",
+                                      base=base)
         return path, model
     from spacemesh.runtime import default_model_dir
 

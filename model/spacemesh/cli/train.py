@@ -80,13 +80,6 @@ def train(
         fail(f"{data}: not a dataset folder (no manifest.json)")
     if val_data is not None and not (val_data / "manifest.json").is_file():
         fail(f"{val_data}: not a dataset folder (no manifest.json)")
-    if base is not None:
-        from spacemesh.nn.base_model import BaseModel
-
-        try:
-            BaseModel.load(base)
-        except ValueError as error:
-            fail(str(error))
     options = TrainOptions(
         config=model_config, data=data, out=out, resume=resume, steps=steps, val_data=val_data,
         device=device, threads=threads or None, seed=seed,

@@ -62,12 +62,7 @@ from spacemesh.runtime.backend import (
     ENCODER_INPUTS,
     volume_names,
 )
-from spacemesh.runtime.repository import (
-    FORMAT,
-    FORMAT_VERSION,
-    MANIFEST,
-    sha256_file,
-)
+from spacemesh.runtime.repository import FORMAT, FORMAT_VERSION, MANIFEST, sha256_file
 
 
 def graph_signatures(n_volumes: int) -> dict[str, dict[str, Any]]:
@@ -255,7 +250,9 @@ def load_trained_model(checkpoint: str | Path) -> tuple[SpaceMeshModel, dict[str
     -------
     model : SpaceMeshModel
     state : dict
-        See :func:`spacemesh.train.checkpoint.load_checkpoint`.
+        See :func:`spacemesh.train.checkpoint.load_checkpoint`, plus ``base``: the
+        verified :class:`BaseModel` of a connectivity-only run (see :func:`run_base`),
+        or None.
     """
     from spacemesh.nn.config import model_from_config
     from spacemesh.train.checkpoint import latest_checkpoint, load_checkpoint
@@ -268,7 +265,7 @@ def load_trained_model(checkpoint: str | Path) -> tuple[SpaceMeshModel, dict[str
         path = found
     state = load_checkpoint(path, map_location="cpu")
     model = model_from_config(state["config"])
-    base = run_base(state)
+    state["base"] = base = run_base(state)
     if base is not None:
         model.encoder = OnnxEncoder(base.graph_path("encoder"))
     model.load_state_dict(state["model"])
@@ -452,7 +449,7 @@ def export_run(
         The version folder.
     """
     model, state = load_trained_model(run)
-    base = run_base(state)
+    base = state["base"]
     extra = state["extra"]
     config = state["config"]
     name = name or f"spacemesh-{config.name}"
@@ -467,7 +464,6 @@ def export_run(
         "parameters": sum(p.numel() for p in model.parameters()),
     }
     if base is not None:
-        training["connectivity_steps"] = state["step"] * config.train.connectivity_steps
         training["steps"] = 0
         training["parameters"] = sum(p.numel() for p in model.connectivity.parameters())
         training["trained"] = "connectivity network only, on the base's frozen encoder"
