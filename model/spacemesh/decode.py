@@ -10,13 +10,18 @@ It follows from construction plus three rules, applied until nothing changes:
    With every degree at least 2 and one cyclic order per vertex, a face of one or two
    sides is impossible, so no two-sided orbit survives.
 2. Degree-2 vertices are kept: they lie on two faces, one on each side.
-3. A face that visits a vertex twice (a pinched polygon) loses one of the vertices it
-   repeats (the one of highest degree, then lowest index) with its edges, and the
-   affected neighbourhoods are matched again. After ``GENTLE_ROUNDS`` such rounds (only
-   pathological embeddings get there) every repeated vertex is removed at once.
+3. A face that visits a vertex twice (a pinched polygon) loses its weakest edge at a
+   repeated vertex: of the face's edges that touch a vertex it repeats, the one whose
+   embedding distance is largest (closest to the threshold). A wrong edge (a false
+   positive of the threshold) is what usually pinches a face, and it is usually a weak
+   one. The two neighbourhoods are matched again. After ``EDGE_ROUNDS`` such rounds
+   (or from the start with ``DecodeOptions(unpinch="vertex")``) a pinched face instead
+   loses one of the vertices it repeats (the one of highest degree, then lowest index)
+   with its edges; after ``GENTLE_ROUNDS`` of those (only pathological embeddings get
+   there) every repeated vertex is removed at once.
 
-Each round removes at least one vertex, so decoding terminates; in the worst case (an
-adversarial embedding) the result is the empty mesh, which is valid. Non-finite
+Each round removes at least one edge or vertex, so decoding terminates; in the worst
+case (an adversarial embedding) the result is the empty mesh, which is valid. Non-finite
 embedding entries are treated as "no edge" for that vertex. See docs/REPRESENTATION.md.
 """
 
@@ -37,13 +42,17 @@ from spacemesh.permutation import (
     group_by_degree,
     neighbourhood_log_phi_bar,
 )
-from spacemesh.spacetime import Distance, edges_below_threshold
+from spacemesh.spacetime import Distance, distance_operands, edges_below_threshold
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
+#: Rounds of one-edge-per-pinched-face removal before the vertex rule takes over.
+EDGE_ROUNDS = 30
 #: Rounds of one-vertex-per-face removal before every repeated vertex goes at once.
 GENTLE_ROUNDS = 12
 #: Fallbacks for a vertex whose optimal assignment is not a single orbit.
 Fallback = Literal["angular", "greedy"]
+#: What a pinched face loses first: its weakest edge, or one of its repeated vertices.
+Unpinch = Literal["edge", "vertex"]
 
 #: Degree bound applied while decoding arbitrary embeddings (see edges_below_threshold).
 MAX_DEGREE = 64
@@ -80,7 +89,9 @@ class DecodeOptions:
     """How embeddings are read: distance, reduction, Sinkhorn iterations, degree bound,
     and the fallback for a vertex whose optimal assignment is not one orbit: ``angular``
     (its neighbours by angle, in the direction ``Phi_bar`` prefers; needs positions) or
-    ``greedy`` (the paper's greedy single orbit, used without positions)."""
+    ``greedy`` (the paper's greedy single orbit, used without positions), and what a
+    pinched face loses first: its weakest ``edge`` (default) or a repeated ``vertex``
+    (see the module docstring)."""
 
     distance: Distance = "spacetime"
     n_space: int | None = None
@@ -89,6 +100,7 @@ class DecodeOptions:
     sinkhorn_iters: int = SINKHORN_ITERS
     max_degree: int | None = MAX_DEGREE
     fallback: Fallback = "angular"
+    unpinch: Unpinch = "edge"
 
 
 @dataclass
@@ -109,8 +121,10 @@ class DecodeResult:
         Vertices removed for degree below 2 (isolated vertices included).
     n_unpinched : int
         Vertices removed because a face visited them twice.
+    n_unpinch_edges : int
+        Edges removed because a face visited one of their vertices twice.
     rounds : int
-        Matching rounds (1 when no vertex had to be removed for a pinched face).
+        Matching rounds (1 when no face was pinched).
     """
 
     mesh: PolygonMesh
@@ -119,6 +133,7 @@ class DecodeResult:
     n_fallbacks: int = 0
     n_pruned: int = 0
     n_unpinched: int = 0
+    n_unpinch_edges: int = 0
     rounds: int = 1
     stats: dict = field(default_factory=dict)
 
@@ -135,6 +150,27 @@ def _prune_low_degree(edges: IntArray, alive: BoolArray) -> tuple[IntArray, Bool
             return edges, alive, n_removed
         alive = alive & ~low
         n_removed += int(low.sum())
+
+
+def _repeated_in_faces(
+    indices: IntArray, offsets: IntArray, n_vertices: int
+) -> tuple[IntArray, IntArray, IntArray]:
+    """The (face, vertex) pairs where a face visits a vertex more than once.
+
+    Returns
+    -------
+    face : (S,) int64
+        The face of each slot of ``indices``.
+    repeated : (R,) int64
+        Distinct keys ``face * n_vertices + vertex`` of the repeats.
+    rep_face, rep_vertex : (R,) int64
+        The same, split.
+    """
+    face = np.repeat(np.arange(len(offsets) - 1, dtype=np.int64), np.diff(offsets))
+    key = np.sort(face * n_vertices + indices)
+    repeated = np.unique(key[1:][key[1:] == key[:-1]])
+    rep_face, rep_vertex = np.divmod(repeated, n_vertices)
+    return face, repeated, rep_face, rep_vertex
 
 
 def _pinched_vertices(
@@ -155,19 +191,52 @@ def _pinched_vertices(
     (P,) int64
         Distinct vertices to remove.
     """
-    n_vertices = len(degree)
-    face = np.repeat(np.arange(len(offsets) - 1, dtype=np.int64), np.diff(offsets))
-    key = np.sort(face * n_vertices + indices)
-    repeated = np.unique(key[1:][key[1:] == key[:-1]])
-    if repeated.size == 0:
-        return repeated
-    rep_face, rep_vertex = np.divmod(repeated, n_vertices)
-    if all_repeated:
+    _face, repeated, rep_face, rep_vertex = _repeated_in_faces(indices, offsets, len(degree))
+    if repeated.size == 0 or all_repeated:
         return np.unique(rep_vertex)
     # within each face: highest degree first, then lowest index
     order = np.lexsort((rep_vertex, -degree[rep_vertex], rep_face))
     first = np.concatenate([[True], rep_face[order][1:] != rep_face[order][:-1]])
     return np.unique(rep_vertex[order][first])
+
+
+def _pinched_face_edges(
+    indices: IntArray, offsets: IntArray, n_vertices: int, edge_keys: IntArray,
+    edge_distance: FloatArray,
+) -> IntArray:
+    """One edge per pinched face: of its edges that touch a vertex it repeats, the one
+    of largest embedding distance (then lowest key).
+
+    Parameters
+    ----------
+    indices, offsets : CSR faces
+    n_vertices : int
+    edge_keys : (E,) int64
+        Sorted keys ``i * N + j`` (``i < j``) of every edge the faces may use.
+    edge_distance : (E,) float
+        The embedding distance of each of those edges.
+
+    Returns
+    -------
+    (P,) int64
+        Distinct keys of the edges to remove (empty when no face is pinched).
+    """
+    face, repeated, _, _ = _repeated_in_faces(indices, offsets, n_vertices)
+    if repeated.size == 0:
+        return repeated
+    following = np.arange(1, len(indices) + 1)  # slot of each face edge's second vertex
+    wraps = following == offsets[1:][face]
+    following[wraps] = offsets[:-1][face[wraps]]
+    u, w = indices, indices[following]
+    keys = np.minimum(u, w) * n_vertices + np.maximum(u, w)
+    at_repeat = np.isin(face * n_vertices + u, repeated) | np.isin(face * n_vertices + w,
+                                                                   repeated)
+    slots = np.flatnonzero(at_repeat)
+    distance = edge_distance[np.searchsorted(edge_keys, keys[slots])]
+    order = np.lexsort((keys[slots], -distance, face[slots]))
+    chosen = slots[order]
+    first = np.concatenate([[True], face[chosen][1:] != face[chosen][:-1]])
+    return np.unique(keys[chosen[first]])
 
 
 def _angular_fallback(
@@ -275,7 +344,14 @@ def decode_connectivity(
     edges = edges_below_threshold(
         emb.adjacency, emb.tau, options.distance, options.n_space, alive, options.max_degree
     )
-    stats = {"n_fallbacks": 0, "n_pruned": 0, "n_unpinched": 0, "rounds": 0}
+    edge_keys = edges[:, 0].astype(np.int64) * n + edges[:, 1]
+    by_key = np.argsort(edge_keys)
+    edge_keys = edge_keys[by_key]
+    a, b = distance_operands(emb.adjacency, options.distance, options.n_space)
+    edge_distance = np.einsum("ek,ek->e", a[edges[by_key, 0]], b[edges[by_key, 1]])
+    edge_rounds = EDGE_ROUNDS if options.unpinch == "edge" else 0
+    stats = {"n_fallbacks": 0, "n_pruned": 0, "n_unpinched": 0, "n_unpinch_edges": 0,
+             "rounds": 0}
     old_offsets = np.zeros(n + 1, dtype=np.int64)
     old_local = np.zeros(0, dtype=np.int64)
     dirty = np.ones(n, dtype=bool)
@@ -301,16 +377,25 @@ def decode_connectivity(
         successor = np.repeat(offsets[:-1], degree) + local
         connectivity = Connectivity(n, offsets, neighbours, successor)
         indices, face_offsets = connectivity.faces()
-        pinched = _pinched_vertices(
-            indices, face_offsets, degree, all_repeated=stats["rounds"] > GENTLE_ROUNDS
-        )
-        if pinched.size == 0:
-            return connectivity, stats
-        alive[pinched] = False
-        stats["n_unpinched"] += int(pinched.size)
         dirty = np.zeros(n, dtype=bool)
-        touched = np.isin(edges, pinched).any(axis=1)
+        if stats["rounds"] <= edge_rounds:
+            drop = _pinched_face_edges(indices, face_offsets, n, edge_keys, edge_distance)
+            if drop.size == 0:
+                return connectivity, stats
+            touched = np.isin(edges[:, 0].astype(np.int64) * n + edges[:, 1], drop)
+            stats["n_unpinch_edges"] += int(touched.sum())
+        else:
+            pinched = _pinched_vertices(
+                indices, face_offsets, degree,
+                all_repeated=stats["rounds"] - edge_rounds > GENTLE_ROUNDS,
+            )
+            if pinched.size == 0:
+                return connectivity, stats
+            alive[pinched] = False
+            stats["n_unpinched"] += int(pinched.size)
+            touched = np.isin(edges, pinched).any(axis=1)
         dirty[edges[touched].reshape(-1)] = True
+        edges = edges[~touched]
         old_offsets, old_local = offsets, local
 
 
@@ -347,6 +432,7 @@ def decode(
         n_fallbacks=stats["n_fallbacks"],
         n_pruned=stats["n_pruned"],
         n_unpinched=stats["n_unpinched"],
+        n_unpinch_edges=stats["n_unpinch_edges"],
         rounds=stats["rounds"],
         stats=stats,
     )

@@ -56,7 +56,9 @@ def embeddings(draw):
     elif kind == "non-finite" and n:
         positions[rng.random(n) < 0.2] = np.nan
     fallback = draw(st.sampled_from(["angular", "greedy"]))
-    return emb, DecodeOptions(distance=distance, fallback=fallback), alive, positions
+    unpinch = draw(st.sampled_from(["edge", "vertex"]))
+    options = DecodeOptions(distance=distance, fallback=fallback, unpinch=unpinch)
+    return emb, options, alive, positions
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])

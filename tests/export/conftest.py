@@ -1,8 +1,19 @@
-"""Fixtures: a tiny model trained and exported once per test session via the CLI."""
+"""Fixtures: a tiny model trained and exported once per test session via the CLI, and a
+connectivity-only run on it."""
 
 from __future__ import annotations
 
+import shutil
+
 import pytest
+
+
+def tiny_config(**changes):
+    """``tiny`` with validation and checkpoints every 2 steps, on batches of 3."""
+    from spacemesh.nn.config import get_config
+
+    return get_config("tiny").with_train(val_every=2, checkpoint_every=2, val_shapes=2,
+                                         batch_size=3, **changes)
 
 
 @pytest.fixture(scope="session")
@@ -13,3 +24,24 @@ def toy_model(tmp_path_factory):
     from spacemesh.train.toy import build_toy_model
 
     return build_toy_model(tmp_path_factory.getbasetemp() / "spacemesh-toy-model")
+
+
+@pytest.fixture(scope="session")
+def base_run(toy_model, tmp_path_factory):
+    """A copy of the toy model as the base, and a 2-step connectivity-only run on it."""
+    import torch
+
+    from spacemesh.train.loop import TrainOptions, train
+
+    folder = tmp_path_factory.mktemp("base-run")
+    base = folder / "models" / "spacemesh-tiny" / "1"
+    shutil.copytree(toy_model.repository, base)
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        run = folder / "run"
+        train(TrainOptions(config=tiny_config(), data=toy_model.data, out=run, steps=2,
+                           progress=False, base=base, threads=1), log=lambda m: None)
+    finally:
+        torch.set_num_threads(before)
+    return base, run

@@ -23,30 +23,9 @@ from spacemesh.runtime.repository import ModelRepository  # noqa: E402
 from spacemesh.topology import check_topology  # noqa: E402
 from spacemesh.train.checkpoint import latest_checkpoint, load_checkpoint  # noqa: E402
 from spacemesh.train.loop import TrainOptions, train  # noqa: E402
+from tests.export.conftest import tiny_config as _config  # noqa: E402
 
 _register()
-
-
-def _config(**changes):
-    return get_config("tiny").with_train(val_every=2, checkpoint_every=2, val_shapes=2,
-                                         batch_size=3, **changes)
-
-
-@pytest.fixture(scope="module")
-def base_run(toy_model, tmp_path_factory):
-    """A copy of the toy model as the base, and a 2-step connectivity-only run on it."""
-    folder = tmp_path_factory.mktemp("base-run")
-    base = folder / "models" / "spacemesh-tiny" / "1"
-    shutil.copytree(toy_model.repository, base)
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        run = folder / "run"
-        train(TrainOptions(config=_config(), data=toy_model.data, out=run, steps=2,
-                           progress=False, base=base, threads=1), log=lambda m: None)
-    finally:
-        torch.set_num_threads(before)
-    return base, run
 
 
 def test_only_the_connectivity_network_trains(base_run):

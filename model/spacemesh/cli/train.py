@@ -38,6 +38,12 @@ def train(
     val_data: Annotated[
         Path | None, typer.Option("--val-data", help="Held-out dataset (default: the val split).")
     ] = None,
+    lr: Annotated[
+        float | None,
+        typer.Option("--lr",
+                     help="Peak Adam learning rate (default: the config's; lower it to "
+                     "fine-tune)."),
+    ] = None,
     connectivity_jitter: Annotated[
         float | None,
         typer.Option("--connectivity-jitter", min=0.0,
@@ -63,6 +69,12 @@ def train(
         typer.Option("--base", help="A model repository: train only the config's connectivity "
                      "network, on its frozen encoder (its encoder and denoiser are kept)."),
     ] = None,
+    init_from: Annotated[
+        Path | None,
+        typer.Option("--init-from", help="Fine-tune: start from this run's (or checkpoint's) "
+                     "weights, with a new optimiser and schedule (a connectivity-only run's "
+                     "base is inherited)."),
+    ] = None,
 ) -> None:
     """Train the encoder, denoiser and connectivity network on a dataset."""
     _require_torch()
@@ -76,6 +88,12 @@ def train(
         fail(str(error))
     if connectivity_jitter is not None:
         model_config = model_config.with_train(connectivity_jitter=connectivity_jitter)
+    if lr is not None:
+        if not lr > 0:
+            fail(f"--lr must be positive (got {lr})")
+        if resume:
+            fail("--lr applies to new runs (a resumed run keeps its learning rate)")
+        model_config = model_config.with_train(lr=lr)
     if not (data / "manifest.json").is_file():
         fail(f"{data}: not a dataset folder (no manifest.json)")
     if val_data is not None and not (val_data / "manifest.json").is_file():
@@ -84,11 +102,11 @@ def train(
         config=model_config, data=data, out=out, resume=resume, steps=steps, val_data=val_data,
         device=device, threads=threads or None, seed=seed,
         max_seconds=None if max_minutes is None else max_minutes * 60, progress=progress,
-        base=base,
+        base=base, init_from=init_from,
     )
     try:
         summary = run_training(options, log=lambda m: typer.echo(m, err=True))
-    except ValueError as error:
+    except (FileNotFoundError, ValueError) as error:
         fail(str(error))
     typer.echo(f"trained {summary.steps} steps in {summary.seconds:.0f} s; "
                f"checkpoint {summary.checkpoint}")

@@ -255,15 +255,9 @@ def load_trained_model(checkpoint: str | Path) -> tuple[SpaceMeshModel, dict[str
         or None.
     """
     from spacemesh.nn.config import model_from_config
-    from spacemesh.train.checkpoint import latest_checkpoint, load_checkpoint
+    from spacemesh.train.checkpoint import load_checkpoint, resolve_checkpoint
 
-    path = Path(checkpoint)
-    if path.is_dir():
-        found = latest_checkpoint(path)
-        if found is None:
-            raise FileNotFoundError(f"{path} has no checkpoints/last.pt")
-        path = found
-    state = load_checkpoint(path, map_location="cpu")
+    state = load_checkpoint(resolve_checkpoint(checkpoint), map_location="cpu")
     model = model_from_config(state["config"])
     state["base"] = base = run_base(state)
     if base is not None:

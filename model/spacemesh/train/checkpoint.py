@@ -107,6 +107,25 @@ def latest_checkpoint(run: str | Path) -> Path | None:
     return path if path.is_file() else None
 
 
+def resolve_checkpoint(path: str | Path) -> Path:
+    """A checkpoint file as given, or a run folder's ``checkpoints/last.pt``.
+
+    Raises
+    ------
+    FileNotFoundError
+        Neither a file nor a run folder with a last checkpoint.
+    """
+    path = Path(path)
+    if path.is_dir():
+        found = latest_checkpoint(path)
+        if found is None:
+            raise FileNotFoundError(f"{path} has no checkpoints/last.pt")
+        return found
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such run folder or checkpoint")
+    return path
+
+
 def restore_rng(rng: np.random.Generator, state: dict | None) -> None:
     """Set ``rng``'s bit generator state from a checkpoint (no-op for None)."""
     if state is not None:

@@ -33,6 +33,7 @@ from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -47,6 +48,7 @@ from spacemesh.train.checkpoint import (
     checkpoint_dir,
     latest_checkpoint,
     load_checkpoint,
+    resolve_checkpoint,
     restore_rng,
     save_checkpoint,
 )
@@ -110,6 +112,11 @@ class TrainOptions:
     base : Path, optional
         A model repository: train only a new connectivity network (``config``'s) on its
         frozen encoder; the encoder, denoiser, diffusion and vertex count are the base's.
+    init_from : Path, optional
+        A run folder or checkpoint to start from (fine-tuning): its weights, with a new
+        optimiser and the learning-rate schedule from step 0. Its networks must be the
+        config's; a connectivity-only run's base is inherited (and ``base``, if given,
+        must be the same model). Ignored when ``resume`` finds a checkpoint.
     """
 
     config: ModelConfig
@@ -124,6 +131,7 @@ class TrainOptions:
     max_seconds: float | None = None
     progress: bool = True
     base: Path | None = None
+    init_from: Path | None = None
 
 
 @dataclass
@@ -135,6 +143,41 @@ class TrainSummary:
     seconds: float
     checkpoint: Path | None
     metrics: dict[str, float] = field(default_factory=dict)
+
+
+def _init_base(init: dict[str, Any], base_path: Path | None) -> Path | None:
+    """The base of a fine-tuning run: the init run's (if any), which ``base_path`` must
+    match."""
+    stored = init["extra"].get("base")
+    if stored is None:
+        if base_path is not None:
+            raise ValueError(f"--init-from {init['path']} is a full run; it has no "
+                             "connectivity-only weights for --base")
+        return None
+    if base_path is not None:
+        given = BaseModel.load(base_path).card()["files"]
+        if given != stored["files"]:
+            raise ValueError(f"--init-from {init['path']} was trained on the base "
+                             f"{stored['path']}, not on {base_path}")
+    return Path(stored["path"])
+
+
+def _check_init_config(init: dict[str, Any], config: ModelConfig) -> None:
+    """Refuse an init checkpoint whose networks differ from the config's."""
+    have, want = init["config"].to_dict(), config.to_dict()
+    differ = [k for k in want if k not in ("name", "train") and have.get(k) != want[k]]
+    if differ:
+        raise ValueError(f"--init-from {init['path']}: its {', '.join(differ)} differ from "
+                         f"the {config.name} config's")
+
+
+def _init_card(init: dict[str, Any]) -> dict[str, Any]:
+    """What a fine-tuning run records about its start: the checkpoint's step, training
+    time and data card."""
+    extra = init["extra"]
+    data = {k: v for k, v in extra.get("data", {}).items() if k != "base"}
+    return {"checkpoint": str(init["path"]), "step": int(init["step"]),
+            "train_seconds": float(extra.get("train_seconds", 0.0)), "data": data}
 
 
 def data_card(directory: str | Path, max_vertices: int, n_train: int, n_val: int) -> dict:
@@ -238,11 +281,19 @@ class Trainer:
                 stored_base = state["extra"].get("base")
                 if stored_base is not None:
                     base_path = Path(stored_base["path"])
+        init = None
+        if state is None and options.init_from is not None:
+            init_path = resolve_checkpoint(options.init_from)
+            init = load_checkpoint(init_path, map_location="cpu")
+            init["path"] = init_path
+            base_path = _init_base(init, base_path)
         self.base = None if base_path is None else BaseModel.load(base_path)
         if self.base is not None:
             if state is None:
                 config = self.base.merged_config(config)
             log(f"connectivity only, on the frozen encoder of {self.base.path}")
+        if init is not None:
+            _check_init_config(init, config)
         self.config = config
         self.rng = np.random.default_rng(options.seed + 1000 * info.rank)
         self.generator = torch.Generator().manual_seed(options.seed + 1000 * info.rank)
@@ -265,6 +316,9 @@ class Trainer:
                 self.rng = np.random.default_rng([options.seed, info.rank, self.start_step])
                 self.generator.manual_seed(options.seed + 1000 * info.rank + self.start_step)
             log(f"resumed from {latest_checkpoint(self.out)} at step {self.start_step}")
+        elif init is not None:
+            self.model.load_state_dict(init["model"])
+            log(f"initialised from {init['path']} (step {init['step']})")
         self.ddp = wrap_model(self.model, info)
         mv = config.max_vertices
         self.train_samples = load_samples(options.data, "train", mv, log=log)
@@ -277,6 +331,10 @@ class Trainer:
         self.card = data_card(options.data, mv, len(self.train_samples), len(self.val_samples))
         if self.base is not None:
             self.card["base"] = self.base.card()
+        if init is not None:
+            self.card["init"] = _init_card(init)
+        elif state is not None and "init" in state["extra"].get("data", {}):
+            self.card["init"] = state["extra"]["data"]["init"]
         self.metrics = MetricsLog(self.out / "metrics.csv")
         self.last_validation: dict[str, float] = (
             dict(state["extra"].get("validation", {})) if state is not None else {}

@@ -1,0 +1,84 @@
+"""Fine-tuning (``spacemesh train --init-from RUN``): a run that starts from another's
+weights, with a new optimiser and schedule."""
+
+from __future__ import annotations
+
+import pytest
+from typer.testing import CliRunner
+
+torch = pytest.importorskip("torch")
+pytest.importorskip("onnxruntime")
+
+from spacemesh.cli import _register  # noqa: E402
+from spacemesh.cli.common import app  # noqa: E402
+from spacemesh.nn.config import get_config  # noqa: E402
+from spacemesh.train.checkpoint import latest_checkpoint, load_checkpoint  # noqa: E402
+from spacemesh.train.distributed import setup_distributed  # noqa: E402
+from spacemesh.train.loop import Trainer, TrainOptions, train  # noqa: E402
+from tests.export.conftest import tiny_config  # noqa: E402
+
+_register()
+
+
+def _quiet(message: str) -> None:
+    pass
+
+
+def _same_weights(a: dict, b: dict) -> bool:
+    return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_a_fine_tune_starts_from_the_weights_and_inherits_the_base(toy_model, base_run,
+                                                                   tmp_path):
+    base, run = base_run
+    source = load_checkpoint(latest_checkpoint(run))
+    options = TrainOptions(config=tiny_config(), data=toy_model.data, out=tmp_path / "tune",
+                           steps=2, progress=False, init_from=run, threads=1)
+    trainer = Trainer(options, setup_distributed("cpu"), _quiet)
+    assert _same_weights(trainer.model.state_dict(), source["model"])
+    assert trainer.start_step == 0 and not trainer.optimizer.state
+    assert trainer.base is not None and trainer.base.path == base.resolve()
+    assert trainer.card["init"]["step"] == source["step"]
+    assert trainer.card["init"]["data"]["dataset"] == source["extra"]["data"]["dataset"]
+
+    summary = trainer.run()
+    state = load_checkpoint(summary.checkpoint)
+    assert state["step"] == 2
+    assert state["extra"]["base"]["files"] == source["extra"]["base"]["files"]
+    assert not _same_weights(state["model"], source["model"])  # it trained
+    # resuming the fine-tune keeps its record of where it started
+    resumed = train(TrainOptions(config=tiny_config(), data=toy_model.data,
+                                 out=tmp_path / "tune", steps=3, resume=True, progress=False,
+                                 init_from=run), log=_quiet)
+    assert load_checkpoint(resumed.checkpoint)["extra"]["data"]["init"] == trainer.card["init"]
+
+
+def test_a_full_run_fine_tunes_without_a_base(toy_model, tmp_path):
+    source = load_checkpoint(latest_checkpoint(toy_model.run))
+    options = TrainOptions(config=tiny_config(), data=toy_model.data, out=tmp_path / "tune",
+                           steps=1, progress=False, init_from=toy_model.run, threads=1)
+    trainer = Trainer(options, setup_distributed("cpu"), _quiet)
+    assert trainer.base is None
+    assert _same_weights(trainer.model.state_dict(), source["model"])
+
+
+def test_other_networks_or_bases_are_refused(toy_model, base_run, tmp_path):
+    base, run = base_run
+    small = get_config("small").with_train(val_shapes=2)
+    with pytest.raises(ValueError, match="connectivity differ"):
+        train(TrainOptions(config=small, data=toy_model.data, out=tmp_path / "a", steps=1,
+                           progress=False, init_from=run), log=_quiet)
+    with pytest.raises(ValueError, match="full run"):
+        train(TrainOptions(config=tiny_config(), data=toy_model.data, out=tmp_path / "b",
+                           steps=1, progress=False, init_from=toy_model.run, base=base),
+              log=_quiet)
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_cli_refuses_a_missing_init_in_one_line(toy_model, tmp_path):
+    result = CliRunner().invoke(app, ["train", "--config", "tiny", "--data", str(toy_model.data),
+                                      "--out", str(tmp_path / "run"),
+                                      "--init-from", str(tmp_path / "nowhere")])
+    assert result.exit_code != 0
+    assert "nowhere" in result.output and "Traceback" not in result.output
+    assert len(result.output.strip().splitlines()) == 1
