@@ -398,7 +398,11 @@ def training_summary(model: Path) -> str:
     training = manifest.get("training", {})
     data = manifest.get("data", {})
     held = manifest.get("metrics", {}).get("heldout", {}).get("connectivity_on_gt_vertices", {})
-    return (f"{training.get('steps', '?')} steps on {training.get('device', '?')} "
+    steps = f"{training.get('steps', '?')} steps"
+    if "base" in training:  # a connectivity-only run on a base model's encoder
+        steps = (f"{training.get('connectivity_steps', '?')} connectivity steps (on the "
+                 f"encoder of version {training['base'].get('version', '?')})")
+    return (f"{steps} on {training.get('device', '?')} "
             f"({training.get('seconds', 0) / 60:.0f} min), data {data.get('dataset', '?')}; "
             f"held-out next accuracy on true vertices {held.get('next_accuracy', math.nan):.3f}, "
             f"decoded edge F1 {held.get('decoded_edge_f1', math.nan):.3f}")

@@ -200,26 +200,28 @@ def _pinched_vertices(
     return np.unique(rep_vertex[order][first])
 
 
-def _pinched_face_edges(
+def pinched_face_edges(
     indices: IntArray, offsets: IntArray, n_vertices: int, edge_keys: IntArray,
     edge_distance: FloatArray,
 ) -> IntArray:
-    """One edge per pinched face: of its edges that touch a vertex it repeats, the one
-    of largest embedding distance (then lowest key).
+    """One edge per pinched face: of its removable edges that touch a vertex it repeats,
+    the weakest (largest ``edge_distance``, then lowest key).
 
     Parameters
     ----------
     indices, offsets : CSR faces
     n_vertices : int
     edge_keys : (E,) int64
-        Sorted keys ``i * N + j`` (``i < j``) of every edge the faces may use.
+        Sorted keys ``i * N + j`` (``i < j``) of the removable edges; face sides that are
+        not among them (the kept boundary of a repaired hole) are never chosen.
     edge_distance : (E,) float
-        The embedding distance of each of those edges.
+        The weakness of each of those edges (:func:`edge_weakness`).
 
     Returns
     -------
     (P,) int64
-        Distinct keys of the edges to remove (empty when no face is pinched).
+        Distinct keys of the edges to remove (empty when no face is pinched, or no
+        pinched face has a removable edge at its repeated vertex).
     """
     face, repeated, _, _ = _repeated_in_faces(indices, offsets, n_vertices)
     if repeated.size == 0:
@@ -231,12 +233,32 @@ def _pinched_face_edges(
     keys = np.minimum(u, w) * n_vertices + np.maximum(u, w)
     at_repeat = np.isin(face * n_vertices + u, repeated) | np.isin(face * n_vertices + w,
                                                                    repeated)
-    slots = np.flatnonzero(at_repeat)
-    distance = edge_distance[np.searchsorted(edge_keys, keys[slots])]
+    where = np.minimum(np.searchsorted(edge_keys, keys), max(len(edge_keys) - 1, 0))
+    removable = (edge_keys[where] == keys) if len(edge_keys) else np.zeros_like(at_repeat)
+    slots = np.flatnonzero(at_repeat & removable)
+    distance = edge_distance[where[slots]]
     order = np.lexsort((keys[slots], -distance, face[slots]))
     chosen = slots[order]
     first = np.concatenate([[True], face[chosen][1:] != face[chosen][:-1]])
     return np.unique(keys[chosen[first]])
+
+
+def edge_weakness(emb: Embeddings, edges: IntArray, options: DecodeOptions) -> FloatArray:
+    """How weak each edge is, for unpinching: its embedding distance.
+
+    Parameters
+    ----------
+    emb : Embeddings
+    edges : (E, 2) int64
+    options : DecodeOptions
+        Its distance and ``n_space``.
+
+    Returns
+    -------
+    (E,) float64
+    """
+    a, b = distance_operands(emb.adjacency, options.distance, options.n_space)
+    return np.einsum("ek,ek->e", a[edges[:, 0]], b[edges[:, 1]])
 
 
 def _angular_fallback(
@@ -347,8 +369,7 @@ def decode_connectivity(
     edge_keys = edges[:, 0].astype(np.int64) * n + edges[:, 1]
     by_key = np.argsort(edge_keys)
     edge_keys = edge_keys[by_key]
-    a, b = distance_operands(emb.adjacency, options.distance, options.n_space)
-    edge_distance = np.einsum("ek,ek->e", a[edges[by_key, 0]], b[edges[by_key, 1]])
+    edge_distance = edge_weakness(emb, edges[by_key], options)
     edge_rounds = EDGE_ROUNDS if options.unpinch == "edge" else 0
     stats = {"n_fallbacks": 0, "n_pruned": 0, "n_unpinched": 0, "n_unpinch_edges": 0,
              "rounds": 0}
@@ -379,7 +400,7 @@ def decode_connectivity(
         indices, face_offsets = connectivity.faces()
         dirty = np.zeros(n, dtype=bool)
         if stats["rounds"] <= edge_rounds:
-            drop = _pinched_face_edges(indices, face_offsets, n, edge_keys, edge_distance)
+            drop = pinched_face_edges(indices, face_offsets, n, edge_keys, edge_distance)
             if drop.size == 0:
                 return connectivity, stats
             touched = np.isin(edges[:, 0].astype(np.int64) * n + edges[:, 1], drop)

@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from spacemesh.decode import DecodeOptions, _pinched_face_edges, decode
+from spacemesh.decode import DecodeOptions, decode, pinched_face_edges
 from spacemesh.encode import encode_connectivity
 from spacemesh.examples import icosphere, torus_grid
 from spacemesh.fit import FitConfig, edge_f1_score, fit_mesh
@@ -55,8 +55,8 @@ def test_the_weakest_edge_at_the_repeated_vertex_goes():
     keys = np.array([i * n + j for i, j in pairs])
     distance = np.array([0.1, 0.2, 0.9, 0.3, 0.4, 0.95, 1.0, 1.0, 1.0])
     order = np.argsort(keys)
-    drop = _pinched_face_edges(indices, offsets, n, keys[order], distance[order])
+    drop = pinched_face_edges(indices, offsets, n, keys[order], distance[order])
     # (2, 3) and (0, 4) are weaker but do not touch vertex 1
     assert drop.tolist() == [1 * n + 4]
-    none = _pinched_face_edges(indices[6:], np.array([0, 3]), n, keys[order], distance[order])
+    none = pinched_face_edges(indices[6:], np.array([0, 3]), n, keys[order], distance[order])
     assert none.size == 0

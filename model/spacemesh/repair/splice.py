@@ -20,12 +20,15 @@ Local ids: boundary vertex ``b`` is ``b`` (its position in ``cut.boundary``), ne
 4. **Faces** are the orbits of ``next`` over the hole halfedges ``i -> loop_next[i]`` and
    both halfedges of every new edge. Kept faces are never part of an orbit here, so
    they come back identical.
-5. **Invalid results are repaired by removing new vertices only**: a new vertex with
-   degree below 2 goes (repeatedly); a group of new vertices joined to no boundary
-   vertex goes; a face that visits a vertex twice loses one new vertex (the repeated
-   one if it is new, else the face's new vertex of highest degree, then lowest id),
-   and the neighbourhoods that changed are matched again. After
-   :data:`GENTLE_ROUNDS` rounds every new vertex of a pinched face goes at once.
+5. **Invalid results are repaired by removing new edges and vertices only**: a new
+   vertex with degree below 2 goes (repeatedly); a group of new vertices joined to no
+   boundary vertex goes; a face that visits a vertex twice first loses its weakest new
+   edge at the repeated vertex (as in :mod:`spacemesh.decode`, for
+   :data:`spacemesh.decode.EDGE_ROUNDS` rounds with ``unpinch="edge"``), then one new
+   vertex (the repeated one if it is new, else the face's new vertex of highest
+   degree, then lowest id), and the neighbourhoods that changed are matched again.
+   After :data:`GENTLE_ROUNDS` vertex rounds every new vertex of a pinched face goes
+   at once.
 6. **The last resort**: with no new vertex left next to it, a loop is closed by one
    polygon face through its vertices, which is always valid (the loop is simple and
    has at least three vertices).
@@ -43,7 +46,13 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from spacemesh.connectivity import csr_from_edges, slot_lookup
-from spacemesh.decode import DecodeOptions, Embeddings
+from spacemesh.decode import (
+    EDGE_ROUNDS,
+    DecodeOptions,
+    Embeddings,
+    edge_weakness,
+    pinched_face_edges,
+)
 from spacemesh.matching import match_cycles
 from spacemesh.mesh import PolygonMesh
 from spacemesh.permutation import (
@@ -318,8 +327,12 @@ def fill_hole(
         edges = edges_below_threshold(clean.adjacency, clean.tau, options.distance,
                                       options.n_space, alive, options.max_degree)
         edges = edges[is_new[edges[:, 0]] | is_new[edges[:, 1]]]  # rule 1
+    by_key = np.argsort(edges[:, 0] * n + edges[:, 1])
+    edge_keys = (edges[:, 0] * n + edges[:, 1])[by_key]
+    weakness = edge_weakness(clean, edges[by_key], options)
+    edge_rounds = EDGE_ROUNDS if options.unpinch == "edge" else 0
     stats = {"n_candidates": int(is_new.sum()), "n_pruned": 0, "n_detached": 0,
-             "n_unpinched": 0, "n_fallbacks": 0, "rounds": 0}
+             "n_unpinched": 0, "n_unpinch_edges": 0, "n_fallbacks": 0, "rounds": 0}
     alive = alive & ~(is_new & ~finite)
     stats["n_pruned"] += int((is_new & ~finite).sum())
     orders = None
@@ -331,9 +344,17 @@ def fill_hole(
         stats["n_fallbacks"] += orders.n_fallbacks
         stats["rounds"] += 1
         indices, face_offsets = _orbits(orders, n_boundary, loop_next)
+        if stats["rounds"] <= edge_rounds:
+            drop = pinched_face_edges(indices, face_offsets, n, edge_keys, weakness)
+            if drop.size:
+                gone = np.isin(edges[:, 0] * n + edges[:, 1], drop)
+                stats["n_unpinch_edges"] += int(gone.sum())
+                edges = edges[~gone]
+                continue
         degree = np.diff(orders.offsets)
-        remove, stuck = _pinched_new_vertices(indices, face_offsets, degree, is_new,
-                                              every=stats["rounds"] > GENTLE_ROUNDS)
+        remove, stuck = _pinched_new_vertices(
+            indices, face_offsets, degree, is_new,
+            every=stats["rounds"] - min(stats["rounds"], edge_rounds) > GENTLE_ROUNDS)
         if stuck:
             remove = np.flatnonzero(is_new & alive)
         if remove.size == 0:
