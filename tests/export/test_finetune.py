@@ -82,3 +82,24 @@ def test_cli_refuses_a_missing_init_in_one_line(toy_model, tmp_path):
     assert result.exit_code != 0
     assert "nowhere" in result.output and "Traceback" not in result.output
     assert len(result.output.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(("extra", "message"), [
+    (["--lr", "0"], "--lr must be positive"),
+    (["--lr", "1e-4", "--resume"], "--lr applies to new runs"),
+])
+def test_cli_refuses_a_bad_learning_rate_in_one_line(toy_model, tmp_path, extra, message):
+    result = CliRunner().invoke(app, ["train", "--config", "tiny", "--data", str(toy_model.data),
+                                      "--out", str(tmp_path / "run"), *extra])
+    assert result.exit_code != 0
+    assert message in result.output and len(result.output.strip().splitlines()) == 1
+    assert not (tmp_path / "run").exists()
+
+
+def test_the_cli_learning_rate_reaches_the_run(toy_model, tmp_path):
+    run = tmp_path / "run"
+    result = CliRunner().invoke(app, ["train", "--config", "tiny", "--data", str(toy_model.data),
+                                      "--out", str(run), "--steps", "1", "--lr", "2.5e-4",
+                                      "--threads", "1", "--no-progress"])
+    assert result.exit_code == 0, result.output
+    assert load_checkpoint(latest_checkpoint(run))["config"].train.lr == 2.5e-4

@@ -338,7 +338,7 @@ def heldout_metrics(
 
 
 #: Vertex spacings tried by :func:`calibrate_vertex_spacing` ([-1, 1] frame).
-SPACING_GRID = (1e-4, 0.025, 0.05, 0.075, 0.1, 0.125, 0.15, 0.2)
+SPACING_GRID = (1e-4, 0.025, 0.05, 0.075, 0.1, 0.125, 0.15, 0.2, 0.25, 0.3)
 
 
 def calibrate_vertex_spacing(
