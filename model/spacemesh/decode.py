@@ -154,7 +154,7 @@ def _prune_low_degree(edges: IntArray, alive: BoolArray) -> tuple[IntArray, Bool
 
 def _repeated_in_faces(
     indices: IntArray, offsets: IntArray, n_vertices: int
-) -> tuple[IntArray, IntArray, IntArray]:
+) -> tuple[IntArray, IntArray, IntArray, IntArray]:
     """The (face, vertex) pairs where a face visits a vertex more than once.
 
     Returns
