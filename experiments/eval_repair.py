@@ -392,6 +392,15 @@ def render(examples: list[tuple[str, dict]], path: Path) -> Path | None:
                           labels={"hole": "region removed", "gt": "original"})
 
 
+def _shown(path: Path) -> str:
+    """``path`` relative to the repository when it is inside it (no machine paths in
+    the report)."""
+    try:
+        return str(path.resolve().relative_to(ROOT))
+    except ValueError:
+        return str(path)
+
+
 def training_summary(model: Path) -> str:
     """One line on how the model was trained (from its manifest)."""
     manifest = json.loads((model / "manifest.json").read_text())
@@ -465,7 +474,7 @@ def main() -> None:
               f"({time.perf_counter() - start:.0f} s)", flush=True)
     gallery = render(examples, out / "repair.png")
     config = {"model": str(model), "model_label": label, "steps": steps, "seed": args.seed,
-              "count": args.count, "data": str(args.data), "threads": args.threads,
+              "count": args.count, "data": _shown(Path(args.data)), "threads": args.threads,
               "shared_meshes": MESHES.is_dir() and not args.no_shared,
               "training": training_summary(model),
               "seconds": round(time.perf_counter() - start, 1)}
