@@ -152,10 +152,15 @@ def _prune_low_degree(edges: IntArray, alive: BoolArray) -> tuple[IntArray, Bool
         n_removed += int(low.sum())
 
 
-def _repeated_in_faces(
+def repeated_in_faces(
     indices: IntArray, offsets: IntArray, n_vertices: int
 ) -> tuple[IntArray, IntArray, IntArray, IntArray]:
     """The (face, vertex) pairs where a face visits a vertex more than once.
+
+    Parameters
+    ----------
+    indices, offsets : CSR faces
+    n_vertices : int
 
     Returns
     -------
@@ -191,7 +196,7 @@ def _pinched_vertices(
     (P,) int64
         Distinct vertices to remove.
     """
-    _face, repeated, rep_face, rep_vertex = _repeated_in_faces(indices, offsets, len(degree))
+    _face, repeated, rep_face, rep_vertex = repeated_in_faces(indices, offsets, len(degree))
     if repeated.size == 0 or all_repeated:
         return np.unique(rep_vertex)
     # within each face: highest degree first, then lowest index
@@ -215,7 +220,7 @@ def pinched_face_edges(
         Sorted keys ``i * N + j`` (``i < j``) of the removable edges; face sides that are
         not among them (the kept boundary of a repaired hole) are never chosen.
     edge_distance : (E,) float
-        The weakness of each of those edges (:func:`edge_weakness`).
+        The weakness of each of those edges (:func:`unpinch_candidates`).
 
     Returns
     -------
@@ -223,7 +228,7 @@ def pinched_face_edges(
         Distinct keys of the edges to remove (empty when no face is pinched, or no
         pinched face has a removable edge at its repeated vertex).
     """
-    face, repeated, _, _ = _repeated_in_faces(indices, offsets, n_vertices)
+    face, repeated, _, _ = repeated_in_faces(indices, offsets, n_vertices)
     if repeated.size == 0:
         return repeated
     following = np.arange(1, len(indices) + 1)  # slot of each face edge's second vertex
@@ -243,22 +248,36 @@ def pinched_face_edges(
     return np.unique(keys[chosen[first]])
 
 
-def edge_weakness(emb: Embeddings, edges: IntArray, options: DecodeOptions) -> FloatArray:
-    """How weak each edge is, for unpinching: its embedding distance.
+def edge_keys(edges: IntArray, n_vertices: int) -> IntArray:
+    """Keys ``i * N + j`` (int64) of ``(E, 2)`` edges."""
+    return edges[:, 0].astype(np.int64) * n_vertices + edges[:, 1]
+
+
+def unpinch_candidates(
+    emb: Embeddings, edges: IntArray, options: DecodeOptions
+) -> tuple[IntArray, FloatArray]:
+    """The edges a pinched face may lose, as :func:`pinched_face_edges` takes them.
 
     Parameters
     ----------
     emb : Embeddings
     edges : (E, 2) int64
+        With ``i < j``.
     options : DecodeOptions
         Its distance and ``n_space``.
 
     Returns
     -------
-    (E,) float64
+    keys : (E,) int64
+        The edges' keys (:func:`edge_keys`), sorted.
+    weakness : (E,) float64
+        The embedding distance of each edge, in the same order.
     """
+    by_key = np.argsort(edge_keys(edges, emb.n_vertices))
+    edges = edges[by_key]
     a, b = distance_operands(emb.adjacency, options.distance, options.n_space)
-    return np.einsum("ek,ek->e", a[edges[:, 0]], b[edges[:, 1]])
+    weakness = np.einsum("ek,ek->e", a[edges[:, 0]], b[edges[:, 1]])
+    return edge_keys(edges, emb.n_vertices), weakness
 
 
 def _angular_fallback(
@@ -366,10 +385,7 @@ def decode_connectivity(
     edges = edges_below_threshold(
         emb.adjacency, emb.tau, options.distance, options.n_space, alive, options.max_degree
     )
-    edge_keys = edges[:, 0].astype(np.int64) * n + edges[:, 1]
-    by_key = np.argsort(edge_keys)
-    edge_keys = edge_keys[by_key]
-    edge_distance = edge_weakness(emb, edges[by_key], options)
+    candidates, weakness = unpinch_candidates(emb, edges, options)
     edge_rounds = EDGE_ROUNDS if options.unpinch == "edge" else 0
     stats = {"n_fallbacks": 0, "n_pruned": 0, "n_unpinched": 0, "n_unpinch_edges": 0,
              "rounds": 0}
@@ -400,10 +416,10 @@ def decode_connectivity(
         indices, face_offsets = connectivity.faces()
         dirty = np.zeros(n, dtype=bool)
         if stats["rounds"] <= edge_rounds:
-            drop = pinched_face_edges(indices, face_offsets, n, edge_keys, edge_distance)
+            drop = pinched_face_edges(indices, face_offsets, n, candidates, weakness)
             if drop.size == 0:
                 return connectivity, stats
-            touched = np.isin(edges[:, 0].astype(np.int64) * n + edges[:, 1], drop)
+            touched = np.isin(edge_keys(edges, n), drop)
             stats["n_unpinch_edges"] += int(touched.sum())
         else:
             pinched = _pinched_vertices(

@@ -16,6 +16,18 @@ def tiny_config(**changes):
                                          batch_size=3, **changes)
 
 
+def invoke_train(toy_model, out, *options: str):
+    """``spacemesh train --config tiny`` on the toy data into ``out``, through the CLI."""
+    from typer.testing import CliRunner
+
+    from spacemesh.cli import _register
+    from spacemesh.cli.common import app
+
+    _register()
+    return CliRunner().invoke(app, ["train", "--config", "tiny", "--data", str(toy_model.data),
+                                    "--out", str(out), *options])
+
+
 @pytest.fixture(scope="session")
 def toy_model(tmp_path_factory):
     """A :class:`spacemesh.train.toy.ToyModel` (shared by tests/export and tests/runtime)."""

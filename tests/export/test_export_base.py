@@ -8,13 +8,10 @@ import shutil
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
 torch = pytest.importorskip("torch")
 pytest.importorskip("onnxruntime")
 
-from spacemesh.cli import _register  # noqa: E402
-from spacemesh.cli.common import app  # noqa: E402
 from spacemesh.export.repository import export_run, load_trained_model  # noqa: E402
 from spacemesh.nn.config import get_config  # noqa: E402
 from spacemesh.nn.model import TorchBackend  # noqa: E402
@@ -23,9 +20,8 @@ from spacemesh.runtime.repository import ModelRepository  # noqa: E402
 from spacemesh.topology import check_topology  # noqa: E402
 from spacemesh.train.checkpoint import latest_checkpoint, load_checkpoint  # noqa: E402
 from spacemesh.train.loop import TrainOptions, train  # noqa: E402
+from tests.export.conftest import invoke_train  # noqa: E402
 from tests.export.conftest import tiny_config as _config  # noqa: E402
-
-_register()
 
 
 def test_only_the_connectivity_network_trains(base_run):
@@ -109,8 +105,6 @@ def test_a_changed_base_is_refused(toy_model, base_run, tmp_path):
 
 
 def test_cli_refuses_a_missing_base_in_one_line(toy_model, tmp_path):
-    result = CliRunner().invoke(app, ["train", "--config", "tiny", "--data", str(toy_model.data),
-                                      "--out", str(tmp_path / "run"),
-                                      "--base", str(tmp_path / "nowhere")])
+    result = invoke_train(toy_model, tmp_path / "run", "--base", str(tmp_path / "nowhere"))
     assert result.exit_code != 0
     assert "base model" in result.output and "Traceback" not in result.output

@@ -4,20 +4,15 @@ weights, with a new optimiser and schedule."""
 from __future__ import annotations
 
 import pytest
-from typer.testing import CliRunner
 
 torch = pytest.importorskip("torch")
 pytest.importorskip("onnxruntime")
 
-from spacemesh.cli import _register  # noqa: E402
-from spacemesh.cli.common import app  # noqa: E402
 from spacemesh.nn.config import get_config  # noqa: E402
 from spacemesh.train.checkpoint import latest_checkpoint, load_checkpoint  # noqa: E402
 from spacemesh.train.distributed import setup_distributed  # noqa: E402
 from spacemesh.train.loop import Trainer, TrainOptions, train  # noqa: E402
-from tests.export.conftest import tiny_config  # noqa: E402
-
-_register()
+from tests.export.conftest import invoke_train, tiny_config  # noqa: E402
 
 
 def _quiet(message: str) -> None:
@@ -76,9 +71,7 @@ def test_other_networks_or_bases_are_refused(toy_model, base_run, tmp_path):
 
 
 def test_cli_refuses_a_missing_init_in_one_line(toy_model, tmp_path):
-    result = CliRunner().invoke(app, ["train", "--config", "tiny", "--data", str(toy_model.data),
-                                      "--out", str(tmp_path / "run"),
-                                      "--init-from", str(tmp_path / "nowhere")])
+    result = invoke_train(toy_model, tmp_path / "run", "--init-from", str(tmp_path / "nowhere"))
     assert result.exit_code != 0
     assert "nowhere" in result.output and "Traceback" not in result.output
     assert len(result.output.strip().splitlines()) == 1
@@ -89,8 +82,7 @@ def test_cli_refuses_a_missing_init_in_one_line(toy_model, tmp_path):
     (["--lr", "1e-4", "--resume"], "--lr applies to new runs"),
 ])
 def test_cli_refuses_a_bad_learning_rate_in_one_line(toy_model, tmp_path, extra, message):
-    result = CliRunner().invoke(app, ["train", "--config", "tiny", "--data", str(toy_model.data),
-                                      "--out", str(tmp_path / "run"), *extra])
+    result = invoke_train(toy_model, tmp_path / "run", *extra)
     assert result.exit_code != 0
     assert message in result.output and len(result.output.strip().splitlines()) == 1
     assert not (tmp_path / "run").exists()
@@ -98,8 +90,7 @@ def test_cli_refuses_a_bad_learning_rate_in_one_line(toy_model, tmp_path, extra,
 
 def test_the_cli_learning_rate_reaches_the_run(toy_model, tmp_path):
     run = tmp_path / "run"
-    result = CliRunner().invoke(app, ["train", "--config", "tiny", "--data", str(toy_model.data),
-                                      "--out", str(run), "--steps", "1", "--lr", "2.5e-4",
-                                      "--threads", "1", "--no-progress"])
+    result = invoke_train(toy_model, run, "--steps", "1", "--lr", "2.5e-4", "--threads", "1",
+                          "--no-progress")
     assert result.exit_code == 0, result.output
     assert load_checkpoint(latest_checkpoint(run))["config"].train.lr == 2.5e-4

@@ -50,8 +50,10 @@ from spacemesh.decode import (
     EDGE_ROUNDS,
     DecodeOptions,
     Embeddings,
-    edge_weakness,
+    edge_keys,
     pinched_face_edges,
+    repeated_in_faces,
+    unpinch_candidates,
 )
 from spacemesh.matching import match_cycles
 from spacemesh.mesh import PolygonMesh
@@ -261,10 +263,7 @@ def _pinched_new_vertices(indices: IntArray, face_offsets: IntArray, degree: Int
         A pinched face had no new vertex (never expected; the caller then removes all).
     """
     n = len(degree)
-    n_faces = len(face_offsets) - 1
-    face = np.repeat(np.arange(n_faces, dtype=np.int64), np.diff(face_offsets))
-    key = np.sort(face * n + indices)
-    repeated = np.unique(key[1:][key[1:] == key[:-1]])
+    _, repeated, _, _ = repeated_in_faces(indices, face_offsets, n)
     if repeated.size == 0:
         return repeated, False
     remove = []
@@ -327,9 +326,7 @@ def fill_hole(
         edges = edges_below_threshold(clean.adjacency, clean.tau, options.distance,
                                       options.n_space, alive, options.max_degree)
         edges = edges[is_new[edges[:, 0]] | is_new[edges[:, 1]]]  # rule 1
-    by_key = np.argsort(edges[:, 0] * n + edges[:, 1])
-    edge_keys = (edges[:, 0] * n + edges[:, 1])[by_key]
-    weakness = edge_weakness(clean, edges[by_key], options)
+    candidates, weakness = unpinch_candidates(clean, edges, options)
     edge_rounds = EDGE_ROUNDS if options.unpinch == "edge" else 0
     stats = {"n_candidates": int(is_new.sum()), "n_pruned": 0, "n_detached": 0,
              "n_unpinched": 0, "n_unpinch_edges": 0, "n_fallbacks": 0, "rounds": 0}
@@ -345,16 +342,16 @@ def fill_hole(
         stats["rounds"] += 1
         indices, face_offsets = _orbits(orders, n_boundary, loop_next)
         if stats["rounds"] <= edge_rounds:
-            drop = pinched_face_edges(indices, face_offsets, n, edge_keys, weakness)
+            drop = pinched_face_edges(indices, face_offsets, n, candidates, weakness)
             if drop.size:
-                gone = np.isin(edges[:, 0] * n + edges[:, 1], drop)
+                gone = np.isin(edge_keys(edges, n), drop)
                 stats["n_unpinch_edges"] += int(gone.sum())
                 edges = edges[~gone]
                 continue
         degree = np.diff(orders.offsets)
         remove, stuck = _pinched_new_vertices(
             indices, face_offsets, degree, is_new,
-            every=stats["rounds"] - min(stats["rounds"], edge_rounds) > GENTLE_ROUNDS)
+            every=max(0, stats["rounds"] - edge_rounds) > GENTLE_ROUNDS)
         if stuck:
             remove = np.flatnonzero(is_new & alive)
         if remove.size == 0:

@@ -6,7 +6,7 @@ raises :class:`ModelRepositoryError` naming the file on a mismatch or a missing 
 onnxruntime sessions are created once per repository, with explicit thread counts.
 
 The shipped default model lives in the source tree at ``models/spacemesh-small`` (its
-highest version, 2, is loaded; version 1 is version 2's training base; see
+highest version is loaded; version 1 is the training base of the later ones; see
 :data:`DEFAULT_MODEL_DIR`); the ``SPACEMESH_MODEL`` environment variable overrides it.
 """
 

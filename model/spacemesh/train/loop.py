@@ -146,24 +146,25 @@ class TrainSummary:
 
 
 def _init_base(init: dict[str, Any], base_path: Path | None) -> Path | None:
-    """The base of a fine-tuning run: the init run's (if any), which ``base_path`` must
-    match."""
+    """The base of a fine-tuning run: ``base_path`` if given, else the init run's (None
+    for a full run, which cannot start a connectivity-only run)."""
     stored = init["extra"].get("base")
     if stored is None:
         if base_path is not None:
             raise ValueError(f"--init-from {init['path']} is a full run; it has no "
                              "connectivity-only weights for --base")
         return None
-    if base_path is not None:
-        given = BaseModel.load(base_path).card()["files"]
-        if given != stored["files"]:
-            raise ValueError(f"--init-from {init['path']} was trained on the base "
-                             f"{stored['path']}, not on {base_path}")
-    return Path(stored["path"])
+    return base_path if base_path is not None else Path(stored["path"])
 
 
-def _check_init_config(init: dict[str, Any], config: ModelConfig) -> None:
-    """Refuse an init checkpoint whose networks differ from the config's."""
+def _check_init(init: dict[str, Any], config: ModelConfig, given_base: BaseModel | None
+                ) -> None:
+    """Refuse an init checkpoint whose networks differ from the config's, or that was
+    trained on other base files than ``given_base`` (a ``--base`` given with it)."""
+    stored = init["extra"].get("base")
+    if given_base is not None and given_base.card()["files"] != stored["files"]:
+        raise ValueError(f"--init-from {init['path']} was trained on the base "
+                         f"{stored['path']}, not on {given_base.path}")
     have, want = init["config"].to_dict(), config.to_dict()
     differ = [k for k in want if k not in ("name", "train") and have.get(k) != want[k]]
     if differ:
@@ -293,7 +294,7 @@ class Trainer:
                 config = self.base.merged_config(config)
             log(f"connectivity only, on the frozen encoder of {self.base.path}")
         if init is not None:
-            _check_init_config(init, config)
+            _check_init(init, config, self.base if options.base is not None else None)
         self.config = config
         self.rng = np.random.default_rng(options.seed + 1000 * info.rank)
         self.generator = torch.Generator().manual_seed(options.seed + 1000 * info.rank)
