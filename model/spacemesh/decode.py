@@ -34,6 +34,7 @@ import numpy as np
 
 from spacemesh.angular import oriented_angular_cycles
 from spacemesh.connectivity import Connectivity, csr_from_edges
+from spacemesh.crossing import uncrossed
 from spacemesh.matching import FallbackFn, greedy_single_cycle, match_cycles
 from spacemesh.mesh import PolygonMesh
 from spacemesh.permutation import (
@@ -91,7 +92,9 @@ class DecodeOptions:
     (its neighbours by angle, in the direction ``Phi_bar`` prefers; needs positions) or
     ``greedy`` (the paper's greedy single orbit, used without positions), and what a
     pinched face loses first: its weakest ``edge`` (default) or a repeated ``vertex``
-    (see the module docstring)."""
+    (see the module docstring), and whether the weaker of two crossing quad diagonals
+    is dropped before matching (``uncross``; needs positions, see
+    :mod:`spacemesh.crossing`)."""
 
     distance: Distance = "spacetime"
     n_space: int | None = None
@@ -101,6 +104,7 @@ class DecodeOptions:
     max_degree: int | None = MAX_DEGREE
     fallback: Fallback = "angular"
     unpinch: Unpinch = "edge"
+    uncross: bool = True
 
 
 @dataclass
@@ -123,6 +127,8 @@ class DecodeResult:
         Vertices removed because a face visited them twice.
     n_unpinch_edges : int
         Edges removed because a face visited one of their vertices twice.
+    n_uncrossed : int
+        Candidate edges dropped as the weaker of two crossing quad diagonals.
     rounds : int
         Matching rounds (1 when no face was pinched).
     """
@@ -134,6 +140,7 @@ class DecodeResult:
     n_pruned: int = 0
     n_unpinched: int = 0
     n_unpinch_edges: int = 0
+    n_uncrossed: int = 0
     rounds: int = 1
     stats: dict = field(default_factory=dict)
 
@@ -275,9 +282,13 @@ def unpinch_candidates(
     """
     by_key = np.argsort(edge_keys(edges, emb.n_vertices))
     edges = edges[by_key]
+    return edge_keys(edges, emb.n_vertices), edge_weakness(emb, edges, options)
+
+
+def edge_weakness(emb: Embeddings, edges: IntArray, options: DecodeOptions) -> FloatArray:
+    """Embedding distance ``(E,)`` of each of the ``(E, 2)`` edges (larger is weaker)."""
     a, b = distance_operands(emb.adjacency, options.distance, options.n_space)
-    weakness = np.einsum("ek,ek->e", a[edges[:, 0]], b[edges[:, 1]])
-    return edge_keys(edges, emb.n_vertices), weakness
+    return np.einsum("ek,ek->e", a[edges[:, 0]], b[edges[:, 1]])
 
 
 def _angular_fallback(
@@ -376,7 +387,8 @@ def decode_connectivity(
     connectivity : Connectivity
         Over all ``N`` input indices; removed vertices have degree 0.
     stats : dict
-        ``n_fallbacks``, ``n_pruned``, ``n_unpinched``, ``rounds``.
+        ``n_fallbacks``, ``n_pruned``, ``n_unpinched``, ``n_unpinch_edges``,
+        ``n_uncrossed`` (crossing diagonals dropped), ``rounds``.
     """
     options = options or DecodeOptions()
     n = emb.n_vertices
@@ -385,10 +397,14 @@ def decode_connectivity(
     edges = edges_below_threshold(
         emb.adjacency, emb.tau, options.distance, options.n_space, alive, options.max_degree
     )
+    stats = {"n_fallbacks": 0, "n_pruned": 0, "n_unpinched": 0, "n_unpinch_edges": 0,
+             "n_uncrossed": 0, "rounds": 0}
+    if options.uncross and positions is not None and len(edges):
+        keep = uncrossed(positions, edges, edge_weakness(emb, edges, options))
+        stats["n_uncrossed"] = int((~keep).sum())
+        edges = edges[keep]
     candidates, weakness = unpinch_candidates(emb, edges, options)
     edge_rounds = EDGE_ROUNDS if options.unpinch == "edge" else 0
-    stats = {"n_fallbacks": 0, "n_pruned": 0, "n_unpinched": 0, "n_unpinch_edges": 0,
-             "rounds": 0}
     old_offsets = np.zeros(n + 1, dtype=np.int64)
     old_local = np.zeros(0, dtype=np.int64)
     dirty = np.ones(n, dtype=bool)
@@ -470,6 +486,7 @@ def decode(
         n_pruned=stats["n_pruned"],
         n_unpinched=stats["n_unpinched"],
         n_unpinch_edges=stats["n_unpinch_edges"],
+        n_uncrossed=stats["n_uncrossed"],
         rounds=stats["rounds"],
         stats=stats,
     )

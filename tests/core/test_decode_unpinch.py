@@ -35,12 +35,18 @@ def _with_false_edges(emb, n_false: int):
 def test_weak_false_edges_are_dropped_and_the_mesh_recovered(fitted, n_false):
     mesh, emb = fitted
     noisy = _with_false_edges(emb, n_false)
+    # the edge rule alone, then with crossing diagonals dropped first (the default)
+    alone = decode(mesh.vertices, noisy, DecodeOptions(uncross=False))
+    assert alone.n_unpinch_edges == n_false and alone.n_unpinched == 0
     result = decode(mesh.vertices, noisy)
-    assert result.n_unpinch_edges == n_false and result.n_unpinched == 0
-    assert result.mesh.n_vertices == mesh.n_vertices
-    assert result.mesh.face_key_set() == mesh.face_key_set()
+    assert result.n_uncrossed + result.n_unpinch_edges == n_false
+    assert result.n_uncrossed > 0 or n_false < 30  # 30 false edges include diagonals
+    assert result.n_unpinched == 0
+    for decoded in (alone, result):
+        assert decoded.mesh.n_vertices == mesh.n_vertices
+        assert decoded.mesh.face_key_set() == mesh.face_key_set()
     # the vertex rule alone loses vertices and the edges around them
-    vertex_rule = decode(mesh.vertices, noisy, DecodeOptions(unpinch="vertex"))
+    vertex_rule = decode(mesh.vertices, noisy, DecodeOptions(unpinch="vertex", uncross=False))
     assert vertex_rule.n_unpinched > 0 and vertex_rule.mesh.n_vertices < mesh.n_vertices
     truth = encode_connectivity(mesh).edges
     assert edge_f1_score(vertex_rule.connectivity.edges, truth, mesh.n_vertices) < 1.0

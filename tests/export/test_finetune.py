@@ -80,6 +80,7 @@ def test_cli_refuses_a_missing_init_in_one_line(toy_model, tmp_path):
 @pytest.mark.parametrize(("extra", "message"), [
     (["--lr", "0"], "--lr must be positive"),
     (["--lr", "1e-4", "--resume"], "--lr applies to new runs"),
+    (["--false-positive-weight", "1", "--resume"], "--false-positive-weight applies to new"),
 ])
 def test_cli_refuses_a_bad_learning_rate_in_one_line(toy_model, tmp_path, extra, message):
     result = invoke_train(toy_model, tmp_path / "run", *extra)
@@ -94,3 +95,27 @@ def test_the_cli_learning_rate_reaches_the_run(toy_model, tmp_path):
                           "--no-progress")
     assert result.exit_code == 0, result.output
     assert load_checkpoint(latest_checkpoint(run))["config"].train.lr == 2.5e-4
+
+
+def test_the_cli_false_positive_weight_reaches_the_run_and_its_loss(toy_model, tmp_path):
+    import torch
+
+    from spacemesh.nn.model import pairwise_edge_loss
+
+    run = tmp_path / "run"
+    result = invoke_train(toy_model, run, "--steps", "1", "--false-positive-weight", "2.0",
+                          "--threads", "1", "--no-progress")
+    assert result.exit_code == 0, result.output
+    config = load_checkpoint(latest_checkpoint(run))["config"]
+    assert config.train.false_positive_weight == 2.0
+    # hard negatives (a non-edge below tau) weigh more than the paper's lambda
+    x = torch.zeros(1, 4, config.connectivity.adjacency_dim)
+    x[0, :, 0] = torch.tensor([0.0, 0.1, 0.2, 3.0])  # a space coordinate
+    adjacency = torch.zeros(1, 4, 4, dtype=torch.bool)
+    adjacency[0, 0, 1] = adjacency[0, 1, 0] = adjacency[0, 1, 2] = adjacency[0, 2, 1] = True
+    valid = torch.ones(1, 4, dtype=torch.bool)
+    tau = torch.ones(1)
+    paper = pairwise_edge_loss(x, tau, adjacency, valid,
+                               config.with_train(false_positive_weight=None))
+    hard = pairwise_edge_loss(x, tau, adjacency, valid, config)
+    assert float(hard) > float(paper) > 0.0

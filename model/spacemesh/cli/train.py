@@ -50,6 +50,12 @@ def train(
                      help="Noise (std, [-1, 1] frame) on the vertices the connectivity "
                      "network trains on (default: the config's; applies on --resume too)."),
     ] = None,
+    false_positive_weight: Annotated[
+        float | None,
+        typer.Option("--false-positive-weight", min=0.0,
+                     help="Weight of the non-edges below the threshold in the edge loss "
+                     "(hard negatives; default: the config's, the paper's lambda)."),
+    ] = None,
     device: Annotated[
         str | None, typer.Option("--device", help="cpu or cuda (default: cuda if available).")
     ] = None,
@@ -88,6 +94,10 @@ def train(
         fail(str(error))
     if connectivity_jitter is not None:
         model_config = model_config.with_train(connectivity_jitter=connectivity_jitter)
+    if false_positive_weight is not None:
+        if resume:
+            fail("--false-positive-weight applies to new runs (a resumed run keeps its loss)")
+        model_config = model_config.with_train(false_positive_weight=false_positive_weight)
     if lr is not None:
         if not lr > 0:
             fail(f"--lr must be positive (got {lr})")

@@ -2,7 +2,10 @@
 
 - ``qem``: the solid is refined to a dense triangle mesh, then pymeshlab's quadric
   edge collapse (topology preserved, planar quadrics) brings it down to the target
-  vertex count.
+  vertex count, and edges between nearly coplanar triangles are flipped to the
+  Delaunay diagonal (:func:`delaunay_flip_flat`): where both diagonals of a flat quad
+  give the same surface, the one QEM's collapse order left is arbitrary, and the
+  stored connectivity should be a function of the shape.
 - ``planar``: a minimal planar-decimated polygon mesh, as Blender's planar
   decimation makes one: adjacent facets within a small angle merge into one n-gon,
   and vertices left between only two faces are dissolved.
@@ -29,6 +32,13 @@ from spacemesh.typed import IntArray
 
 #: Oversampling of the dense mesh that QEM starts from (vertices per target vertex).
 QEM_DENSITY = 3.0
+
+#: Triangles whose normals are within this angle count as coplanar for the flips.
+FLAT_FLIP_DEGREES = 1.0
+
+#: Passes of pymeshlab's flip filter at most (one pass does not re-queue the edges its
+#: flips make non-Delaunay; three to four passes settle the qem shapes).
+FLAT_FLIP_PASSES = 8
 
 
 def _meshset(mesh: PolygonMesh):
@@ -69,6 +79,33 @@ def _qem(meshset, target_vertices: int, genus: int) -> None:
     )
 
 
+def delaunay_flip_flat(meshset, max_angle_degrees: float = FLAT_FLIP_DEGREES) -> None:
+    """Flip edges between nearly coplanar triangles to the locally Delaunay diagonal.
+
+    pymeshlab's planar flip optimisation with the Delaunay criterion: an edge whose two
+    triangles' normals are within ``max_angle_degrees`` is flipped when its opposite
+    angles sum to more than ``pi``. One pass of the filter does not revisit the edges
+    its own flips made non-Delaunay, so it runs until the faces stop changing (at most
+    :data:`FLAT_FLIP_PASSES` times). Vertices do not move (no relaxation), so the
+    surface changes by at most the flat quads' fold.
+
+    Parameters
+    ----------
+    meshset : pymeshlab.MeshSet
+        Its current mesh is changed in place.
+    max_angle_degrees : float
+    """
+    faces = meshset.current_mesh().face_matrix()
+    for _ in range(FLAT_FLIP_PASSES):
+        meshset.meshing_edge_flip_by_planar_optimization(
+            pthreshold=max_angle_degrees, planartype="delaunay", iterations=0
+        )
+        flipped = meshset.current_mesh().face_matrix()
+        if np.array_equal(flipped, faces):
+            return
+        faces = flipped
+
+
 def _dense(solid, target_vertices: int) -> PolygonMesh:
     """The solid refined so it has about QEM_DENSITY times the target vertices."""
     length = _edge_length_for(solid.surface_area(), QEM_DENSITY * target_vertices)
@@ -76,7 +113,8 @@ def _dense(solid, target_vertices: int) -> PolygonMesh:
 
 
 def qem(solid, target_vertices: int, rng: np.random.Generator) -> PolygonMesh:
-    """Quadric edge collapse of a dense mesh down to ``target_vertices``.
+    """Quadric edge collapse of a dense mesh down to ``target_vertices``, flat edges
+    flipped to Delaunay.
 
     Parameters
     ----------
@@ -92,6 +130,7 @@ def qem(solid, target_vertices: int, rng: np.random.Generator) -> PolygonMesh:
     """
     meshset = _meshset(_dense(solid, target_vertices))
     _qem(meshset, target_vertices, solid.genus())
+    delaunay_flip_flat(meshset)
     return _current(meshset)
 
 

@@ -27,7 +27,7 @@ from spacemesh.data.shards import SHARD_PATTERN, write_manifest, write_shard
 from spacemesh.data.styles import STYLES, segments_for, tessellate
 
 #: Bumped whenever a change alters the shapes generated for a given seed.
-GENERATOR_VERSION = "1.0.0"
+GENERATOR_VERSION = "1.1.0"
 PARAMETERS = "synth.json"
 
 

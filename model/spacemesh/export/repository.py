@@ -430,7 +430,8 @@ def export_run(
         manifest records the run's last validation metrics.
     calibrate_data : path, optional
         Dataset whose ``val`` split recalibrates the edge threshold ``tau`` (see
-        :func:`spacemesh.train.evaluate.calibrate_threshold`) and then chooses the
+        :func:`spacemesh.train.evaluate.calibrate_threshold`, then
+        :func:`~spacemesh.train.evaluate.calibrate_decode_threshold`) and then chooses the
         sampler's ``vertex_spacing`` (:func:`calibrate_vertex_spacing`); the values and
         how they were found go into the manifest's ``training`` section.
     connectivity_shapes, pipeline_shapes : int
@@ -464,18 +465,29 @@ def export_run(
         training["base"] = {k: extra["base"][k] for k in ("name", "version", "files")}
         training["base_training"] = extra["base"].get("training", {})
     if calibrate_data is not None:
-        from spacemesh.train.evaluate import calibrate_threshold
+        from spacemesh.train.evaluate import (
+            DECODE_PAIR_RATIOS,
+            calibrate_decode_threshold,
+            calibrate_threshold,
+        )
         from spacemesh.train.loop import load_samples
 
         samples = load_samples(calibrate_data, "val", config.max_vertices,
                                limit=connectivity_shapes)
         learned = float(model.connectivity.tau.detach())
-        tau, f1 = calibrate_threshold(model, samples)
+        f1_tau, f1 = calibrate_threshold(model, samples)
+        tau, decoded = calibrate_decode_threshold(model, samples, f1_tau)
         with torch.no_grad():
             model.connectivity.tau.fill_(tau)
-        training["tau"] = {"learned": learned, "calibrated": tau, "val_edge_f1": f1,
-                           "calibration": f"max mean edge F1 on {len(samples)} shapes of the "
-                                          f"val split of {Path(calibrate_data).name}"}
+        training["tau"] = {
+            "learned": learned, "edge_f1_best": f1_tau, "val_edge_f1": f1, "calibrated": tau,
+            "val_decoded": decoded,
+            "calibration": f"max mean edge F1 on {len(samples)} shapes of the val split of "
+                           f"{Path(calibrate_data).name}, then the threshold passing "
+                           f"{decoded['ratio']:g}x as many pairs, of "
+                           f"{', '.join(f'{r:g}' for r in DECODE_PAIR_RATIOS)}x, for the "
+                           "max mean decoded next accuracy",
+        }
     metrics = {"validation": extra.get("validation", {})}
     data = dict(extra.get("data", {}))
     if "base" in data:  # what the base was trained on, without this machine's path

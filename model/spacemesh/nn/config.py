@@ -170,6 +170,12 @@ class TrainConfig:
         [-1, 1] frame; 0 trains on exact ground-truth positions as the paper does. At
         inference the network sees sampled vertices, which lie about 0.05 off the surface
         (median, ``small`` model), so some noise makes it robust to them.
+    false_positive_weight : float, optional
+        Weight of the non-edges that are currently below the threshold (hard negatives:
+        mostly next-ring pairs) in the edge loss, instead of the paper's ``lambda``
+        (:func:`spacemesh.nn.losses.edge_loss_dense`); None keeps the paper's loss.
+    false_positive_margin : float
+        Non-edges count as hard up to ``d < tau + margin``.
     grad_clip : float
         Gradient norm clip (0 disables).
     connectivity_trains_encoder : bool
@@ -194,6 +200,8 @@ class TrainConfig:
     mask_weight: float = 1.0
     scale_range: tuple[float, float] = (0.75, 1.25)
     connectivity_jitter: float = 0.0
+    false_positive_weight: float | None = None
+    false_positive_margin: float = 0.5
     grad_clip: float = 1.0
     connectivity_trains_encoder: bool = True
     val_every: int = 100

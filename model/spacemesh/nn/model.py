@@ -163,14 +163,17 @@ def pairwise_edge_loss(
     -------
     () tensor
     """
-    con = config.connectivity
+    con, train = config.connectivity, config.train
     counts = valid.sum(1).tolist()
     total = x.new_zeros(())
     for i, n in enumerate(counts):
         if n < 2:
             continue
         adj = adjacency[i : i + 1, :n, :n]
-        per_edge = edge_loss_dense(x[i : i + 1, :n], tau, adj, None, con.distance, con.n_space)
+        per_edge = edge_loss_dense(
+            x[i : i + 1, :n], tau, adj, None, con.distance, con.n_space,
+            train.false_positive_weight, train.false_positive_margin,
+        )
         n_edges = max(int(adj.sum()) // 2, 1)
         total = total + per_edge * (n_edges / (n * (n - 1) / 2))
     return total / max(len(counts), 1)
