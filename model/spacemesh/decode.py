@@ -44,6 +44,7 @@ from spacemesh.permutation import (
     neighbourhood_log_phi_bar,
 )
 from spacemesh.spacetime import Distance, distance_operands, edges_below_threshold
+from spacemesh.splitting import split_long_faces
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Rounds of one-edge-per-pinched-face removal before the vertex rule takes over.
@@ -94,7 +95,9 @@ class DecodeOptions:
     pinched face loses first: its weakest ``edge`` (default) or a repeated ``vertex``
     (see the module docstring), and whether the weaker of two crossing quad diagonals
     is dropped before matching (``uncross``; needs positions, see
-    :mod:`spacemesh.crossing`)."""
+    :mod:`spacemesh.crossing`), and the most sides a face may keep (``max_sides``: longer
+    faces are cut along their strongest missing diagonals, see :mod:`spacemesh.splitting`;
+    3 for a model trained on triangle meshes, None keeps every polygon)."""
 
     distance: Distance = "spacetime"
     n_space: int | None = None
@@ -105,6 +108,7 @@ class DecodeOptions:
     fallback: Fallback = "angular"
     unpinch: Unpinch = "edge"
     uncross: bool = True
+    max_sides: int | None = None
 
 
 @dataclass
@@ -129,6 +133,8 @@ class DecodeResult:
         Edges removed because a face visited one of their vertices twice.
     n_uncrossed : int
         Candidate edges dropped as the weaker of two crossing quad diagonals.
+    n_split : int
+        Diagonals added to faces longer than ``DecodeOptions.max_sides``.
     rounds : int
         Matching rounds (1 when no face was pinched).
     """
@@ -141,6 +147,7 @@ class DecodeResult:
     n_unpinched: int = 0
     n_unpinch_edges: int = 0
     n_uncrossed: int = 0
+    n_split: int = 0
     rounds: int = 1
     stats: dict = field(default_factory=dict)
 
@@ -365,6 +372,19 @@ def _sanitise(emb: Embeddings, alive: BoolArray) -> tuple[Embeddings, BoolArray]
     return clean, alive & finite
 
 
+def _finished(
+    connectivity: Connectivity, stats: dict, emb: Embeddings, options: DecodeOptions
+) -> tuple[Connectivity, dict]:
+    """The valid decode, with its long faces cut when ``options.max_sides`` is set."""
+    stats["n_split"] = 0
+    if options.max_sides is not None:
+        operands = distance_operands(emb.adjacency, options.distance, options.n_space)
+        connectivity, stats["n_split"] = split_long_faces(
+            connectivity, operands, options.max_sides
+        )
+    return connectivity, stats
+
+
 def decode_connectivity(
     emb: Embeddings,
     options: DecodeOptions | None = None,
@@ -388,7 +408,8 @@ def decode_connectivity(
         Over all ``N`` input indices; removed vertices have degree 0.
     stats : dict
         ``n_fallbacks``, ``n_pruned``, ``n_unpinched``, ``n_unpinch_edges``,
-        ``n_uncrossed`` (crossing diagonals dropped), ``rounds``.
+        ``n_uncrossed`` (crossing diagonals dropped), ``n_split`` (diagonals added to
+        long faces), ``rounds``.
     """
     options = options or DecodeOptions()
     n = emb.n_vertices
@@ -434,7 +455,7 @@ def decode_connectivity(
         if stats["rounds"] <= edge_rounds:
             drop = pinched_face_edges(indices, face_offsets, n, candidates, weakness)
             if drop.size == 0:
-                return connectivity, stats
+                return _finished(connectivity, stats, emb, options)
             touched = np.isin(edge_keys(edges, n), drop)
             stats["n_unpinch_edges"] += int(touched.sum())
         else:
@@ -443,7 +464,7 @@ def decode_connectivity(
                 all_repeated=stats["rounds"] - edge_rounds > GENTLE_ROUNDS,
             )
             if pinched.size == 0:
-                return connectivity, stats
+                return _finished(connectivity, stats, emb, options)
             alive[pinched] = False
             stats["n_unpinched"] += int(pinched.size)
             touched = np.isin(edges, pinched).any(axis=1)
@@ -487,6 +508,7 @@ def decode(
         n_unpinched=stats["n_unpinched"],
         n_unpinch_edges=stats["n_unpinch_edges"],
         n_uncrossed=stats["n_uncrossed"],
+        n_split=stats["n_split"],
         rounds=stats["rounds"],
         stats=stats,
     )

@@ -57,7 +57,10 @@ def embeddings(draw):
         positions[rng.random(n) < 0.2] = np.nan
     fallback = draw(st.sampled_from(["angular", "greedy"]))
     unpinch = draw(st.sampled_from(["edge", "vertex"]))
-    options = DecodeOptions(distance=distance, fallback=fallback, unpinch=unpinch)
+    uncross = draw(st.booleans())
+    max_sides = draw(st.sampled_from([None, 3, 4]))
+    options = DecodeOptions(distance=distance, fallback=fallback, unpinch=unpinch,
+                            uncross=uncross, max_sides=max_sides)
     return emb, options, alive, positions
 
 
@@ -69,6 +72,17 @@ def test_any_embedding_decodes_to_valid_mesh(case):
     assert_valid(result, emb.n_vertices)
     if alive is not None:
         assert alive[result.vertex_ids].all()
+    if options.max_sides is not None:
+        # a longer face is left only when every one of its diagonals is an edge already
+        edges = {tuple(e) for e in result.connectivity.edges.tolist()}
+        indices, offsets = result.connectivity.faces()
+        for f in range(len(offsets) - 1):
+            face = indices[offsets[f] : offsets[f + 1]].tolist()
+            m = len(face)
+            if m > options.max_sides:
+                diagonals = [(min(face[i], face[j]), max(face[i], face[j]))
+                             for i in range(m) for j in range(i + 2, m) if (i, j) != (0, m - 1)]
+                assert all(d in edges for d in diagonals)
 
 
 @settings(max_examples=30, deadline=None)

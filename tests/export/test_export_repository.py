@@ -70,3 +70,19 @@ def test_vertex_spacing_is_calibrated_on_the_val_split(toy_model, tmp_path):
     assert ModelSpec.from_manifest(manifest).vertex_spacing == 1e-4
     manifest["sampler"]["vertex_spacing"] = 0.05
     assert ModelSpec.from_manifest(manifest).vertex_spacing == 0.05
+
+
+def test_the_decode_section_follows_the_training_style(toy_model):
+    from spacemesh.export.repository import decode_section
+    from spacemesh.runtime.pipeline import ModelSpec
+
+    manifest = json.loads((toy_model.repository / "manifest.json").read_text())
+    assert manifest["decode"]["max_sides"] is None  # the toy data card names no style
+    assert ModelSpec.from_manifest(manifest).decode.max_sides is None
+    assert decode_section({"style": "qem"})["max_sides"] == 3
+    assert decode_section({"style": "isotropic"})["max_sides"] == 3
+    assert decode_section({"style": "quad"})["max_sides"] is None
+    manifest["decode"] = decode_section({"style": "qem"})
+    assert ModelSpec.from_manifest(manifest).decode.max_sides == 3
+    del manifest["decode"]  # repositories written before the section existed
+    assert ModelSpec.from_manifest(manifest).decode.max_sides is None

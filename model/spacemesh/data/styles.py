@@ -441,6 +441,10 @@ STYLES: dict[str, Callable[..., PolygonMesh]] = {
 }
 
 
+#: Styles whose meshes are all triangles (a model trained on them should output triangles).
+TRIANGLE_STYLES = ("qem", "isotropic")
+
+
 def segments_for(style: str, target_vertices: int, rng: np.random.Generator) -> int:
     """Circular segments of curved primitives for a style and vertex target.
 

@@ -62,6 +62,7 @@ from spacemesh.runtime.backend import (
     ENCODER_INPUTS,
     volume_names,
 )
+from spacemesh.runtime.pipeline import decode_changes
 from spacemesh.runtime.repository import FORMAT, FORMAT_VERSION, MANIFEST, sha256_file
 
 
@@ -325,7 +326,9 @@ def heldout_metrics(
 
     max_vertices = model.config.max_vertices
     samples = load_samples(data, None, max_vertices, limit=connectivity_shapes)
-    conn = connectivity_metrics(model, samples)
+    manifest = json.loads((Path(version_dir) / MANIFEST).read_text())
+    options = replace(model.decode_options, **decode_changes(manifest.get("decode", {})))
+    conn = connectivity_metrics(model, samples, options=options)
     records = first_records(data, max_vertices=max_vertices, limit=pipeline_shapes)
     generator = MeshGenerator.from_repository(version_dir, intra_op_threads=threads)
     pipe = pipeline_metrics(generator, records, steps=steps)
@@ -335,6 +338,33 @@ def heldout_metrics(
         "pipeline": {**pipe, "sampler": generator.spec.method,
                      "steps": steps or generator.spec.steps},
     }
+
+
+def decode_section(data_card: dict[str, Any]) -> dict[str, Any]:
+    """The manifest's ``decode`` section for a model trained on ``data_card``'s data.
+
+    A model trained on triangle meshes (:data:`spacemesh.data.styles.TRIANGLE_STYLES`)
+    has its long faces cut into triangles (``max_sides`` 3, see
+    :mod:`spacemesh.splitting`); any other keeps its polygons.
+
+    Parameters
+    ----------
+    data_card : dict
+        The run's data card (``style`` is read).
+
+    Returns
+    -------
+    dict
+        ``max_sides`` (int or None) and ``why``.
+    """
+    from spacemesh.data.styles import TRIANGLE_STYLES
+
+    style = data_card.get("style")
+    if style in TRIANGLE_STYLES:
+        return {"max_sides": 3,
+                "why": f"trained on triangle meshes (style {style}): faces longer than "
+                       "triangles are cut along their strongest missing diagonals"}
+    return {"max_sides": None, "why": f"trained on style {style}: polygons are kept"}
 
 
 #: Vertex spacings tried by :func:`calibrate_vertex_spacing` ([-1, 1] frame).
@@ -464,6 +494,7 @@ def export_run(
         training["trained"] = "connectivity network only, on the base's frozen encoder"
         training["base"] = {k: extra["base"][k] for k in ("name", "version", "files")}
         training["base_training"] = extra["base"].get("training", {})
+    decode = decode_section(extra.get("data", {}))
     if calibrate_data is not None:
         from spacemesh.train.evaluate import (
             DECODE_PAIR_RATIOS,
@@ -476,7 +507,8 @@ def export_run(
                                limit=connectivity_shapes)
         learned = float(model.connectivity.tau.detach())
         f1_tau, f1 = calibrate_threshold(model, samples)
-        tau, decoded = calibrate_decode_threshold(model, samples, f1_tau)
+        options = replace(model.decode_options, **decode_changes(decode))
+        tau, decoded = calibrate_decode_threshold(model, samples, f1_tau, options=options)
         with torch.no_grad():
             model.connectivity.tau.fill_(tau)
         training["tau"] = {
@@ -494,6 +526,7 @@ def export_run(
         data["base"] = {k: v for k, v in data["base"].items() if k != "path"}
     directory = write_model_repository(model, root, name=name, version=version, data=data,
                                        training=training, metrics=metrics, base=base)
+    update_manifest(directory, decode=decode)
     if calibrate_data is not None:
         spacing = calibrate_vertex_spacing(directory, calibrate_data, threads=threads)
         training["vertex_spacing"] = spacing

@@ -44,6 +44,12 @@ POINT_SUBSET_SEED = 0
 DUPLICATE_TOLERANCE = 1e-4
 
 
+def decode_changes(section: dict[str, Any]) -> dict[str, Any]:
+    """:class:`~spacemesh.decode.DecodeOptions` fields from a manifest's ``decode``
+    section (``max_sides``; empty for repositories written before it existed)."""
+    return {"max_sides": section["max_sides"]} if "max_sides" in section else {}
+
+
 @dataclass(frozen=True)
 class ModelSpec:
     """What the pipeline needs to know about a model besides its networks.
@@ -130,7 +136,8 @@ class ModelSpec:
             manifest.get("embedding", {}).get("reduction_params"),
         )
         spacing = manifest.get("sampler", {}).get("vertex_spacing", DUPLICATE_TOLERANCE)
-        return replace(spec, vertex_spacing=float(spacing))
+        decode = replace(spec.decode, **decode_changes(manifest.get("decode", {})))
+        return replace(spec, vertex_spacing=float(spacing), decode=decode)
 
 
 @dataclass(frozen=True)

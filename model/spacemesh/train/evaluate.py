@@ -104,7 +104,8 @@ SCORES = ("edge_f1", "decoded_edge_f1", "next_accuracy", "exact")
 
 
 def connectivity_metrics(
-    model: SpaceMeshModel, samples: Sequence[Sample], *, batch_size: int = 8
+    model: SpaceMeshModel, samples: Sequence[Sample], *, batch_size: int = 8,
+    options: DecodeOptions | None = None,
 ) -> dict[str, float]:
     """Edge F1 and ``next`` accuracy of the connectivity network on ground-truth vertices.
 
@@ -113,6 +114,8 @@ def connectivity_metrics(
     model : SpaceMeshModel
     samples : sequence of Sample
     batch_size : int
+    options : DecodeOptions, optional
+        Default: the model's (``model.decode_options``).
 
     Returns
     -------
@@ -120,7 +123,7 @@ def connectivity_metrics(
         Means over shapes of the scores of :func:`decoded_scores`, and ``shapes``.
     """
     embeddings = predicted_embeddings(model, samples, batch_size=batch_size)
-    scores = decoded_scores(samples, embeddings, model.decode_options)
+    scores = decoded_scores(samples, embeddings, options or model.decode_options)
     means = {k: float(np.mean(v)) if v else float("nan") for k, v in scores.items()}
     return {**means, "shapes": float(len(samples))}
 
@@ -273,12 +276,13 @@ def _pair_distances(
 
 #: Candidate edge counts of :func:`calibrate_decode_threshold`, relative to the count at
 #: the F1-best threshold (the decode removes weak false edges, so it can take more).
-DECODE_PAIR_RATIOS = (1.0, 1.05, 1.1, 1.15, 1.2, 1.3)
+DECODE_PAIR_RATIOS = (1.0, 1.1, 1.2, 1.3, 1.4, 1.5)
 
 
 def calibrate_decode_threshold(
     model: SpaceMeshModel, samples: Sequence[Sample], tau: float, *,
     ratios: Sequence[float] = DECODE_PAIR_RATIOS, batch_size: int = 8,
+    options: DecodeOptions | None = None,
 ) -> tuple[float, dict[str, float]]:
     """Of thresholds at or above ``tau``, the one whose decoded meshes are best.
 
@@ -297,6 +301,8 @@ def calibrate_decode_threshold(
         The F1-calibrated threshold (ratio 1).
     ratios : sequence of float
     batch_size : int
+    options : DecodeOptions, optional
+        Default: the model's.
 
     Returns
     -------
@@ -305,7 +311,7 @@ def calibrate_decode_threshold(
     scores : dict
         Its means of :func:`decoded_scores`, and ``ratio``.
     """
-    options = model.decode_options
+    options = options or model.decode_options
     embeddings = predicted_embeddings(model, samples, batch_size=batch_size)
     pooled = np.sort(np.concatenate(
         [d for d, _, _ in _pair_distances(samples, embeddings, options)]
@@ -313,7 +319,7 @@ def calibrate_decode_threshold(
     base = int(np.searchsorted(pooled, tau, side="left"))  # pairs below tau
     best: tuple[float, dict[str, float]] | None = None
     for ratio in ratios:
-        count = min(int(round(base * ratio)), len(pooled) - 1)
+        count = min(round(base * ratio), len(pooled) - 1)
         if ratio != 1.0 and count <= base:
             continue  # no pair to add
         candidate = tau if ratio == 1.0 else float(0.5 * (pooled[count - 1] + pooled[count]))
