@@ -45,6 +45,7 @@ from spacemesh.permutation import (
 )
 from spacemesh.spacetime import Distance, distance_operands, edges_below_threshold
 from spacemesh.splitting import split_long_faces
+from spacemesh.topology import edge_keys
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Rounds of one-edge-per-pinched-face removal before the vertex rule takes over.
@@ -262,11 +263,6 @@ def pinched_face_edges(
     return np.unique(keys[chosen[first]])
 
 
-def edge_keys(edges: IntArray, n_vertices: int) -> IntArray:
-    """Keys ``i * N + j`` (int64) of ``(E, 2)`` edges."""
-    return edges[:, 0].astype(np.int64) * n_vertices + edges[:, 1]
-
-
 def unpinch_candidates(
     emb: Embeddings, edges: IntArray, options: DecodeOptions
 ) -> tuple[IntArray, FloatArray]:
@@ -283,7 +279,7 @@ def unpinch_candidates(
     Returns
     -------
     keys : (E,) int64
-        The edges' keys (:func:`edge_keys`), sorted.
+        The edges' keys (:func:`spacemesh.topology.edge_keys`), sorted.
     weakness : (E,) float64
         The embedding distance of each edge, in the same order.
     """

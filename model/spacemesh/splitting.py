@@ -21,6 +21,7 @@ import numpy as np
 from spacemesh.connectivity import Connectivity
 from spacemesh.encode import encode_connectivity
 from spacemesh.mesh import PolygonMesh
+from spacemesh.topology import edge_keys
 from spacemesh.typed import FloatArray, IntArray
 
 
@@ -37,8 +38,7 @@ def _cut(face: IntArray, a: FloatArray, b: FloatArray, edges: set[int], n: int,
         i, j = np.triu_indices(m, 2)
         diagonal = ~((i == 0) & (j == m - 1))  # the first and last corners are a side
         i, j = i[diagonal], j[diagonal]
-        lo, hi = np.minimum(part[i], part[j]), np.maximum(part[i], part[j])
-        keys = lo.astype(np.int64) * n + hi
+        keys = edge_keys(np.stack([part[i], part[j]], axis=1), n)
         free = np.fromiter((k not in edges for k in keys.tolist()), bool, len(keys))
         if not free.any():
             done.append(part)
@@ -81,8 +81,7 @@ def split_long_faces(
     if not (sides > max_sides).any():
         return connectivity, 0
     n = connectivity.n_vertices
-    e = connectivity.edges
-    edges = set((e[:, 0].astype(np.int64) * n + e[:, 1]).tolist())
+    edges = set(edge_keys(connectivity.edges, n).tolist())
     before = len(edges)
     a, b = operands
     faces: list[IntArray] = []

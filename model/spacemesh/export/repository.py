@@ -500,15 +500,17 @@ def export_run(
             DECODE_PAIR_RATIOS,
             calibrate_decode_threshold,
             calibrate_threshold,
+            predicted_embeddings,
         )
         from spacemesh.train.loop import load_samples
 
         samples = load_samples(calibrate_data, "val", config.max_vertices,
                                limit=connectivity_shapes)
         learned = float(model.connectivity.tau.detach())
-        f1_tau, f1 = calibrate_threshold(model, samples)
+        embeddings = predicted_embeddings(model, samples)  # at the learned tau
         options = replace(model.decode_options, **decode_changes(decode))
-        tau, decoded = calibrate_decode_threshold(model, samples, f1_tau, options=options)
+        f1_tau, f1 = calibrate_threshold(samples, embeddings, options)
+        tau, decoded = calibrate_decode_threshold(samples, embeddings, options, f1_tau)
         with torch.no_grad():
             model.connectivity.tau.fill_(tau)
         training["tau"] = {

@@ -50,7 +50,6 @@ from spacemesh.decode import (
     EDGE_ROUNDS,
     DecodeOptions,
     Embeddings,
-    edge_keys,
     pinched_face_edges,
     repeated_in_faces,
     unpinch_candidates,
@@ -66,6 +65,7 @@ from spacemesh.permutation import (
 )
 from spacemesh.repair.cut import Cut
 from spacemesh.spacetime import edges_below_threshold
+from spacemesh.topology import edge_keys
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Rounds of one-new-vertex-per-face removal before every new vertex of a pinched face

@@ -216,7 +216,7 @@ def pipeline_metrics(
 
 @torch.no_grad()
 def calibrate_threshold(
-    model: SpaceMeshModel, samples: Sequence[Sample], *, batch_size: int = 8,
+    samples: Sequence[Sample], embeddings: Sequence[Embeddings], options: DecodeOptions, *,
     candidates: int = 400,
 ) -> tuple[float, float]:
     """The edge threshold ``tau`` that maximises the mean edge F1 on ground-truth vertices.
@@ -228,9 +228,11 @@ def calibrate_threshold(
 
     Parameters
     ----------
-    model : SpaceMeshModel
     samples : sequence of Sample
-    batch_size : int
+    embeddings : sequence of Embeddings
+        The network's, one per sample (:func:`predicted_embeddings`).
+    options : DecodeOptions
+        Its distance and ``n_space``.
     candidates : int
         Thresholds tried (quantiles of the pair distances).
 
@@ -241,8 +243,7 @@ def calibrate_threshold(
     f1 : float
         Its mean edge F1 on ``samples``.
     """
-    embeddings = predicted_embeddings(model, samples, batch_size=batch_size)
-    shapes = _pair_distances(samples, embeddings, model.decode_options)
+    shapes = _pair_distances(samples, embeddings, options)
     pooled = np.concatenate([d[y] for d, y, _ in shapes])  # distances of true edges
     grid = np.unique(np.quantile(pooled, np.linspace(0.0, 1.0, candidates)))
     scores = np.zeros(len(grid))
@@ -280,9 +281,8 @@ DECODE_PAIR_RATIOS = (1.0, 1.1, 1.2, 1.3, 1.4, 1.5)
 
 
 def calibrate_decode_threshold(
-    model: SpaceMeshModel, samples: Sequence[Sample], tau: float, *,
-    ratios: Sequence[float] = DECODE_PAIR_RATIOS, batch_size: int = 8,
-    options: DecodeOptions | None = None,
+    samples: Sequence[Sample], embeddings: Sequence[Embeddings], options: DecodeOptions,
+    tau: float, *, ratios: Sequence[float] = DECODE_PAIR_RATIOS,
 ) -> tuple[float, dict[str, float]]:
     """Of thresholds at or above ``tau``, the one whose decoded meshes are best.
 
@@ -294,15 +294,15 @@ def calibrate_decode_threshold(
 
     Parameters
     ----------
-    model : SpaceMeshModel
     samples : sequence of Sample
         Validation shapes (never the held-out ones).
+    embeddings : sequence of Embeddings
+        The network's, one per sample (:func:`predicted_embeddings`).
+    options : DecodeOptions
+        The decode the model ships with.
     tau : float
         The F1-calibrated threshold (ratio 1).
     ratios : sequence of float
-    batch_size : int
-    options : DecodeOptions, optional
-        Default: the model's.
 
     Returns
     -------
@@ -311,8 +311,6 @@ def calibrate_decode_threshold(
     scores : dict
         Its means of :func:`decoded_scores`, and ``ratio``.
     """
-    options = options or model.decode_options
-    embeddings = predicted_embeddings(model, samples, batch_size=batch_size)
     pooled = np.sort(np.concatenate(
         [d for d, _, _ in _pair_distances(samples, embeddings, options)]
     ))
