@@ -43,6 +43,7 @@ from spacemesh.permutation import (
     group_by_degree,
     neighbourhood_log_phi_bar,
 )
+from spacemesh.refinement import flip_diagonals, reinsert_vertices
 from spacemesh.spacetime import Distance, distance_operands, edges_below_threshold
 from spacemesh.splitting import split_long_faces
 from spacemesh.topology import edge_keys
@@ -98,7 +99,12 @@ class DecodeOptions:
     is dropped before matching (``uncross``; needs positions, see
     :mod:`spacemesh.crossing`), and the most sides a face may keep (``max_sides``: longer
     faces are cut along their strongest missing diagonals, see :mod:`spacemesh.splitting`;
-    3 for a model trained on triangle meshes, None keeps every polygon)."""
+    3 for a model trained on triangle meshes, None keeps every polygon), and the
+    refinement of the finished mesh (:mod:`spacemesh.refinement`): ``reinsert`` puts
+    removed vertices back into the triangles the network rates closest, ``flip`` turns
+    triangle pairs to the diagonal the network rates closer, and
+    ``flat_delaunay_degrees`` (needs positions) makes quads folded by less than that
+    Delaunay instead, as the ``qem`` training meshes are."""
 
     distance: Distance = "spacetime"
     n_space: int | None = None
@@ -110,6 +116,9 @@ class DecodeOptions:
     unpinch: Unpinch = "edge"
     uncross: bool = True
     max_sides: int | None = None
+    reinsert: bool = False
+    flip: bool = False
+    flat_delaunay_degrees: float | None = None
 
 
 @dataclass
@@ -136,6 +145,10 @@ class DecodeResult:
         Candidate edges dropped as the weaker of two crossing quad diagonals.
     n_split : int
         Diagonals added to faces longer than ``DecodeOptions.max_sides``.
+    n_reinserted : int
+        Removed vertices put back (``DecodeOptions.reinsert``).
+    n_flipped : int
+        Diagonals flipped (``DecodeOptions.flip``, ``flat_delaunay_degrees``).
     rounds : int
         Matching rounds (1 when no face was pinched).
     """
@@ -149,6 +162,8 @@ class DecodeResult:
     n_unpinch_edges: int = 0
     n_uncrossed: int = 0
     n_split: int = 0
+    n_reinserted: int = 0
+    n_flipped: int = 0
     rounds: int = 1
     stats: dict = field(default_factory=dict)
 
@@ -369,14 +384,28 @@ def _sanitise(emb: Embeddings, alive: BoolArray) -> tuple[Embeddings, BoolArray]
 
 
 def _finished(
-    connectivity: Connectivity, stats: dict, emb: Embeddings, options: DecodeOptions
+    connectivity: Connectivity, stats: dict, emb: Embeddings, options: DecodeOptions,
+    took_part: BoolArray, positions: FloatArray | None,
 ) -> tuple[Connectivity, dict]:
-    """The valid decode, with its long faces cut when ``options.max_sides`` is set."""
-    stats["n_split"] = 0
+    """The valid decode, with its long faces cut when ``options.max_sides`` is set, then
+    refined (:mod:`spacemesh.refinement`) as ``options`` asks."""
+    stats["n_split"] = stats["n_reinserted"] = stats["n_flipped"] = 0
+    refine = options.reinsert or options.flip or options.flat_delaunay_degrees is not None
+    if options.max_sides is None and not refine:
+        return connectivity, stats
+    operands = distance_operands(emb.adjacency, options.distance, options.n_space)
     if options.max_sides is not None:
-        operands = distance_operands(emb.adjacency, options.distance, options.n_space)
         connectivity, stats["n_split"] = split_long_faces(
             connectivity, operands, options.max_sides
+        )
+    if options.reinsert:
+        removed = np.flatnonzero(took_part & (connectivity.degree == 0))
+        connectivity, stats["n_reinserted"] = reinsert_vertices(connectivity, removed, operands,
+                                                                  positions)
+    if options.flip or options.flat_delaunay_degrees is not None:
+        connectivity, stats["n_flipped"] = flip_diagonals(
+            connectivity, operands, positions, flat_degrees=options.flat_delaunay_degrees,
+            by_score=options.flip,
         )
     return connectivity, stats
 
@@ -405,12 +434,13 @@ def decode_connectivity(
     stats : dict
         ``n_fallbacks``, ``n_pruned``, ``n_unpinched``, ``n_unpinch_edges``,
         ``n_uncrossed`` (crossing diagonals dropped), ``n_split`` (diagonals added to
-        long faces), ``rounds``.
+        long faces), ``n_reinserted``, ``n_flipped`` (the refinement), ``rounds``.
     """
     options = options or DecodeOptions()
     n = emb.n_vertices
     alive = np.ones(n, dtype=bool) if alive is None else np.asarray(alive, dtype=bool).copy()
     emb, alive = _sanitise(emb, alive)
+    took_part = alive.copy()
     edges = edges_below_threshold(
         emb.adjacency, emb.tau, options.distance, options.n_space, alive, options.max_degree
     )
@@ -451,7 +481,7 @@ def decode_connectivity(
         if stats["rounds"] <= edge_rounds:
             drop = pinched_face_edges(indices, face_offsets, n, candidates, weakness)
             if drop.size == 0:
-                return _finished(connectivity, stats, emb, options)
+                return _finished(connectivity, stats, emb, options, took_part, positions)
             touched = np.isin(edge_keys(edges, n), drop)
             stats["n_unpinch_edges"] += int(touched.sum())
         else:
@@ -460,7 +490,7 @@ def decode_connectivity(
                 all_repeated=stats["rounds"] - edge_rounds > GENTLE_ROUNDS,
             )
             if pinched.size == 0:
-                return _finished(connectivity, stats, emb, options)
+                return _finished(connectivity, stats, emb, options, took_part, positions)
             alive[pinched] = False
             stats["n_unpinched"] += int(pinched.size)
             touched = np.isin(edges, pinched).any(axis=1)
@@ -505,6 +535,8 @@ def decode(
         n_unpinch_edges=stats["n_unpinch_edges"],
         n_uncrossed=stats["n_uncrossed"],
         n_split=stats["n_split"],
+        n_reinserted=stats["n_reinserted"],
+        n_flipped=stats["n_flipped"],
         rounds=stats["rounds"],
         stats=stats,
     )

@@ -1,5 +1,7 @@
 """Property tests: ANY embedding decodes to a valid oriented manifold polygon mesh."""
 
+from dataclasses import replace
+
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -60,7 +62,9 @@ def embeddings(draw):
     uncross = draw(st.booleans())
     max_sides = draw(st.sampled_from([None, 3, 4]))
     options = DecodeOptions(distance=distance, fallback=fallback, unpinch=unpinch,
-                            uncross=uncross, max_sides=max_sides)
+                            uncross=uncross, max_sides=max_sides, reinsert=draw(st.booleans()),
+                            flip=draw(st.booleans()),
+                            flat_delaunay_degrees=draw(st.sampled_from([None, 1.0, 30.0])))
     return emb, options, alive, positions
 
 
@@ -72,6 +76,11 @@ def test_any_embedding_decodes_to_valid_mesh(case):
     assert_valid(result, emb.n_vertices)
     if alive is not None:
         assert alive[result.vertex_ids].all()
+    if options.reinsert:
+        # putting removed vertices back only ever adds vertices to the same decode
+        without = decode(positions, emb, replace(options, reinsert=False, flip=False), alive)
+        assert result.mesh.n_vertices >= without.mesh.n_vertices
+        assert result.mesh.n_vertices == without.mesh.n_vertices + result.n_reinserted
     if options.max_sides is not None:
         # a longer face is left only when every one of its diagonals is an edge already
         edges = {tuple(e) for e in result.connectivity.edges.tolist()}

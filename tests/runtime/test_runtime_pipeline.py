@@ -35,7 +35,10 @@ def test_results_are_valid_outward_meshes_with_timings(generator, cloud):
     mesh = result.mesh
     if mesh.n_faces:
         assert check_topology(mesh).is_closed_oriented_manifold
-        assert signed_volume(mesh) >= 0
+        # outward: a non-negative volume, up to rounding for a mesh that encloses none
+        # (the tiny model can return a flat one; it is oriented in the normalised frame)
+        extent = float(np.ptp(mesh.vertices, axis=0).max())
+        assert signed_volume(mesh) >= -1e-9 * extent**3
     assert set(result.timings) == {"encoder", "sampler", "connectivity", "extraction", "total"}
     assert result.steps == generator.spec.steps and result.method == generator.spec.method
 

@@ -124,7 +124,8 @@ def train(
 
 @app.command("export")
 def export_(
-    run: Annotated[Path, typer.Argument(help="Run folder (or a checkpoint file).")],
+    run: Annotated[Path, typer.Argument(help="Run folder (or a checkpoint file), or a model "
+                                        "version folder to repackage with today's decode.")],
     out: Annotated[Path, typer.Option("--out", help="Model repository root.")] = Path("models"),
     name: Annotated[
         str | None, typer.Option("--name", help="Model name (default spacemesh-<config>).")
@@ -149,11 +150,15 @@ def export_(
         int, typer.Option("--threads", min=0, help="Torch and onnxruntime threads.")
     ] = 0,
 ) -> None:
-    """Export a run as a model repository: OUT/NAME/VERSION/{*.onnx, manifest.json}."""
+    """Export a run as a model repository: OUT/NAME/VERSION/{*.onnx, manifest.json}.
+
+    Given a model version folder instead (one with a manifest.json), write its graphs
+    byte for byte as a new version with the decode of this release, measured again.
+    """
     _require_torch()
     import torch
 
-    from spacemesh.export.repository import export_run
+    from spacemesh.export.repository import export_run, repackage_repository
 
     if threads:
         torch.set_num_threads(threads)
@@ -162,8 +167,9 @@ def export_(
     for folder in (eval_data, calibrate_data):
         if folder is not None and not (folder / "manifest.json").is_file():
             fail(f"{folder}: not a dataset folder (no manifest.json)")
+    export = repackage_repository if (run / "manifest.json").is_file() else export_run
     try:
-        directory = export_run(
+        directory = export(
             run, out, name=name, version=version, eval_data=eval_data,
             calibrate_data=calibrate_data,
             connectivity_shapes=eval_shapes, pipeline_shapes=pipeline_shapes, threads=threads,

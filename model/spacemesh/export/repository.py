@@ -288,7 +288,7 @@ def run_base(state: dict[str, Any]) -> BaseModel | None:
 
 
 def heldout_metrics(
-    model: SpaceMeshModel,
+    model: SpaceMeshModel | None,
     version_dir: Path,
     data: str | Path,
     *,
@@ -299,12 +299,13 @@ def heldout_metrics(
 ) -> dict[str, Any]:
     """Measure a model on a held-out dataset (all its splits).
 
-    Connectivity metrics use the torch model on ground-truth vertices; pipeline metrics
-    use the onnxruntime model repository in ``version_dir``.
+    Connectivity metrics use the torch model on ground-truth vertices (or, without one,
+    the repository's own graphs); pipeline metrics use the onnxruntime model repository
+    in ``version_dir``, and both use its manifest's decode.
 
     Parameters
     ----------
-    model : SpaceMeshModel
+    model : SpaceMeshModel, optional
     version_dir : Path
     data : path
         A dataset folder (e.g. synthesised with another seed than the training set).
@@ -324,13 +325,16 @@ def heldout_metrics(
     from spacemesh.train.evaluate import connectivity_metrics, pipeline_metrics
     from spacemesh.train.loop import load_samples
 
-    max_vertices = model.config.max_vertices
-    samples = load_samples(data, None, max_vertices, limit=connectivity_shapes)
-    manifest = json.loads((Path(version_dir) / MANIFEST).read_text())
-    options = replace(model.decode_options, **decode_changes(manifest.get("decode", {})))
-    conn = connectivity_metrics(model, samples, options=options)
-    records = first_records(data, max_vertices=max_vertices, limit=pipeline_shapes)
     generator = MeshGenerator.from_repository(version_dir, intra_op_threads=threads)
+    max_vertices = generator.spec.max_vertices
+    samples = load_samples(data, None, max_vertices, limit=connectivity_shapes)
+    if model is None:
+        conn = connectivity_metrics(generator, samples)
+    else:
+        section = generator.repository.manifest.get("decode", {})
+        options = replace(model.decode_options, **decode_changes(section))
+        conn = connectivity_metrics(model, samples, options=options)
+    records = first_records(data, max_vertices=max_vertices, limit=pipeline_shapes)
     pipe = pipeline_metrics(generator, records, steps=steps)
     return {
         "dataset": Path(data).name,
@@ -345,26 +349,41 @@ def decode_section(data_card: dict[str, Any]) -> dict[str, Any]:
 
     A model trained on triangle meshes (:data:`spacemesh.data.styles.TRIANGLE_STYLES`)
     has its long faces cut into triangles (``max_sides`` 3, see
-    :mod:`spacemesh.splitting`); any other keeps its polygons.
+    :mod:`spacemesh.splitting`), then its removed vertices put back and its diagonals
+    flipped to the ones it rates closer (``reinsert``, ``flip``, see
+    :mod:`spacemesh.refinement`); one trained on ``qem`` meshes of generator 1.1.0 or
+    later, whose flat quads have the Delaunay diagonal, gets that rule too
+    (``flat_delaunay_degrees``, the generator's :data:`~spacemesh.data.styles.
+    FLAT_FLIP_DEGREES`). Any other keeps its polygons as matched.
 
     Parameters
     ----------
     data_card : dict
-        The run's data card (``style`` is read).
+        The run's data card (``style`` and ``generator_version`` are read).
 
     Returns
     -------
     dict
-        ``max_sides`` (int or None) and ``why``.
+        ``max_sides`` (int or None), ``reinsert``, ``flip`` (bool),
+        ``flat_delaunay_degrees`` (float or None) and ``why``.
     """
-    from spacemesh.data.styles import TRIANGLE_STYLES
+    from spacemesh.data.styles import FLAT_FLIP_DEGREES, TRIANGLE_STYLES
 
     style = data_card.get("style")
-    if style in TRIANGLE_STYLES:
-        return {"max_sides": 3,
-                "why": f"trained on triangle meshes (style {style}): faces longer than "
-                       "triangles are cut along their strongest missing diagonals"}
-    return {"max_sides": None, "why": f"trained on style {style}: polygons are kept"}
+    if style not in TRIANGLE_STYLES:
+        return {"max_sides": None, "reinsert": False, "flip": False,
+                "flat_delaunay_degrees": None, "why": f"trained on style {style}: polygons "
+                "are kept"}
+    version = tuple(int(v) for v in str(data_card.get("generator_version", "0")).split("."))
+    flat = FLAT_FLIP_DEGREES if style == "qem" and version >= (1, 1, 0) else None
+    why = (f"trained on triangle meshes (style {style}): faces longer than triangles are "
+           "cut along their strongest missing diagonals, removed vertices go back into "
+           "the triangles rated closest, and diagonals flip to the ones rated closer")
+    if flat is not None:
+        why += (f"; quads folded by less than {flat:g} degree are Delaunay, as in the "
+                f"training meshes (generator {data_card['generator_version']})")
+    return {"max_sides": 3, "reinsert": True, "flip": True, "flat_delaunay_degrees": flat,
+            "why": why}
 
 
 #: Vertex spacings tried by :func:`calibrate_vertex_spacing` ([-1, 1] frame).
@@ -540,5 +559,87 @@ def export_run(
             model, directory, eval_data, connectivity_shapes=connectivity_shapes,
             pipeline_shapes=pipeline_shapes, threads=threads,
         )
+        update_manifest(directory, metrics=metrics)
+    return directory
+
+
+def repackage_repository(
+    source: str | Path,
+    root: str | Path,
+    *,
+    version: int,
+    name: str | None = None,
+    eval_data: str | Path | None = None,
+    calibrate_data: str | Path | None = None,
+    connectivity_shapes: int = 100,
+    pipeline_shapes: int = 16,
+    threads: int = 0,
+) -> Path:
+    """A new version of an exported model with today's decode, no torch run needed.
+
+    The graphs are copied byte for byte (their sha256 checked against the source
+    manifest), the manifest keeps everything but its ``version``, gets the ``decode``
+    section :func:`decode_section` writes for its data card now, records where it came
+    from (``derived_from``: name, version, the old decode section), and is measured
+    again: ``calibrate_data`` chooses the vertex spacing anew
+    (:func:`calibrate_vertex_spacing`; ``tau`` lives in the connectivity graph and
+    stays), ``eval_data`` replaces the held-out metrics (:func:`heldout_metrics` on the
+    repository's own graphs).
+
+    Parameters
+    ----------
+    source : path
+        A version folder (``ROOT/NAME/VERSION`` with its ``manifest.json``).
+    root : path
+        Repository root; the model goes to ``ROOT/NAME/VERSION``.
+    version : int
+        The new version (its folder must not be the source).
+    name : str, optional
+        Default: the source's.
+    eval_data, calibrate_data : path, optional
+    connectivity_shapes, pipeline_shapes, threads : int
+        As in :func:`export_run`.
+
+    Returns
+    -------
+    Path
+        The new version folder.
+
+    Raises
+    ------
+    ValueError
+        The source is not a model version folder, a graph's checksum does not match, or
+        the target is the source.
+    """
+    source = Path(source)
+    path = source / MANIFEST
+    if not path.is_file():
+        raise ValueError(f"{source}: not a model version folder (no {MANIFEST})")
+    manifest = json.loads(path.read_text())
+    name = name or str(manifest["name"])
+    directory = Path(root) / name / str(version)
+    if directory.resolve() == source.resolve():
+        raise ValueError(f"{directory} is the source; choose another --version")
+    directory.mkdir(parents=True, exist_ok=True)
+    for file, entry in manifest["files"].items():
+        if sha256_file(source / file) != entry["sha256"]:
+            raise ValueError(f"{source / file} does not match its manifest's sha256")
+        shutil.copyfile(source / file, directory / file)
+    manifest["derived_from"] = {"name": manifest["name"], "version": manifest["version"],
+                                "decode": manifest.get("decode", {}),
+                                "what": "the same graphs, byte for byte, with the decode "
+                                        "of this release"}
+    manifest.update(name=name, version=version, decode=decode_section(manifest["data"]))
+    write_manifest(directory, manifest)
+    if calibrate_data is not None:
+        spacing = calibrate_vertex_spacing(directory, calibrate_data, threads=threads)
+        training = {**manifest.get("training", {}), "vertex_spacing": spacing}
+        sampler = {**manifest["sampler"], "vertex_spacing": spacing["vertex_spacing"]}
+        manifest = update_manifest(directory, training=training, sampler=sampler)
+    if eval_data is not None:
+        metrics = {**manifest.get("metrics", {}), "heldout": heldout_metrics(
+            None, directory, eval_data, connectivity_shapes=connectivity_shapes,
+            pipeline_shapes=pipeline_shapes, threads=threads,
+        )}
         update_manifest(directory, metrics=metrics)
     return directory

@@ -44,10 +44,15 @@ POINT_SUBSET_SEED = 0
 DUPLICATE_TOLERANCE = 1e-4
 
 
+#: The manifest ``decode`` keys that are :class:`~spacemesh.decode.DecodeOptions` fields.
+DECODE_KEYS = ("max_sides", "reinsert", "flip", "flat_delaunay_degrees")
+
+
 def decode_changes(section: dict[str, Any]) -> dict[str, Any]:
     """:class:`~spacemesh.decode.DecodeOptions` fields from a manifest's ``decode``
-    section (``max_sides``; empty for repositories written before it existed)."""
-    return {"max_sides": section["max_sides"]} if "max_sides" in section else {}
+    section (:data:`DECODE_KEYS`; a repository written before a key existed keeps that
+    field's default)."""
+    return {key: section[key] for key in DECODE_KEYS if key in section}
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ sum of the two mean *squared* nearest distances over 10,000 points per surface; 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -25,6 +26,9 @@ from spacemesh.nn.model import SpaceMeshModel
 from spacemesh.spacetime import edges_below_threshold
 from spacemesh.topology import check_topology
 from spacemesh.train.batching import Sample, collate
+
+if TYPE_CHECKING:
+    from spacemesh.runtime.pipeline import MeshGenerator
 
 
 @torch.no_grad()
@@ -60,6 +64,37 @@ def predicted_embeddings(
             row = [a[i, :n].double().cpu().numpy() for a in (x, root, prev, nxt)]
             out.append(Embeddings(row[0], float(tau.reshape(-1)[0]), row[1], row[2], row[3]))
     model.train(was_training)
+    return out
+
+
+def repository_embeddings(
+    generator: MeshGenerator, samples: Sequence[Sample], *, batch_size: int = 8
+) -> list[Embeddings]:
+    """:func:`predicted_embeddings` of an exported model: its onnxruntime graphs.
+
+    Parameters
+    ----------
+    generator : spacemesh.runtime.pipeline.MeshGenerator
+    samples : sequence of Sample
+    batch_size : int
+
+    Returns
+    -------
+    list of Embeddings
+        One per sample (float64, its ``n_vertices`` rows), with the graph's ``tau``.
+    """
+    spec = generator.spec
+    out: list[Embeddings] = []
+    for start in range(0, len(samples), batch_size):
+        chunk = list(samples[start : start + batch_size])
+        batch = collate(chunk, n_points=spec.n_points, normals=spec.normals,
+                        connectivity=False)
+        volumes = generator.backend.encode(batch.points.numpy())
+        o = generator.backend.connect(batch.positions.numpy(), batch.valid.numpy(), volumes)
+        for i, s in enumerate(chunk):
+            n = s.n_vertices
+            row = [a[i, :n].astype(np.float64) for a in (o.x, o.root, o.prev, o.next)]
+            out.append(Embeddings(row[0], o.tau, row[1], row[2], row[3]))
     return out
 
 
@@ -104,26 +139,32 @@ SCORES = ("edge_f1", "decoded_edge_f1", "next_accuracy", "exact")
 
 
 def connectivity_metrics(
-    model: SpaceMeshModel, samples: Sequence[Sample], *, batch_size: int = 8,
+    model: SpaceMeshModel | MeshGenerator, samples: Sequence[Sample], *, batch_size: int = 8,
     options: DecodeOptions | None = None,
 ) -> dict[str, float]:
     """Edge F1 and ``next`` accuracy of the connectivity network on ground-truth vertices.
 
     Parameters
     ----------
-    model : SpaceMeshModel
+    model : SpaceMeshModel or MeshGenerator
+        The torch model, or an exported one (its onnxruntime graphs).
     samples : sequence of Sample
     batch_size : int
     options : DecodeOptions, optional
-        Default: the model's (``model.decode_options``).
+        Default: the model's (``model.decode_options``, or the generator's manifest).
 
     Returns
     -------
     dict
         Means over shapes of the scores of :func:`decoded_scores`, and ``shapes``.
     """
-    embeddings = predicted_embeddings(model, samples, batch_size=batch_size)
-    scores = decoded_scores(samples, embeddings, options or model.decode_options)
+    if isinstance(model, SpaceMeshModel):
+        embeddings = predicted_embeddings(model, samples, batch_size=batch_size)
+        options = options or model.decode_options
+    else:
+        embeddings = repository_embeddings(model, samples, batch_size=batch_size)
+        options = options or model.spec.decode
+    scores = decoded_scores(samples, embeddings, options)
     means = {k: float(np.mean(v)) if v else float("nan") for k, v in scores.items()}
     return {**means, "shapes": float(len(samples))}
 

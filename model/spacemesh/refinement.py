@@ -1,0 +1,281 @@
+"""The decoded mesh refined: removed vertices put back, diagonals flipped.
+
+After matching, pruning and unpinching, the decode is a valid mesh, but it may have lost
+vertices (those it could not give one fan of faces) and it may disagree with the
+network on a quad's diagonal (the threshold let only the weaker one through, or the
+triangle cuts of :mod:`spacemesh.splitting` chose it). Two local operations fix that
+without leaving the space of closed oriented manifolds:
+
+:func:`reinsert_vertices`
+    Every vertex that took part but was removed goes back into the triangle whose
+    corners the network rates closest to it (the smallest sum of embedding
+    distances), which is split into three around it (a stellar subdivision).
+:func:`flip_diagonals`
+    The shared edge ``a b`` of two triangles ``(a, b, c)`` and ``(b, a, d)`` becomes
+    ``c d`` when the network rates ``c d`` closer (a smaller embedding distance) and,
+    for a flat quad (both diagonals fold the pair by less than ``flat_degrees``), when
+    ``a b`` is not locally Delaunay instead: the ``qem`` training meshes have the
+    Delaunay diagonal in flat quads (generator 1.1.0, docs/DATA.md), where either
+    diagonal is the same surface and the network's choice is a guess.
+
+Both keep the guarantee of :func:`spacemesh.decode.decode`. Splitting a triangle around
+a vertex it does not use gives three triangles whose new edges each have one halfedge in
+two of them, and the new vertex one fan. Flipping ``a b`` to ``c d`` replaces two
+triangles by two over the same quad boundary with the same orientation; it is refused
+when ``c d`` is already an edge (the one case where it would make a doubled edge) or
+``a`` or ``b`` has only three neighbours. The flips terminate: a flat flip is a
+Delaunay flip (finitely many in a near-planar quad), a score flip lowers the sum of the
+edges' embedding distances, and the two kinds never undo each other because a quad is
+flat or not whichever diagonal it has; ``MAX_FLIP_PASSES`` bounds the work regardless.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from spacemesh.connectivity import Connectivity
+from spacemesh.encode import encode_connectivity
+from spacemesh.mesh import PolygonMesh
+from spacemesh.topology import edge_keys
+from spacemesh.typed import BoolArray, FloatArray, IntArray
+
+#: Passes of simultaneous non-overlapping flips at most.
+MAX_FLIP_PASSES = 16
+#: A score flip may not fold its pair by more than this (degrees), or than the pair
+#: was folded before: the network's preference never creates a sharp crease.
+MAX_NEW_FOLD = 90.0
+#: How far outside a triangle (in barycentric coordinates) a reinserted vertex may project.
+INSIDE_MARGIN = 0.1
+#: How far from a triangle's plane a reinserted vertex may lie, in its longest sides.
+MAX_HEIGHT = 0.5
+#: Delaunay and score gains below these are ties (no flip).
+ANGLE_EPS = 1e-9
+SCORE_EPS = 1e-9
+
+
+def _distances(operands: tuple[FloatArray, FloatArray], i: IntArray, j: IntArray) -> FloatArray:
+    """Embedding distances ``d(i, j) = a_i . b_j`` of index arrays of one shape."""
+    a, b = operands
+    return np.einsum("...k,...k->...", a[i], b[j])
+
+
+def _faces_of(connectivity: Connectivity) -> list[IntArray]:
+    indices, offsets = connectivity.faces()
+    return [indices[offsets[f] : offsets[f + 1]] for f in range(len(offsets) - 1)]
+
+
+def _connectivity(faces: list[IntArray], n: int) -> Connectivity:
+    offsets = np.concatenate([[0], np.cumsum([len(f) for f in faces])]).astype(np.int64)
+    indices = np.concatenate(faces).astype(np.int64) if faces else np.zeros(0, np.int64)
+    return encode_connectivity(PolygonMesh(np.zeros((n, 3)), indices, offsets), check=False)
+
+
+def over_triangles(point: FloatArray, corners: FloatArray) -> BoolArray:
+    """Whether ``point`` lies over each triangle: its projection onto the triangle's
+    plane is inside (barycentric coordinates above ``-INSIDE_MARGIN``) and it is no
+    farther from the plane than :data:`MAX_HEIGHT` times the triangle's longest side.
+
+    Parameters
+    ----------
+    point : (3,) float
+    corners : (T, 3, 3) float
+
+    Returns
+    -------
+    (T,) bool
+    """
+    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+    u, v, w = b - a, c - a, point - a  # (T, 3)
+    normal = np.cross(u, v)
+    area2 = np.einsum("tk,tk->t", normal, normal)  # |2 area|^2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        beta = np.einsum("tk,tk->t", np.cross(w, v), normal) / area2
+        gamma = np.einsum("tk,tk->t", np.cross(u, w), normal) / area2
+        height = np.abs(np.einsum("tk,tk->t", w, normal)) / np.sqrt(area2)
+    side = np.max(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2), axis=1)
+    inside = (beta > -INSIDE_MARGIN) & (gamma > -INSIDE_MARGIN)
+    inside &= 1.0 - beta - gamma > -INSIDE_MARGIN
+    return inside & (height <= MAX_HEIGHT * side) & (area2 > 0)
+
+
+def reinsert_vertices(
+    connectivity: Connectivity, removed: IntArray, operands: tuple[FloatArray, FloatArray],
+    positions: FloatArray | None = None,
+) -> tuple[Connectivity, int]:
+    """Put removed vertices back, each into the triangle the network rates closest.
+
+    With positions, only triangles the vertex lies over (:func:`over_triangles`) are
+    candidates, so the three new triangles do not fold over their neighbours; a vertex
+    over none stays out.
+
+    Parameters
+    ----------
+    connectivity : Connectivity
+        A valid decode over ``N`` vertices; the ``removed`` ones have degree 0.
+    removed : (R,) int
+        Vertices to put back (degree 0 in ``connectivity``).
+    operands : tuple of two (N, k') float arrays
+        Distance operands (:func:`spacemesh.spacetime.distance_operands`).
+    positions : (N, 3) float, optional
+
+    Returns
+    -------
+    connectivity : Connectivity
+    inserted : int
+    """
+    faces = _faces_of(connectivity)
+    triangles = [f for f in faces if len(f) == 3]
+    others = [f for f in faces if len(f) != 3]
+    removed = np.asarray(removed, dtype=np.int64)
+    if not len(triangles) or not len(removed):
+        return connectivity, 0
+    tri = np.stack(triangles)  # (T, 3)
+    live = np.flatnonzero(connectivity.degree > 0)
+    # the most confident first: closest to its three nearest live vertices
+    near = _distances(operands, removed[:, None], live[None, :])  # (R, L)
+    confidence = np.sort(near, axis=1)[:, : min(3, len(live))].sum(axis=1)
+    inserted = 0
+    for v in removed[np.argsort(confidence, kind="stable")].tolist():
+        cost = _distances(operands, np.full_like(tri, v), tri).sum(axis=1)  # (T,)
+        if positions is not None:
+            cost = np.where(over_triangles(positions[v], positions[tri]), cost, np.inf)
+            if not np.isfinite(cost).any():
+                continue
+        t = int(np.argmin(cost))
+        a, b, c = tri[t].tolist()
+        tri = np.concatenate([tri[:t], [[a, b, v], [b, c, v], [c, a, v]], tri[t + 1 :]])
+        inserted += 1
+    if inserted == 0:
+        return connectivity, 0
+    return _connectivity([*tri, *others], connectivity.n_vertices), inserted
+
+
+def _angle(o: FloatArray, u: FloatArray, v: FloatArray) -> FloatArray:
+    """Angles at ``o`` of the triangles ``(o, u, v)``, rows of ``(E, 3)`` arrays."""
+    x, y = u - o, v - o
+    cos = np.einsum("ek,ek->e", x, y) / (
+        np.linalg.norm(x, axis=1) * np.linalg.norm(y, axis=1) + 1e-300)
+    return np.arccos(np.clip(cos, -1.0, 1.0))
+
+
+def _fold(p: FloatArray, a: IntArray, b: IntArray, c: IntArray, d: IntArray) -> FloatArray:
+    """Degrees between the normals of ``(a, b, c)`` and ``(b, a, d)``."""
+    n1 = np.cross(p[b] - p[a], p[c] - p[a])
+    n2 = np.cross(p[a] - p[b], p[d] - p[b])
+    cos = np.einsum("ek,ek->e", n1, n2) / (
+        np.linalg.norm(n1, axis=1) * np.linalg.norm(n2, axis=1) + 1e-300)
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def _flip_candidates(
+    tri: IntArray, edges: set[int], degree: IntArray, n: int,
+    operands: tuple[FloatArray, FloatArray], positions: FloatArray | None,
+    flat_degrees: float | None, by_score: bool,
+) -> tuple[np.ndarray, FloatArray]:
+    """Flippable interior edges of the triangles, best first.
+
+    Returns the rows ``(t1, t2, a, b, c, d)`` (triangle ``t1`` holds ``a -> b`` opposite
+    ``c``, ``t2`` holds ``b -> a`` opposite ``d``) and their priorities (larger first:
+    flat Delaunay flips before score flips).
+    """
+    src = tri.reshape(-1)
+    dst = np.roll(tri, -1, axis=1).reshape(-1)
+    opp = np.roll(tri, -2, axis=1).reshape(-1)
+    face = np.repeat(np.arange(len(tri)), 3)
+    key = src * n + dst
+    order = np.argsort(key)
+    twin_key = dst * n + src
+    pos = np.searchsorted(key[order], twin_key)
+    pos = np.minimum(pos, len(order) - 1)
+    twin = order[pos]
+    has_twin = key[twin] == twin_key
+    h = np.flatnonzero(has_twin & (src < dst))
+    g = twin[h]
+    a, b, c, d = src[h], dst[h], opp[h], opp[g]
+    new_keys = edge_keys(np.stack([c, d], axis=1), n)
+    ok = (c != d) & (degree[a] > 3) & (degree[b] > 3)
+    ok &= ~np.fromiter((k in edges for k in new_keys.tolist()), bool, len(new_keys))
+    priority = np.full(len(h), -np.inf)
+    flat = np.zeros(len(h), dtype=bool)
+    if positions is not None:
+        fold_ab = _fold(positions, a, b, c, d)
+        fold_cd = _fold(positions, c, d, b, a)
+        if flat_degrees is not None:
+            flat = np.maximum(fold_ab, fold_cd) < flat_degrees
+            p = positions
+            excess = _angle(p[c], p[a], p[b]) + _angle(p[d], p[a], p[b]) - np.pi
+            delaunay = flat & (excess > ANGLE_EPS)
+            priority[delaunay] = 1e6 + excess[delaunay]
+        creased = (fold_cd > MAX_NEW_FOLD) & (fold_cd > fold_ab)
+    else:
+        creased = np.zeros(len(h), dtype=bool)
+    if by_score:
+        gain = _distances(operands, a, b) - _distances(operands, c, d)
+        scored = ~flat & ~creased & (gain > SCORE_EPS)
+        priority[scored] = gain[scored]
+    keep = ok & np.isfinite(priority)
+    rows = np.stack([face[h], face[g], a, b, c, d], axis=1)[keep]
+    priority = priority[keep]
+    best = np.argsort(-priority, kind="stable")
+    return rows[best], priority[best]
+
+
+def flip_diagonals(
+    connectivity: Connectivity, operands: tuple[FloatArray, FloatArray],
+    positions: FloatArray | None = None, *, flat_degrees: float | None = None,
+    by_score: bool = True,
+) -> tuple[Connectivity, int]:
+    """Flip the shared edges of triangle pairs to the diagonal the network or, in flat
+    quads, the Delaunay criterion prefers (see the module docstring).
+
+    Parameters
+    ----------
+    connectivity : Connectivity
+        A valid decode.
+    operands : tuple of two (N, k') float arrays
+        Distance operands (:func:`spacemesh.spacetime.distance_operands`).
+    positions : (N, 3) float, optional
+        Needed for the flat rule and the crease guard.
+    flat_degrees : float, optional
+        Quads folded by less than this are flat: Delaunay flips there, no score flips.
+    by_score : bool
+        Flip non-flat quads to the diagonal with the smaller embedding distance.
+
+    Returns
+    -------
+    connectivity : Connectivity
+    flips : int
+    """
+    n = connectivity.n_vertices
+    faces = _faces_of(connectivity)
+    others = [f for f in faces if len(f) != 3]
+    triangles = [f for f in faces if len(f) == 3]
+    if len(triangles) < 2 or (not by_score and (flat_degrees is None or positions is None)):
+        return connectivity, 0
+    tri = np.stack(triangles).astype(np.int64)  # (T, 3)
+    edges = set(edge_keys(connectivity.edges, n).tolist())
+    degree = connectivity.degree.astype(np.int64).copy()
+    flips = 0
+    for _ in range(MAX_FLIP_PASSES):
+        rows, _priority = _flip_candidates(tri, edges, degree, n, operands, positions,
+                                           flat_degrees, by_score)
+        used: BoolArray = np.zeros(len(tri), dtype=bool)
+        done = 0
+        for t1, t2, a, b, c, d in rows.tolist():
+            new = c * n + d if c < d else d * n + c
+            if used[t1] or used[t2] or new in edges or degree[a] <= 3 or degree[b] <= 3:
+                continue
+            tri[t1] = (d, b, c)
+            tri[t2] = (c, a, d)
+            used[t1] = used[t2] = True
+            edges.discard(a * n + b if a < b else b * n + a)
+            edges.add(new)
+            degree[[a, b]] -= 1
+            degree[[c, d]] += 1
+            done += 1
+        flips += done
+        if done == 0:
+            break
+    if flips == 0:
+        return connectivity, 0
+    return _connectivity([*tri, *others], n), flips

@@ -1,0 +1,163 @@
+"""The decoded mesh refined: removed vertices put back, diagonals flipped
+(:mod:`spacemesh.refinement`, ``DecodeOptions.reinsert``, ``flip``,
+``flat_delaunay_degrees``)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from spacemesh.connectivity import Connectivity
+from spacemesh.decode import DecodeOptions, decode
+from spacemesh.encode import encode_connectivity
+from spacemesh.examples import icosphere
+from spacemesh.fit import FitConfig, edge_f1_score, fit_mesh, next_accuracy
+from spacemesh.mesh import PolygonMesh
+from spacemesh.refinement import flip_diagonals, reinsert_vertices
+from spacemesh.spacetime import distance_operands
+from spacemesh.topology import check_topology, edge_keys
+
+
+def _operands(points: np.ndarray):
+    return distance_operands(points, "euclidean", None)
+
+
+def _valid(connectivity: Connectivity, positions: np.ndarray) -> bool:
+    mesh, _ = connectivity.to_mesh(positions).remove_unreferenced_vertices()
+    return check_topology(mesh).is_closed_oriented_manifold
+
+
+def _edges(connectivity: Connectivity) -> set[tuple[int, int]]:
+    return {tuple(e) for e in connectivity.edges.tolist()}
+
+
+def _rhombus_slab() -> PolygonMesh:
+    """A closed slab over a flat rhombus whose top and bottom are split along the long
+    (not locally Delaunay) diagonal ``0-1`` (top) and ``4-5`` (bottom)."""
+    top = [[-1.0, 0.0], [1.0, 0.0], [0.0, 0.3], [0.0, -0.3]]
+    vertices = np.array([[x, y, z] for z in (0.5, -0.5) for x, y in top])
+    faces = [(0, 3, 1), (0, 1, 2), (4, 6, 5), (4, 5, 7)]
+    for a, b in ((0, 3), (3, 1), (1, 2), (2, 0)):  # top edges, counter-clockwise
+        faces += [(b, a, a + 4), (b, a + 4, b + 4)]
+    return PolygonMesh.from_faces(vertices, np.array(faces))
+
+
+def test_flat_quads_get_their_delaunay_diagonal_whatever_the_scores():
+    slab = _rhombus_slab()
+    assert check_topology(slab).is_closed_oriented_manifold
+    connectivity = encode_connectivity(slab)
+    x = slab.vertices.copy()
+    x[[0, 1, 4, 5]] *= 0.01  # the network "prefers" the long diagonals
+    flipped, count = flip_diagonals(connectivity, _operands(x), slab.vertices,
+                                    flat_degrees=1.0, by_score=False)
+    assert count == 2
+    assert {(2, 3), (6, 7)} <= _edges(flipped)
+    assert not {(0, 1), (4, 5)} & _edges(flipped)
+    assert _valid(flipped, slab.vertices)
+    # with score flips too, the flat quads still take the Delaunay diagonal (the scores
+    # may then flip the rims, which are not flat)
+    both, _ = flip_diagonals(connectivity, _operands(x), slab.vertices, flat_degrees=1.0)
+    assert {(2, 3), (6, 7)} <= _edges(both)
+    assert _valid(both, slab.vertices)
+    # without the flat rule, the scores keep the long diagonals
+    kept, _ = flip_diagonals(connectivity, _operands(x), slab.vertices, by_score=True)
+    assert {(0, 1), (4, 5)} <= _edges(kept)
+    assert not {(2, 3), (6, 7)} & _edges(kept)
+
+
+def test_score_flips_follow_the_embedding_and_stay_manifold():
+    sphere = icosphere(1)
+    connectivity = encode_connectivity(sphere)
+    # embeddings = positions: every edge is shorter than the other diagonal of its quad
+    same, count = flip_diagonals(connectivity, _operands(sphere.vertices), sphere.vertices,
+                                 flat_degrees=1.0)
+    assert count == 0 and same is connectivity
+    # pull the two far corners of one quad together: that diagonal wins
+    a, b = connectivity.edges[0]
+    faces = [f.tolist() for f in sphere.faces if a in f and b in f]
+    c, d = ({v for f in faces for v in f} - {a, b})
+    x = sphere.vertices.copy()
+    x[[c, d]] = 0.5 * (x[c] + x[d])
+    flipped, count = flip_diagonals(connectivity, _operands(x), sphere.vertices)
+    assert count >= 1
+    assert (min(c, d), max(c, d)) in _edges(flipped)
+    assert (min(a, b), max(a, b)) not in _edges(flipped)
+    assert _valid(flipped, sphere.vertices)
+
+
+def _without_vertex(mesh: PolygonMesh, v: int) -> Connectivity:
+    """``mesh``'s connectivity with vertex ``v`` cut out and its hole fanned."""
+    ring = encode_connectivity(mesh)
+    start, stop = ring.offsets[v], ring.offsets[v + 1]
+    # the link of v in the order of its faces: next around v
+    neighbours = ring.neighbours[start:stop].tolist()
+    order = [neighbours[0]]
+    successor = ring.successor[start:stop] - start
+    slot = 0
+    for _ in range(len(neighbours) - 1):
+        slot = int(successor[slot])
+        order.append(neighbours[slot])
+    kept = [f.tolist() for f in mesh.faces if v not in f]
+    link = order[::-1] if any(
+        (order[i], order[(i + 1) % len(order)]) in {(f[k], f[(k + 1) % 3]) for f in kept
+                                                     for k in range(3)}
+        for i in range(len(order))) else order
+    fan = [(link[0], link[i], link[i + 1]) for i in range(1, len(link) - 1)]
+    faces = np.array(kept + fan)
+    return encode_connectivity(PolygonMesh.from_faces(mesh.vertices, faces), check=False)
+
+
+def test_a_removed_vertex_goes_back_and_the_flips_restore_its_fan():
+    sphere = icosphere(0)  # the icosahedron: every vertex has five neighbours
+    holed = _without_vertex(sphere, 0)
+    assert holed.degree[0] == 0 and _valid(holed, sphere.vertices)
+    operands = _operands(sphere.vertices)
+    back, inserted = reinsert_vertices(holed, np.array([0]), operands)
+    assert inserted == 1 and back.degree[0] == 3
+    assert _valid(back, sphere.vertices)
+    restored, flips = flip_diagonals(back, operands, sphere.vertices, flat_degrees=1.0)
+    assert flips == 2
+    assert restored.to_mesh(sphere.vertices).face_key_set() == sphere.face_key_set()
+    none, count = reinsert_vertices(restored, np.zeros(0, np.int64), operands)
+    assert count == 0 and none is restored
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    mesh = icosphere(2)
+    result = fit_mesh(mesh, FitConfig(max_iters=400, threads=1))
+    assert result.exact
+    return mesh, result.embeddings
+
+
+def test_refinement_brings_a_noisy_decode_closer_to_the_truth(fitted):
+    mesh, emb = fitted
+    truth = encode_connectivity(mesh)
+    rng = np.random.default_rng(0)
+    scale = np.abs(emb.adjacency).mean()
+    noisy = replace(emb, adjacency=emb.adjacency + 0.3 * scale * rng.normal(
+        size=emb.adjacency.shape))
+    plain = DecodeOptions(max_sides=3)
+    refined = replace(plain, reinsert=True, flip=True, flat_delaunay_degrees=1.0)
+    before = decode(mesh.vertices, noisy, plain)
+    after = decode(mesh.vertices, noisy, refined)
+    assert check_topology(after.mesh).is_closed_oriented_manifold
+    assert after.n_flipped + after.n_reinserted > 0
+    n = mesh.n_vertices
+    assert after.mesh.n_vertices >= before.mesh.n_vertices
+    assert edge_f1_score(after.connectivity.edges, truth.edges, n) > edge_f1_score(
+        before.connectivity.edges, truth.edges, n)
+    assert next_accuracy(after.connectivity, truth) > next_accuracy(before.connectivity, truth)
+
+
+def test_edge_keys_of_flipped_mesh_are_unique(fitted):
+    mesh, emb = fitted
+    result = decode(mesh.vertices, emb, DecodeOptions(max_sides=3, reinsert=True, flip=True,
+                                                      flat_delaunay_degrees=1.0))
+    keys = edge_keys(result.connectivity.edges, mesh.n_vertices)
+    assert len(np.unique(keys)) == len(keys)
+    # an exact fit stays exact
+    assert result.mesh.face_key_set() == mesh.face_key_set()
+    assert result.n_flipped == 0 and result.n_reinserted == 0
