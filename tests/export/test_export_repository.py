@@ -86,3 +86,57 @@ def test_the_decode_section_follows_the_training_style(toy_model):
     assert ModelSpec.from_manifest(manifest).decode.max_sides == 3
     del manifest["decode"]  # repositories written before the section existed
     assert ModelSpec.from_manifest(manifest).decode.max_sides is None
+
+
+def test_the_decode_section_of_qem_models_refines_and_flips_flat_quads():
+    from spacemesh.data.styles import FLAT_FLIP_DEGREES
+    from spacemesh.export.repository import decode_section
+    from spacemesh.runtime.pipeline import decode_changes
+
+    new = decode_section({"style": "qem", "generator_version": "1.1.0"})
+    assert new["reinsert"] and new["flip"]
+    assert new["flat_delaunay_degrees"] == FLAT_FLIP_DEGREES
+    # generator 1.0.0 left QEM's arbitrary diagonals in flat quads: no Delaunay rule
+    assert decode_section({"style": "qem", "generator_version": "1.0.0"})[
+        "flat_delaunay_degrees"] is None
+    assert decode_section({"style": "isotropic", "generator_version": "1.1.0"})[
+        "flat_delaunay_degrees"] is None
+    assert not decode_section({"style": "quad"})["reinsert"]
+    options = decode_changes(new)
+    assert options == {"max_sides": 3, "reinsert": True, "flip": True,
+                       "flat_delaunay_degrees": FLAT_FLIP_DEGREES}
+
+
+def test_a_model_version_is_repackaged_with_todays_decode(toy_model, tmp_path):
+    from typer.testing import CliRunner
+
+    from spacemesh.cli import _register
+    from spacemesh.cli.common import app
+    from spacemesh.runtime.pipeline import MeshGenerator
+
+    _register()
+    old = json.loads((toy_model.repository / "manifest.json").read_text())
+    result = CliRunner().invoke(app, ["export", str(toy_model.repository), "--out",
+                                      str(tmp_path), "--version", "7", "--eval-data",
+                                      str(toy_model.data), "--eval-shapes", "3",
+                                      "--pipeline-shapes", "2", "--threads", "1"])
+    assert result.exit_code == 0, result.output
+    new_dir = tmp_path / old["name"] / "7"
+    new = json.loads((new_dir / "manifest.json").read_text())
+    assert new["version"] == 7 and new["derived_from"]["version"] == old["version"]
+    assert new["files"] == old["files"]  # the graphs, byte for byte
+    for file in old["files"]:
+        assert (new_dir / file).read_bytes() == (toy_model.repository / file).read_bytes()
+    held = new["metrics"]["heldout"]
+    assert held["connectivity_on_gt_vertices"]["shapes"] == 3
+    assert held["pipeline"]["shapes"] == 2 and held["pipeline"]["valid"] == 1.0
+    assert MeshGenerator.from_repository(new_dir).spec.decode.max_sides == new["decode"][
+        "max_sides"]
+    # the source version itself cannot be the target, and a corrupted graph is refused
+    again = CliRunner().invoke(app, ["export", str(new_dir), "--out", str(tmp_path),
+                                     "--version", "7"])
+    assert again.exit_code != 0 and "is the source" in again.output
+    (new_dir / "encoder.onnx").write_bytes(b"not onnx")
+    broken = CliRunner().invoke(app, ["export", str(new_dir), "--out", str(tmp_path),
+                                      "--version", "8"])
+    assert broken.exit_code != 0 and "sha256" in broken.output
