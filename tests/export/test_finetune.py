@@ -119,3 +119,43 @@ def test_the_cli_false_positive_weight_reaches_the_run_and_its_loss(toy_model, t
                                config.with_train(false_positive_weight=None))
     hard = pairwise_edge_loss(x, tau, adjacency, valid, config)
     assert float(hard) > float(paper) > 0.0
+
+
+def test_a_fine_tune_starts_from_an_exported_connectivity_only_model(toy_model, base_run,
+                                                                     tmp_path):
+    import json
+    import shutil
+
+    from spacemesh.export.onnx_import import init_from_repository
+    from spacemesh.export.repository import export_run
+
+    base, run = base_run
+    root = base.parent.parent  # the base's repository root: the model goes next to it
+    exported = export_run(run, root, name="spacemesh-tiny-conn", version=1)
+    source = load_checkpoint(latest_checkpoint(run))
+    init = init_from_repository(exported)
+    # the weights read back from the graph are the run's own
+    for key, value in init["connectivity"].items():
+        assert torch.allclose(value, source["model"][f"connectivity.{key}"], atol=1e-6), key
+    assert init["extra"]["base"]["files"] == source["extra"]["base"]["files"]
+
+    options = TrainOptions(config=tiny_config(), data=toy_model.data, out=tmp_path / "tune",
+                           steps=2, progress=False, init_from=exported, threads=1)
+    trainer = Trainer(options, setup_distributed("cpu"), _quiet)
+    ours = {k: v for k, v in trainer.model.connectivity.state_dict().items()}
+    assert _same_weights(ours, init["connectivity"])
+    assert trainer.base is not None and trainer.base.path == base.resolve()
+    assert trainer.card["init"]["checkpoint"] == str(exported)
+    summary = trainer.run()
+    assert load_checkpoint(summary.checkpoint)["step"] == 2
+
+    # a full model cannot be fine-tuned from its repository; a changed graph is refused
+    with pytest.raises(ValueError, match="connectivity-only"):
+        init_from_repository(base)
+    broken = root / "spacemesh-tiny-conn" / "2"
+    shutil.copytree(exported, broken)
+    manifest = json.loads((broken / "manifest.json").read_text())
+    manifest["training"]["base"]["files"]["encoder.onnx"] = "0" * 64
+    (broken / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(ValueError, match="changed since training"):
+        init_from_repository(broken)

@@ -77,9 +77,10 @@ def train(
     ] = None,
     init_from: Annotated[
         Path | None,
-        typer.Option("--init-from", help="Fine-tune: start from this run's (or checkpoint's) "
-                     "weights, with a new optimiser and schedule (a connectivity-only run's "
-                     "base is inherited)."),
+        typer.Option("--init-from", help="Fine-tune: start from this run's (or checkpoint's, "
+                     "or exported connectivity-only model version folder's) weights, with a "
+                     "new optimiser and schedule (a connectivity-only run's base is "
+                     "inherited)."),
     ] = None,
 ) -> None:
     """Train the encoder, denoiser and connectivity network on a dataset."""

@@ -113,7 +113,9 @@ class TrainOptions:
         A model repository: train only a new connectivity network (``config``'s) on its
         frozen encoder; the encoder, denoiser, diffusion and vertex count are the base's.
     init_from : Path, optional
-        A run folder or checkpoint to start from (fine-tuning): its weights, with a new
+        A run folder, checkpoint or exported connectivity-only model version folder
+        (:func:`spacemesh.export.onnx_import.init_from_repository`) to start from
+        (fine-tuning): its weights, with a new
         optimiser and the learning-rate schedule from step 0. Its networks must be the
         config's; a connectivity-only run's base is inherited (and ``base``, if given,
         must be the same model). Ignored when ``resume`` finds a checkpoint.
@@ -284,9 +286,14 @@ class Trainer:
                     base_path = Path(stored_base["path"])
         init = None
         if state is None and options.init_from is not None:
-            init_path = resolve_checkpoint(options.init_from)
-            init = load_checkpoint(init_path, map_location="cpu")
-            init["path"] = init_path
+            from spacemesh.export.onnx_import import init_from_repository, is_model_version
+
+            if is_model_version(options.init_from):
+                init = init_from_repository(options.init_from)
+            else:
+                init_path = resolve_checkpoint(options.init_from)
+                init = load_checkpoint(init_path, map_location="cpu")
+                init["path"] = init_path
             base_path = _init_base(init, base_path)
         self.base = None if base_path is None else BaseModel.load(base_path)
         if self.base is not None:
@@ -318,7 +325,10 @@ class Trainer:
                 self.generator.manual_seed(options.seed + 1000 * info.rank + self.start_step)
             log(f"resumed from {latest_checkpoint(self.out)} at step {self.start_step}")
         elif init is not None:
-            self.model.load_state_dict(init["model"])
+            if "connectivity" in init:  # an exported model: its connectivity network
+                self.model.connectivity.load_state_dict(init["connectivity"])
+            else:
+                self.model.load_state_dict(init["model"])
             log(f"initialised from {init['path']} (step {init['step']})")
         self.ddp = wrap_model(self.model, info)
         mv = config.max_vertices
