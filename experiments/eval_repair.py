@@ -3,7 +3,7 @@
 Three sets of inputs:
 
 ``synthetic``
-    Held-out synthetic shapes (default ``data/qem-heldout-s2``: generated with a seed
+    Held-out synthetic shapes (default ``data/qemflip-heldout-s2``: generated with a seed
     the training data does not use), each with a random region removed: a sphere around
     a random vertex holding about 8% of the vertices.
 ``cad``
@@ -420,7 +420,7 @@ def training_summary(model: Path) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--model", default=None)
-    parser.add_argument("--data", default=str(ROOT / "data" / "qem-heldout-s2"))
+    parser.add_argument("--data", default=str(ROOT / "data" / "qemflip-heldout-s2"))
     parser.add_argument("--count", type=int, default=100)
     parser.add_argument("--steps", type=int, default=None)
     parser.add_argument("--seed", type=int, default=0)
