@@ -44,7 +44,12 @@ from spacemesh.permutation import (
     neighbourhood_log_phi_bar,
 )
 from spacemesh.refinement import flip_diagonals, reinsert_vertices
-from spacemesh.spacetime import Distance, distance_operands, edges_below_threshold
+from spacemesh.spacetime import (
+    Distance,
+    distance_operands,
+    edges_below_threshold,
+    operand_distances,
+)
 from spacemesh.splitting import split_long_faces
 from spacemesh.topology import edge_keys
 from spacemesh.typed import BoolArray, FloatArray, IntArray
@@ -305,8 +310,8 @@ def unpinch_candidates(
 
 def edge_weakness(emb: Embeddings, edges: IntArray, options: DecodeOptions) -> FloatArray:
     """Embedding distance ``(E,)`` of each of the ``(E, 2)`` edges (larger is weaker)."""
-    a, b = distance_operands(emb.adjacency, options.distance, options.n_space)
-    return np.einsum("ek,ek->e", a[edges[:, 0]], b[edges[:, 1]])
+    operands = distance_operands(emb.adjacency, options.distance, options.n_space)
+    return operand_distances(operands, edges[:, 0], edges[:, 1])
 
 
 def _angular_fallback(

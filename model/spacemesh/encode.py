@@ -8,6 +8,7 @@ from spacemesh.connectivity import Connectivity, csr_from_edges, slot_lookup
 from spacemesh.errors import NotManifoldError
 from spacemesh.mesh import PolygonMesh
 from spacemesh.topology import check_topology
+from spacemesh.typed import IntArray
 
 
 def require_closed_manifold(mesh: PolygonMesh) -> None:
@@ -53,3 +54,25 @@ def encode_connectivity(mesh: PolygonMesh, check: bool = True) -> Connectivity:
     successor = np.empty(len(neighbours), dtype=np.int64)
     successor[slot_lookup(offsets, neighbours, v, u)] = slot_lookup(offsets, neighbours, v, w)
     return Connectivity(mesh.n_vertices, offsets, neighbours, successor)
+
+
+def connectivity_from_faces(faces: list[IntArray], n_vertices: int) -> Connectivity:
+    """:func:`encode_connectivity` of polygons given as vertex cycles, unchecked.
+
+    For the decode's own rewrites of a valid mesh (cut faces, reinserted vertices,
+    flipped diagonals), which keep it a closed oriented manifold by construction.
+
+    Parameters
+    ----------
+    faces : list of (m_f,) int arrays
+        Vertex cycles over ``n_vertices`` vertices (unused vertices get degree 0).
+    n_vertices : int
+
+    Returns
+    -------
+    Connectivity
+    """
+    offsets = np.concatenate([[0], np.cumsum([len(f) for f in faces])]).astype(np.int64)
+    indices = np.concatenate(faces).astype(np.int64) if faces else np.zeros(0, np.int64)
+    mesh = PolygonMesh(np.zeros((n_vertices, 3)), indices, offsets)
+    return encode_connectivity(mesh, check=False)

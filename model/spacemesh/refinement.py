@@ -34,8 +34,8 @@ from __future__ import annotations
 import numpy as np
 
 from spacemesh.connectivity import Connectivity
-from spacemesh.encode import encode_connectivity
-from spacemesh.mesh import PolygonMesh
+from spacemesh.encode import connectivity_from_faces
+from spacemesh.spacetime import operand_distances
 from spacemesh.topology import edge_keys
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
@@ -53,21 +53,9 @@ ANGLE_EPS = 1e-9
 SCORE_EPS = 1e-9
 
 
-def _distances(operands: tuple[FloatArray, FloatArray], i: IntArray, j: IntArray) -> FloatArray:
-    """Embedding distances ``d(i, j) = a_i . b_j`` of index arrays of one shape."""
-    a, b = operands
-    return np.einsum("...k,...k->...", a[i], b[j])
-
-
 def _faces_of(connectivity: Connectivity) -> list[IntArray]:
     indices, offsets = connectivity.faces()
     return [indices[offsets[f] : offsets[f + 1]] for f in range(len(offsets) - 1)]
-
-
-def _connectivity(faces: list[IntArray], n: int) -> Connectivity:
-    offsets = np.concatenate([[0], np.cumsum([len(f) for f in faces])]).astype(np.int64)
-    indices = np.concatenate(faces).astype(np.int64) if faces else np.zeros(0, np.int64)
-    return encode_connectivity(PolygonMesh(np.zeros((n, 3)), indices, offsets), check=False)
 
 
 def over_triangles(point: FloatArray, corners: FloatArray) -> BoolArray:
@@ -132,11 +120,11 @@ def reinsert_vertices(
     tri = np.stack(triangles)  # (T, 3)
     live = np.flatnonzero(connectivity.degree > 0)
     # the most confident first: closest to its three nearest live vertices
-    near = _distances(operands, removed[:, None], live[None, :])  # (R, L)
+    near = operand_distances(operands, removed[:, None], live[None, :])  # (R, L)
     confidence = np.sort(near, axis=1)[:, : min(3, len(live))].sum(axis=1)
     inserted = 0
     for v in removed[np.argsort(confidence, kind="stable")].tolist():
-        cost = _distances(operands, np.full_like(tri, v), tri).sum(axis=1)  # (T,)
+        cost = operand_distances(operands, np.full_like(tri, v), tri).sum(axis=1)  # (T,)
         if positions is not None:
             cost = np.where(over_triangles(positions[v], positions[tri]), cost, np.inf)
             if not np.isfinite(cost).any():
@@ -147,7 +135,7 @@ def reinsert_vertices(
         inserted += 1
     if inserted == 0:
         return connectivity, 0
-    return _connectivity([*tri, *others], connectivity.n_vertices), inserted
+    return connectivity_from_faces([*tri, *others], connectivity.n_vertices), inserted
 
 
 def _angle(o: FloatArray, u: FloatArray, v: FloatArray) -> FloatArray:
@@ -210,7 +198,7 @@ def _flip_candidates(
     else:
         creased = np.zeros(len(h), dtype=bool)
     if by_score:
-        gain = _distances(operands, a, b) - _distances(operands, c, d)
+        gain = operand_distances(operands, a, b) - operand_distances(operands, c, d)
         scored = ~flat & ~creased & (gain > SCORE_EPS)
         priority[scored] = gain[scored]
     keep = ok & np.isfinite(priority)
@@ -278,4 +266,4 @@ def flip_diagonals(
             break
     if flips == 0:
         return connectivity, 0
-    return _connectivity([*tri, *others], n), flips
+    return connectivity_from_faces([*tri, *others], n), flips

@@ -77,6 +77,25 @@ def distance_operands(
     return a, b
 
 
+def operand_distances(
+    operands: tuple[FloatArray, FloatArray], i: IntArray, j: IntArray
+) -> FloatArray:
+    """Distances ``d(i, j) = a_i . b_j`` of index arrays ``i`` and ``j`` of one shape (or
+    broadcastable shapes), from :func:`distance_operands`' ``(a, b)``.
+
+    Parameters
+    ----------
+    operands : tuple of two (N, k') float arrays
+    i, j : int arrays
+
+    Returns
+    -------
+    float64 array of the broadcast shape of ``i`` and ``j``
+    """
+    a, b = operands
+    return np.einsum("...k,...k->...", a[i], b[j])
+
+
 def pairwise_distance(
     x: FloatArray,
     y: FloatArray | None = None,

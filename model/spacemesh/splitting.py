@@ -19,13 +19,13 @@ from __future__ import annotations
 import numpy as np
 
 from spacemesh.connectivity import Connectivity
-from spacemesh.encode import encode_connectivity
-from spacemesh.mesh import PolygonMesh
+from spacemesh.encode import connectivity_from_faces
+from spacemesh.spacetime import operand_distances
 from spacemesh.topology import edge_keys
 from spacemesh.typed import FloatArray, IntArray
 
 
-def _cut(face: IntArray, a: FloatArray, b: FloatArray, edges: set[int], n: int,
+def _cut(face: IntArray, operands: tuple[FloatArray, FloatArray], edges: set[int], n: int,
          max_sides: int) -> list[IntArray]:
     """Cut one face (distinct vertices, in order) until its parts are short enough."""
     parts, done = [face], []
@@ -43,7 +43,7 @@ def _cut(face: IntArray, a: FloatArray, b: FloatArray, edges: set[int], n: int,
         if not free.any():
             done.append(part)
             continue
-        distance = np.einsum("ek,ek->e", a[part[i]], b[part[j]])  # (D,)
+        distance = operand_distances(operands, part[i], part[j])  # (D,)
         best = int(np.flatnonzero(free)[np.argmin(distance[free])])
         edges.add(int(keys[best]))
         s, t = int(i[best]), int(j[best])
@@ -83,11 +83,8 @@ def split_long_faces(
     n = connectivity.n_vertices
     edges = set(edge_keys(connectivity.edges, n).tolist())
     before = len(edges)
-    a, b = operands
     faces: list[IntArray] = []
     for f in range(len(sides)):
         face = indices[offsets[f] : offsets[f + 1]]
-        faces.extend(_cut(face, a, b, edges, n, max_sides) if len(face) > max_sides else [face])
-    new_offsets = np.concatenate([[0], np.cumsum([len(f) for f in faces])]).astype(np.int64)
-    mesh = PolygonMesh(np.zeros((n, 3)), np.concatenate(faces).astype(np.int64), new_offsets)
-    return encode_connectivity(mesh, check=False), len(edges) - before
+        faces.extend(_cut(face, operands, edges, n, max_sides) if len(face) > max_sides else [face])
+    return connectivity_from_faces(faces, n), len(edges) - before

@@ -7,13 +7,12 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-import pytest
 
 from spacemesh.connectivity import Connectivity
 from spacemesh.decode import DecodeOptions, decode
 from spacemesh.encode import encode_connectivity
 from spacemesh.examples import icosphere
-from spacemesh.fit import FitConfig, edge_f1_score, fit_mesh, next_accuracy
+from spacemesh.fit import edge_f1_score, next_accuracy
 from spacemesh.mesh import PolygonMesh
 from spacemesh.refinement import flip_diagonals, reinsert_vertices
 from spacemesh.spacetime import distance_operands
@@ -122,14 +121,6 @@ def test_a_removed_vertex_goes_back_and_the_flips_restore_its_fan():
     assert restored.to_mesh(sphere.vertices).face_key_set() == sphere.face_key_set()
     none, count = reinsert_vertices(restored, np.zeros(0, np.int64), operands)
     assert count == 0 and none is restored
-
-
-@pytest.fixture(scope="module")
-def fitted():
-    mesh = icosphere(2)
-    result = fit_mesh(mesh, FitConfig(max_iters=400, threads=1))
-    assert result.exact
-    return mesh, result.embeddings
 
 
 def test_refinement_brings_a_noisy_decode_closer_to_the_truth(fitted):

@@ -9,8 +9,7 @@ import pytest
 
 from spacemesh.decode import DecodeOptions, decode
 from spacemesh.encode import encode_connectivity
-from spacemesh.examples import cube_quads, icosphere, prism
-from spacemesh.fit import FitConfig, fit_mesh
+from spacemesh.examples import cube_quads, prism
 from spacemesh.spacetime import distance_operands, pairwise_distance
 from spacemesh.splitting import split_long_faces
 from spacemesh.topology import check_topology
@@ -57,14 +56,6 @@ def test_a_prism_cap_is_fully_triangulated_and_stays_manifold():
 def test_max_sides_below_three_is_refused():
     with pytest.raises(ValueError, match="at least 3"):
         split_long_faces(encode_connectivity(cube_quads()), _euclidean_operands(np.eye(8)), 2)
-
-
-@pytest.fixture(scope="module")
-def fitted():
-    mesh = icosphere(2)
-    result = fit_mesh(mesh, FitConfig(max_iters=400, threads=1))
-    assert result.exact
-    return mesh, result.embeddings
 
 
 @pytest.mark.parametrize("n_missing", [1, 5])

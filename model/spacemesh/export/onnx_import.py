@@ -191,15 +191,12 @@ def init_from_repository(path: str | Path) -> dict:
         Not a connectivity-only model, its base is missing or changed, or its graph
         cannot be read back.
     """
-    import json
-
     from spacemesh.nn.base_model import BaseModel, OnnxEncoder
     from spacemesh.nn.config import ModelConfig, model_from_config
-    from spacemesh.runtime.repository import MANIFEST, verify_files
+    from spacemesh.runtime.repository import verified_manifest
 
     directory = Path(path)
-    manifest = json.loads((directory / MANIFEST).read_text())
-    verify_files(directory, manifest)
+    manifest = verified_manifest(directory)
     training = manifest.get("training", {})
     stored = training.get("base")
     if stored is None:

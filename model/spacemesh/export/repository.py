@@ -63,7 +63,13 @@ from spacemesh.runtime.backend import (
     volume_names,
 )
 from spacemesh.runtime.pipeline import decode_changes
-from spacemesh.runtime.repository import FORMAT, FORMAT_VERSION, MANIFEST, sha256_file
+from spacemesh.runtime.repository import (
+    FORMAT,
+    FORMAT_VERSION,
+    MANIFEST,
+    sha256_file,
+    verified_manifest,
+)
 
 
 def graph_signatures(n_volumes: int) -> dict[str, dict[str, Any]]:
@@ -451,6 +457,32 @@ def calibrate_vertex_spacing(
     }
 
 
+def record_vertex_spacing(
+    version_dir: str | Path, data: str | Path, training: dict[str, Any], *, threads: int = 0
+) -> dict[str, Any]:
+    """Choose the vertex spacing (:func:`calibrate_vertex_spacing`) and write it into the
+    manifest: the sampler's ``vertex_spacing`` and, with how it was found, ``training``.
+
+    Parameters
+    ----------
+    version_dir : path
+    data : path
+        A dataset folder (its ``val`` split is used).
+    training : dict
+        The manifest's ``training`` section to extend.
+    threads : int
+
+    Returns
+    -------
+    dict
+        The new manifest.
+    """
+    spacing = calibrate_vertex_spacing(version_dir, data, threads=threads)
+    sampler = json.loads((Path(version_dir) / MANIFEST).read_text())["sampler"]
+    return update_manifest(version_dir, training={**training, "vertex_spacing": spacing},
+                           sampler={**sampler, "vertex_spacing": spacing["vertex_spacing"]})
+
+
 def export_run(
     run: str | Path,
     root: str | Path,
@@ -549,11 +581,7 @@ def export_run(
                                        training=training, metrics=metrics, base=base)
     update_manifest(directory, decode=decode)
     if calibrate_data is not None:
-        spacing = calibrate_vertex_spacing(directory, calibrate_data, threads=threads)
-        training["vertex_spacing"] = spacing
-        sampler = json.loads((Path(directory) / MANIFEST).read_text())["sampler"]
-        update_manifest(directory, training=training,
-                        sampler={**sampler, "vertex_spacing": spacing["vertex_spacing"]})
+        record_vertex_spacing(directory, calibrate_data, training, threads=threads)
     if eval_data is not None:
         metrics["heldout"] = heldout_metrics(
             model, directory, eval_data, connectivity_shapes=connectivity_shapes,
@@ -612,18 +640,15 @@ def repackage_repository(
         the target is the source.
     """
     source = Path(source)
-    path = source / MANIFEST
-    if not path.is_file():
+    if not (source / MANIFEST).is_file():
         raise ValueError(f"{source}: not a model version folder (no {MANIFEST})")
-    manifest = json.loads(path.read_text())
+    manifest = verified_manifest(source)
     name = name or str(manifest["name"])
     directory = Path(root) / name / str(version)
     if directory.resolve() == source.resolve():
         raise ValueError(f"{directory} is the source; choose another --version")
     directory.mkdir(parents=True, exist_ok=True)
-    for file, entry in manifest["files"].items():
-        if sha256_file(source / file) != entry["sha256"]:
-            raise ValueError(f"{source / file} does not match its manifest's sha256")
+    for file in manifest["files"]:
         shutil.copyfile(source / file, directory / file)
     manifest["derived_from"] = {"name": manifest["name"], "version": manifest["version"],
                                 "decode": manifest.get("decode", {}),
@@ -632,10 +657,8 @@ def repackage_repository(
     manifest.update(name=name, version=version, decode=decode_section(manifest["data"]))
     write_manifest(directory, manifest)
     if calibrate_data is not None:
-        spacing = calibrate_vertex_spacing(directory, calibrate_data, threads=threads)
-        training = {**manifest.get("training", {}), "vertex_spacing": spacing}
-        sampler = {**manifest["sampler"], "vertex_spacing": spacing["vertex_spacing"]}
-        manifest = update_manifest(directory, training=training, sampler=sampler)
+        manifest = record_vertex_spacing(directory, calibrate_data,
+                                         manifest.get("training", {}), threads=threads)
     if eval_data is not None:
         metrics = {**manifest.get("metrics", {}), "heldout": heldout_metrics(
             None, directory, eval_data, connectivity_shapes=connectivity_shapes,

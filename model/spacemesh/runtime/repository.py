@@ -114,6 +114,23 @@ def verify_files(directory: Path, manifest: dict[str, Any]) -> None:
             )
 
 
+def verified_manifest(directory: str | Path) -> dict[str, Any]:
+    """The manifest of a version folder whose files all match it (:func:`verify_files`).
+
+    Raises
+    ------
+    ValueError
+        No readable manifest, or a file missing or not matching it.
+    """
+    directory = Path(directory)
+    try:
+        manifest = json.loads((directory / MANIFEST).read_text())
+        verify_files(directory, manifest)
+    except (ModelRepositoryError, OSError, ValueError) as error:
+        raise ValueError(str(error)) from error
+    return manifest
+
+
 @dataclass(frozen=True)
 class SessionOptions:
     """onnxruntime threading and providers.

@@ -58,12 +58,21 @@ def predicted_embeddings(
         batch = collate(chunk, n_points=config.encoder.n_points, normals=config.encoder.normals,
                         connectivity=False).to(device)
         volumes = model.encoder(batch.points)
-        x, root, prev, nxt, tau = model.connectivity(batch.positions, batch.valid, volumes)
-        for i, s in enumerate(chunk):
-            n = s.n_vertices
-            row = [a[i, :n].double().cpu().numpy() for a in (x, root, prev, nxt)]
-            out.append(Embeddings(row[0], float(tau.reshape(-1)[0]), row[1], row[2], row[3]))
+        *outputs, tau = model.connectivity(batch.positions, batch.valid, volumes)
+        arrays = [a.double().cpu().numpy() for a in outputs]
+        out.extend(_per_sample(chunk, arrays, float(tau.reshape(-1)[0])))
     model.train(was_training)
+    return out
+
+
+def _per_sample(chunk: Sequence[Sample], arrays: Sequence[np.ndarray], tau: float
+                ) -> list[Embeddings]:
+    """One batch's ``x, root, prev, next`` ``(B, N, .)`` cut into each sample's rows
+    (float64)."""
+    out = []
+    for i, s in enumerate(chunk):
+        x, root, prev, nxt = (np.asarray(a[i, : s.n_vertices], np.float64) for a in arrays)
+        out.append(Embeddings(x, tau, root, prev, nxt))
     return out
 
 
@@ -91,10 +100,7 @@ def repository_embeddings(
                         connectivity=False)
         volumes = generator.backend.encode(batch.points.numpy())
         o = generator.backend.connect(batch.positions.numpy(), batch.valid.numpy(), volumes)
-        for i, s in enumerate(chunk):
-            n = s.n_vertices
-            row = [a[i, :n].astype(np.float64) for a in (o.x, o.root, o.prev, o.next)]
-            out.append(Embeddings(row[0], o.tau, row[1], row[2], row[3]))
+        out.extend(_per_sample(chunk, (o.x, o.root, o.prev, o.next), o.tau))
     return out
 
 
