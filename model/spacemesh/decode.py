@@ -109,7 +109,9 @@ class DecodeOptions:
     removed vertices back into the triangles the network rates closest, ``flip`` turns
     triangle pairs to the diagonal the network rates closer, and
     ``flat_delaunay_degrees`` (needs positions) makes quads folded by less than that
-    Delaunay instead, as the ``qem`` training meshes are."""
+    Delaunay instead, as the ``qem`` training meshes are, and ``fit_gain`` (needs the
+    conditioning points) flips a quad to the diagonal whose triangles pass closer to
+    the points by more than that fraction (a data-dependent triangulation)."""
 
     distance: Distance = "spacetime"
     n_space: int | None = None
@@ -124,6 +126,7 @@ class DecodeOptions:
     reinsert: bool = False
     flip: bool = False
     flat_delaunay_degrees: float | None = None
+    fit_gain: float | None = None
 
 
 @dataclass
@@ -390,12 +393,14 @@ def _sanitise(emb: Embeddings, alive: BoolArray) -> tuple[Embeddings, BoolArray]
 
 def _finished(
     connectivity: Connectivity, stats: dict, emb: Embeddings, options: DecodeOptions,
-    took_part: BoolArray, positions: FloatArray | None,
+    took_part: BoolArray, positions: FloatArray | None, points: FloatArray | None,
 ) -> tuple[Connectivity, dict]:
     """The valid decode, with its long faces cut when ``options.max_sides`` is set, then
     refined (:mod:`spacemesh.refinement`) as ``options`` asks."""
     stats["n_split"] = stats["n_reinserted"] = stats["n_flipped"] = 0
+    fit = options.fit_gain is not None and points is not None
     refine = options.reinsert or options.flip or options.flat_delaunay_degrees is not None
+    refine = refine or fit
     if options.max_sides is None and not refine:
         return connectivity, stats
     operands = distance_operands(emb.adjacency, options.distance, options.n_space)
@@ -407,10 +412,10 @@ def _finished(
         removed = np.flatnonzero(took_part & (connectivity.degree == 0))
         connectivity, stats["n_reinserted"] = reinsert_vertices(connectivity, removed, operands,
                                                                   positions)
-    if options.flip or options.flat_delaunay_degrees is not None:
+    if options.flip or options.flat_delaunay_degrees is not None or fit:
         connectivity, stats["n_flipped"] = flip_diagonals(
             connectivity, operands, positions, flat_degrees=options.flat_delaunay_degrees,
-            by_score=options.flip,
+            by_score=options.flip, points=points, fit_gain=options.fit_gain,
         )
     return connectivity, stats
 
@@ -420,6 +425,7 @@ def decode_connectivity(
     options: DecodeOptions | None = None,
     alive: BoolArray | None = None,
     positions: FloatArray | None = None,
+    points: FloatArray | None = None,
 ) -> tuple[Connectivity, dict]:
     """Edges and single-orbit cyclic orders for the embeddings (see module docstring).
 
@@ -431,6 +437,9 @@ def decode_connectivity(
         Vertices that take part (for example the diffusion's padding mask).
     positions : (N, 3) float, optional
         Vertex positions, for the ``angular`` fallback (greedy without them).
+    points : (P, 3) float, optional
+        The conditioning point cloud in the frame of ``positions``, for
+        ``options.fit_gain``.
 
     Returns
     -------
@@ -486,7 +495,7 @@ def decode_connectivity(
         if stats["rounds"] <= edge_rounds:
             drop = pinched_face_edges(indices, face_offsets, n, candidates, weakness)
             if drop.size == 0:
-                return _finished(connectivity, stats, emb, options, took_part, positions)
+                return _finished(connectivity, stats, emb, options, took_part, positions, points)
             touched = np.isin(edge_keys(edges, n), drop)
             stats["n_unpinch_edges"] += int(touched.sum())
         else:
@@ -495,7 +504,7 @@ def decode_connectivity(
                 all_repeated=stats["rounds"] - edge_rounds > GENTLE_ROUNDS,
             )
             if pinched.size == 0:
-                return _finished(connectivity, stats, emb, options, took_part, positions)
+                return _finished(connectivity, stats, emb, options, took_part, positions, points)
             alive[pinched] = False
             stats["n_unpinched"] += int(pinched.size)
             touched = np.isin(edges, pinched).any(axis=1)
@@ -509,6 +518,7 @@ def decode(
     emb: Embeddings,
     options: DecodeOptions | None = None,
     alive: BoolArray | None = None,
+    points: FloatArray | None = None,
 ) -> DecodeResult:
     """Decode embeddings into a valid oriented manifold polygon mesh.
 
@@ -521,13 +531,20 @@ def decode(
     options : DecodeOptions, optional
     alive : (N,) bool, optional
         Vertices that take part (padding mask).
+    points : (P, 3) float, optional
+        The conditioning point cloud, in the frame of ``positions``: with
+        ``options.fit_gain``, the refinement flips diagonals toward it (non-finite rows
+        are ignored).
 
     Returns
     -------
     DecodeResult
     """
     positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-    connectivity, stats = decode_connectivity(emb, options, alive, positions)
+    if points is not None:
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        points = points[np.isfinite(points).all(axis=1)]
+    connectivity, stats = decode_connectivity(emb, options, alive, positions, points)
     full = connectivity.to_mesh(positions)
     mesh, kept = full.remove_unreferenced_vertices()
     return DecodeResult(

@@ -16,7 +16,13 @@ without leaving the space of closed oriented manifolds:
     for a flat quad (both diagonals fold the pair by less than ``flat_degrees``), when
     ``a b`` is not locally Delaunay instead: the ``qem`` training meshes have the
     Delaunay diagonal in flat quads (generator 1.1.0, docs/DATA.md), where either
-    diagonal is the same surface and the network's choice is a guess.
+    diagonal is the same surface and the network's choice is a guess. With the
+    conditioning points, a quad also flips when the other diagonal's two triangles
+    pass closer to the points it holds by more than a fraction (``fit_gain``): a
+    data-dependent triangulation. The network proposes the edges and the points decide
+    between the two diagonals of a quad, which the vertices alone leave ambiguous
+    (a fold up or down); fit flips come before score flips, and a score flip the
+    fit would undo is not made.
 
 Both keep the guarantee of :func:`spacemesh.decode.decode`. Splitting a triangle around
 a vertex it does not use gives three triangles whose new edges each have one halfedge in
@@ -25,8 +31,10 @@ triangles by two over the same quad boundary with the same orientation; it is re
 when ``c d`` is already an edge (the one case where it would make a doubled edge) or
 ``a`` or ``b`` has only three neighbours. The flips terminate: a flat flip is a
 Delaunay flip (finitely many in a near-planar quad), a score flip lowers the sum of the
-edges' embedding distances, and the two kinds never undo each other because a quad is
-flat or not whichever diagonal it has; ``MAX_FLIP_PASSES`` bounds the work regardless.
+edges' embedding distances, a fit flip lowers the points' fit error by a fraction,
+and no kind undoes another: a quad is flat or not whichever diagonal it has, and a
+score flip the fit would flip back is not made; ``MAX_FLIP_PASSES`` bounds the work
+regardless.
 """
 
 from __future__ import annotations
@@ -36,6 +44,7 @@ import numpy as np
 from spacemesh.connectivity import Connectivity
 from spacemesh.encode import connectivity_from_faces
 from spacemesh.spacetime import operand_distances
+from spacemesh.surface_fit import QuadFit
 from spacemesh.topology import edge_keys
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
@@ -51,6 +60,8 @@ MAX_HEIGHT = 0.5
 #: Delaunay and score gains below these are ties (no flip).
 ANGLE_EPS = 1e-9
 SCORE_EPS = 1e-9
+#: Fit gains (summed squared distances, [-1, 1] frame) below this are ties.
+FIT_EPS = 1e-12
 
 
 def _faces_of(connectivity: Connectivity) -> list[IntArray]:
@@ -158,13 +169,14 @@ def _fold(p: FloatArray, a: IntArray, b: IntArray, c: IntArray, d: IntArray) -> 
 def _flip_candidates(
     tri: IntArray, edges: set[int], degree: IntArray, n: int,
     operands: tuple[FloatArray, FloatArray], positions: FloatArray | None,
-    flat_degrees: float | None, by_score: bool,
+    flat_degrees: float | None, by_score: bool, fit: QuadFit | None, fit_gain: float,
 ) -> tuple[np.ndarray, FloatArray]:
     """Flippable interior edges of the triangles, best first.
 
     Returns the rows ``(t1, t2, a, b, c, d)`` (triangle ``t1`` holds ``a -> b`` opposite
     ``c``, ``t2`` holds ``b -> a`` opposite ``d``) and their priorities (larger first:
-    flat Delaunay flips before score flips).
+    flat Delaunay flips, then fit flips, then score flips). With ``fit``, a fit flip
+    needs a relative gain above ``fit_gain``.
     """
     src = tri.reshape(-1)
     dst = np.roll(tri, -1, axis=1).reshape(-1)
@@ -197,9 +209,20 @@ def _flip_candidates(
         creased = (fold_cd > MAX_NEW_FOLD) & (fold_cd > fold_ab)
     else:
         creased = np.zeros(len(h), dtype=bool)
+    opposed = np.zeros(len(h), dtype=bool)
+    if fit is not None and (ok & ~flat).any():
+        q = np.flatnonzero(ok & ~flat)  # only these can flip by fit or score
+        pairs = np.stack([face[h[q]], face[g[q]]], axis=1)
+        before, after = fit.errors(pairs, np.stack([a[q], b[q], c[q], d[q]], axis=1))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            relative = (before - after) / before  # nan without points
+            back = (after - before) / after  # the gain of flipping back
+        fitted = (before - after > FIT_EPS) & (relative > fit_gain)
+        priority[q[fitted]] = 1e3 + relative[fitted]
+        opposed[q] = (after - before > FIT_EPS) & (back > fit_gain)
     if by_score:
         gain = operand_distances(operands, a, b) - operand_distances(operands, c, d)
-        scored = ~flat & ~creased & (gain > SCORE_EPS)
+        scored = ~flat & ~creased & ~opposed & (gain > SCORE_EPS) & ~np.isfinite(priority)
         priority[scored] = gain[scored]
     keep = ok & np.isfinite(priority)
     rows = np.stack([face[h], face[g], a, b, c, d], axis=1)[keep]
@@ -211,7 +234,7 @@ def _flip_candidates(
 def flip_diagonals(
     connectivity: Connectivity, operands: tuple[FloatArray, FloatArray],
     positions: FloatArray | None = None, *, flat_degrees: float | None = None,
-    by_score: bool = True,
+    by_score: bool = True, points: FloatArray | None = None, fit_gain: float | None = None,
 ) -> tuple[Connectivity, int]:
     """Flip the shared edges of triangle pairs to the diagonal the network or, in flat
     quads, the Delaunay criterion prefers (see the module docstring).
@@ -228,6 +251,13 @@ def flip_diagonals(
         Quads folded by less than this are flat: Delaunay flips there, no score flips.
     by_score : bool
         Flip non-flat quads to the diagonal with the smaller embedding distance.
+    points : (P, 3) float, optional
+        The conditioning point cloud, in the frame of ``positions``.
+    fit_gain : float, optional
+        With ``points``: flip a non-flat quad when its points' summed squared distance
+        to the other diagonal's two triangles is lower by more than this fraction (a
+        fit flip, before any score flip; :class:`spacemesh.surface_fit.QuadFit`), and
+        make no score flip that the fit would flip back.
 
     Returns
     -------
@@ -238,17 +268,24 @@ def flip_diagonals(
     faces = _faces_of(connectivity)
     others = [f for f in faces if len(f) != 3]
     triangles = [f for f in faces if len(f) == 3]
-    if len(triangles) < 2 or (not by_score and (flat_degrees is None or positions is None)):
+    if len(triangles) < 2:
         return connectivity, 0
     tri = np.stack(triangles).astype(np.int64)  # (T, 3)
+    fit = None
+    if (fit_gain is not None and points is not None and len(points) and positions is not None
+            and np.isfinite(positions[tri]).all()):
+        fit = QuadFit(points, positions, tri)
+    if not by_score and fit is None and (flat_degrees is None or positions is None):
+        return connectivity, 0
     edges = set(edge_keys(connectivity.edges, n).tolist())
     degree = connectivity.degree.astype(np.int64).copy()
     flips = 0
     for _ in range(MAX_FLIP_PASSES):
         rows, _priority = _flip_candidates(tri, edges, degree, n, operands, positions,
-                                           flat_degrees, by_score)
+                                           flat_degrees, by_score, fit, fit_gain or 0.0)
         used: BoolArray = np.zeros(len(tri), dtype=bool)
         done = 0
+        changed = []
         for t1, t2, a, b, c, d in rows.tolist():
             new = c * n + d if c < d else d * n + c
             if used[t1] or used[t2] or new in edges or degree[a] <= 3 or degree[b] <= 3:
@@ -260,7 +297,10 @@ def flip_diagonals(
             edges.add(new)
             degree[[a, b]] -= 1
             degree[[c, d]] += 1
+            changed.append((t1, t2))
             done += 1
+        if fit is not None:
+            fit.flipped(np.asarray(changed, dtype=np.int64).reshape(-1, 2))
         flips += done
         if done == 0:
             break

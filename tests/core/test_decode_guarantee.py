@@ -64,21 +64,29 @@ def embeddings(draw):
     options = DecodeOptions(distance=distance, fallback=fallback, unpinch=unpinch,
                             uncross=uncross, max_sides=max_sides, reinsert=draw(st.booleans()),
                             flip=draw(st.booleans()),
-                            flat_delaunay_degrees=draw(st.sampled_from([None, 1.0, 30.0])))
-    return emb, options, alive, positions
+                            flat_delaunay_degrees=draw(st.sampled_from([None, 1.0, 30.0])),
+                            fit_gain=draw(st.sampled_from([None, 0.0, 0.5])))
+    # conditioning points for the fit flips: none, on the vertices' scale, or partly
+    # non-finite
+    points = draw(st.sampled_from(["none", "cloud", "non-finite"]))
+    cloud = None if points == "none" else rng.normal(size=(draw(st.integers(0, 80)), 3))
+    if points == "non-finite" and len(cloud):
+        cloud[rng.random(len(cloud)) < 0.2] = np.inf
+    return emb, options, alive, positions, cloud
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(embeddings())
 def test_any_embedding_decodes_to_valid_mesh(case):
-    emb, options, alive, positions = case
-    result = decode(positions, emb, options, alive)
+    emb, options, alive, positions, points = case
+    result = decode(positions, emb, options, alive, points=points)
     assert_valid(result, emb.n_vertices)
     if alive is not None:
         assert alive[result.vertex_ids].all()
     if options.reinsert:
         # putting removed vertices back only ever adds vertices to the same decode
-        without = decode(positions, emb, replace(options, reinsert=False, flip=False), alive)
+        without = decode(positions, emb, replace(options, reinsert=False, flip=False,
+                                                 fit_gain=None), alive)
         assert result.mesh.n_vertices >= without.mesh.n_vertices
         assert result.mesh.n_vertices == without.mesh.n_vertices + result.n_reinserted
     if options.max_sides is not None:

@@ -152,3 +152,98 @@ def test_edge_keys_of_flipped_mesh_are_unique(fitted):
     # an exact fit stays exact
     assert result.mesh.face_key_set() == mesh.face_key_set()
     assert result.n_flipped == 0 and result.n_reinserted == 0
+
+
+def _flipped_edges(mesh: PolygonMesh, count: int) -> tuple[Connectivity, list[tuple[int, int]]]:
+    """``mesh``'s connectivity with ``count`` edges (in quads that share no triangle)
+    turned to their other diagonal, and those edges."""
+    faces = [list(map(int, f)) for f in mesh.faces]
+    used: set[int] = set()
+    turned = []
+    for a, b in encode_connectivity(mesh).edges.tolist():
+        pair = [i for i, f in enumerate(faces) if a in f and b in f]
+        if len(turned) == count or set(pair) & used:
+            continue
+        t1, t2 = pair
+        f1 = faces[t1]
+        if (f1.index(b) - f1.index(a)) % 3 != 1:  # t1 holds a -> b
+            t1, t2 = t2, t1
+        (c,) = set(faces[t1]) - {a, b}
+        (d,) = set(faces[t2]) - {a, b}
+        faces[t1], faces[t2] = [d, b, c], [c, a, d]
+        used |= {t1, t2}
+        turned.append((a, b))
+    wrong = encode_connectivity(PolygonMesh.from_faces(mesh.vertices, np.array(faces)))
+    return wrong, turned
+
+
+def _surface_points(mesh: PolygonMesh, count: int = 2000) -> np.ndarray:
+    from spacemesh.data.sampling import sample_surface
+
+    points, _ = sample_surface(mesh, count, np.random.default_rng(4))
+    return points.astype(np.float64)
+
+
+def test_fit_flips_turn_wrong_diagonals_to_the_points():
+    sphere = icosphere(1)  # no flat quads: the vertices alone do not say which diagonal
+    wrong, turned = _flipped_edges(sphere, 6)
+    assert len(turned) == 6 and _valid(wrong, sphere.vertices)
+    assert not {tuple(sorted(e)) for e in turned} & _edges(wrong)
+    operands = _operands(sphere.vertices)
+    points = _surface_points(sphere)
+    fixed, count = flip_diagonals(wrong, operands, sphere.vertices, by_score=False,
+                                  points=points, fit_gain=0.5)
+    assert count == 6
+    assert fixed.to_mesh(sphere.vertices).face_key_set() == sphere.face_key_set()
+    # no points, or no gain: no fit flips
+    for kwargs in ({"points": None, "fit_gain": 0.5}, {"points": points, "fit_gain": None},
+                   {"points": points[:0], "fit_gain": 0.5}):
+        same, none = flip_diagonals(wrong, operands, sphere.vertices, by_score=False, **kwargs)
+        assert none == 0 and same is wrong
+    # points only at the vertices: both diagonals pass through them, nothing to gain
+    far = flip_diagonals(wrong, operands, sphere.vertices, by_score=False,
+                         points=wrong.to_mesh(sphere.vertices).vertices, fit_gain=0.5)
+    assert far[1] == 0
+
+
+def test_a_score_flip_the_points_oppose_is_not_made():
+    sphere = icosphere(1)
+    connectivity = encode_connectivity(sphere)
+    a, b = connectivity.edges[0]
+    faces = [f.tolist() for f in sphere.faces if a in f and b in f]
+    c, d = ({v for f in faces for v in f} - {a, b})
+    x = sphere.vertices.copy()
+    x[[c, d]] = 0.5 * (x[c] + x[d])  # the network "prefers" c d
+    points = _surface_points(sphere)
+    kept, count = flip_diagonals(connectivity, _operands(x), sphere.vertices,
+                                 points=points, fit_gain=0.5)
+    assert count == 0 and kept is connectivity
+    # the points do not oppose a flip they cannot see: none on that quad
+    quad = np.isin(np.asarray(sphere.faces), [a, b, c, d]).sum(axis=1) == 3
+    elsewhere = points[~np.isin(np.arange(len(points)), np.flatnonzero(
+        np.linalg.norm(points[:, None] - sphere.vertices[[a, b, c, d]][None], axis=2).min(
+            axis=1) < 0.45))]
+    assert quad.sum() == 2
+    flipped, count = flip_diagonals(connectivity, _operands(x), sphere.vertices,
+                                    points=elsewhere, fit_gain=0.5)
+    assert count >= 1 and (min(c, d), max(c, d)) in _edges(flipped)
+
+
+def test_the_points_bring_a_noisy_decode_closer_to_the_truth(fitted):
+    mesh, emb = fitted
+    truth = encode_connectivity(mesh)
+    rng = np.random.default_rng(0)
+    scale = np.abs(emb.adjacency).mean()
+    noisy = replace(emb, adjacency=emb.adjacency + 0.3 * scale * rng.normal(
+        size=emb.adjacency.shape))
+    refined = DecodeOptions(max_sides=3, reinsert=True, flip=True, flat_delaunay_degrees=1.0)
+    points = _surface_points(mesh)
+    without = decode(mesh.vertices, noisy, replace(refined, fit_gain=0.5))  # no points
+    plain = decode(mesh.vertices, noisy, refined, points=points)  # no gain
+    fitted_ = decode(mesh.vertices, noisy, replace(refined, fit_gain=0.5), points=points)
+    assert without.mesh.face_key_set() == plain.mesh.face_key_set()
+    assert check_topology(fitted_.mesh).is_closed_oriented_manifold
+    n = mesh.n_vertices
+    f1 = [edge_f1_score(r.connectivity.edges, truth.edges, n) for r in (plain, fitted_)]
+    nxt = [next_accuracy(r.connectivity, truth) for r in (plain, fitted_)]
+    assert f1[1] > f1[0] and nxt[1] > nxt[0]

@@ -90,7 +90,7 @@ def test_the_decode_section_follows_the_training_style(toy_model):
 
 def test_the_decode_section_of_qem_models_refines_and_flips_flat_quads():
     from spacemesh.data.styles import FLAT_FLIP_DEGREES
-    from spacemesh.export.repository import decode_section
+    from spacemesh.export.repository import FIT_GAIN, decode_section
     from spacemesh.runtime.pipeline import decode_changes
 
     new = decode_section({"style": "qem", "generator_version": "1.1.0"})
@@ -102,9 +102,13 @@ def test_the_decode_section_of_qem_models_refines_and_flips_flat_quads():
     assert decode_section({"style": "isotropic", "generator_version": "1.1.0"})[
         "flat_delaunay_degrees"] is None
     assert not decode_section({"style": "quad"})["reinsert"]
+    # every triangle model flips toward the conditioning points; polygons are kept
+    assert new["fit_gain"] == FIT_GAIN
+    assert decode_section({"style": "isotropic"})["fit_gain"] == FIT_GAIN
+    assert decode_section({"style": "quad"})["fit_gain"] is None
     options = decode_changes(new)
     assert options == {"max_sides": 3, "reinsert": True, "flip": True,
-                       "flat_delaunay_degrees": FLAT_FLIP_DEGREES}
+                       "flat_delaunay_degrees": FLAT_FLIP_DEGREES, "fit_gain": FIT_GAIN}
 
 
 def test_a_model_version_is_repackaged_with_todays_decode(toy_model, tmp_path):

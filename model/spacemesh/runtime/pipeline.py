@@ -45,7 +45,7 @@ DUPLICATE_TOLERANCE = 1e-4
 
 
 #: The manifest ``decode`` keys that are :class:`~spacemesh.decode.DecodeOptions` fields.
-DECODE_KEYS = ("max_sides", "reinsert", "flip", "flat_delaunay_degrees")
+DECODE_KEYS = ("max_sides", "reinsert", "flip", "flat_delaunay_degrees", "fit_gain")
 
 
 def decode_changes(section: dict[str, Any]) -> dict[str, Any]:
@@ -459,14 +459,15 @@ class MeshGenerator:
         emb = self.backend.connect(positions, alive, volumes)
         t3 = time.perf_counter()
         results = []
-        for b, (request, (_, centre, scale)) in enumerate(zip(requests, prepared, strict=True)):
+        for b, (request, (cloud, centre, scale)) in enumerate(
+                zip(requests, prepared, strict=True)):
             e0 = time.perf_counter()
             embeddings = Embeddings(
                 np.asarray(emb.x[b], np.float64), emb.tau, np.asarray(emb.root[b], np.float64),
                 np.asarray(emb.prev[b], np.float64), np.asarray(emb.next[b], np.float64),
             )
             decoded = decode(positions[b].astype(np.float64), embeddings, self.spec.decode,
-                             alive=alive[b])
+                             alive=alive[b], points=cloud[:, :3])
             mesh = decoded.mesh
             if mesh.n_faces and signed_volume(mesh) < 0:
                 mesh = flip_faces(mesh)

@@ -126,7 +126,7 @@ def decoded_scores(
     scores: dict[str, list[float]] = {k: [] for k in SCORES}
     for s, emb in zip(samples, embeddings, strict=True):
         n = s.n_vertices
-        result = decode(s.positions, emb, options)
+        result = decode(s.positions, emb, options, points=s.points)
         truth = s.connectivity
         raw = edges_below_threshold(emb.adjacency, emb.tau, options.distance, options.n_space)
         scores["edge_f1"].append(edge_f1_score(raw, truth.edges, n))
