@@ -62,6 +62,15 @@ ANGLE_EPS = 1e-9
 SCORE_EPS = 1e-9
 #: Fit gains (summed squared distances, [-1, 1] frame) below this are ties.
 FIT_EPS = 1e-12
+#: A fit flip's gain must also stand out of the points' noise by this many standard
+#: deviations. Points at noise ``s`` off the true surface, which the wrong diagonal
+#: misses by ``e_i``, gain ``G = sum e_i^2`` with noise ``2 s sqrt(G)``: ``G > 4 z^2
+#: s^2``, with ``s^2`` the median squared distance of the points to the decoded mesh
+#: (:attr:`spacemesh.surface_fit.QuadFit.noise`). On the held-out set with points
+#: jittered by 0.01 (the mean edge is 0.36), z = 2 gives decoded edge F1 0.937 where
+#: the relative test alone gives 0.926 and no fit 0.928; with exact points it changes
+#: nothing.
+FIT_SIGNIFICANCE = 2.0
 
 
 def _faces_of(connectivity: Connectivity) -> list[IntArray]:
@@ -217,9 +226,10 @@ def _flip_candidates(
         with np.errstate(invalid="ignore", divide="ignore"):
             relative = (before - after) / before  # nan without points
             back = (after - before) / after  # the gain of flipping back
-        fitted = (before - after > FIT_EPS) & (relative > fit_gain)
+        floor = max(FIT_EPS, 4.0 * FIT_SIGNIFICANCE**2 * fit.noise)
+        fitted = (before - after > floor) & (relative > fit_gain)
         priority[q[fitted]] = 1e3 + relative[fitted]
-        opposed[q] = (after - before > FIT_EPS) & (back > fit_gain)
+        opposed[q] = (after - before > floor) & (back > fit_gain)  # it would flip back
     if by_score:
         gain = operand_distances(operands, a, b) - operand_distances(operands, c, d)
         scored = ~flat & ~creased & ~opposed & (gain > SCORE_EPS) & ~np.isfinite(priority)
@@ -255,9 +265,10 @@ def flip_diagonals(
         The conditioning point cloud, in the frame of ``positions``.
     fit_gain : float, optional
         With ``points``: flip a non-flat quad when its points' summed squared distance
-        to the other diagonal's two triangles is lower by more than this fraction (a
-        fit flip, before any score flip; :class:`spacemesh.surface_fit.QuadFit`), and
-        make no score flip that the fit would flip back.
+        to the other diagonal's two triangles is lower by more than this fraction and
+        by more than the points' noise allows (:data:`FIT_SIGNIFICANCE`; a fit flip,
+        before any score flip; :class:`spacemesh.surface_fit.QuadFit`), and make no
+        score flip that the fit would flip back.
 
     Returns
     -------

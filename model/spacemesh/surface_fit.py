@@ -215,6 +215,9 @@ class QuadFit:
         self.triangles = triangles
         self.owner = nearest_triangles(self.points, positions, triangles)  # (P,)
         self._version = np.zeros(len(triangles), dtype=np.int64)
+        residual = squared_distances(self.points, positions[triangles[self.owner]])
+        #: The median squared distance of the points to the triangulation: their noise.
+        self.noise = float(np.median(residual))
         self._cache: dict[tuple[int, ...], tuple[float, float]] = {}
 
     def errors(self, pairs: IntArray, corners: IntArray) -> tuple[FloatArray, FloatArray]:

@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from spacemesh import refinement
 from spacemesh.connectivity import Connectivity
 from spacemesh.decode import DecodeOptions, decode
 from spacemesh.encode import encode_connectivity
@@ -247,3 +248,27 @@ def test_the_points_bring_a_noisy_decode_closer_to_the_truth(fitted):
     f1 = [edge_f1_score(r.connectivity.edges, truth.edges, n) for r in (plain, fitted_)]
     nxt = [next_accuracy(r.connectivity, truth) for r in (plain, fitted_)]
     assert f1[1] > f1[0] and nxt[1] > nxt[0]
+
+
+def test_noisy_points_do_not_turn_right_diagonals(monkeypatch):
+    sphere = icosphere(1)
+    connectivity = encode_connectivity(sphere)
+    points = _surface_points(sphere, 300)  # under four per triangle
+    noisy = points + 0.05 * np.random.default_rng(5).normal(size=points.shape)
+    operands = _operands(sphere.vertices)
+    same, count = flip_diagonals(connectivity, operands, sphere.vertices, by_score=False,
+                                 points=noisy, fit_gain=0.5)
+    assert count == 0 and same is connectivity
+    # the relative test alone is fooled by the few noisy points of some quads
+    monkeypatch.setattr(refinement, "FIT_SIGNIFICANCE", 0.0)
+    _, count = flip_diagonals(connectivity, operands, sphere.vertices, by_score=False,
+                              points=noisy, fit_gain=0.5)
+    assert count > 0
+    monkeypatch.undo()
+    # and noise of a tenth of that still lets the points fix wrong diagonals
+    wrong, _ = _flipped_edges(sphere, 6)
+    fixed, count = flip_diagonals(wrong, operands, sphere.vertices, by_score=False,
+                                  points=points + 0.005 * np.random.default_rng(6).normal(
+                                      size=points.shape), fit_gain=0.5)
+    assert count == 6
+    assert fixed.to_mesh(sphere.vertices).face_key_set() == sphere.face_key_set()

@@ -177,7 +177,7 @@ def init_from_repository(path: str | Path) -> dict:
     Parameters
     ----------
     path : path
-        A version folder, e.g. ``models/spacemesh-small/5``.
+        A version folder, e.g. ``models/spacemesh-small/6``.
 
     Returns
     -------
