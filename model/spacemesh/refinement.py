@@ -286,6 +286,7 @@ def flip_diagonals(
     if (fit_gain is not None and points is not None and len(points) and positions is not None
             and np.isfinite(positions[tri]).all()):
         fit = QuadFit(points, positions, tri)
+        fit = fit if len(fit.points) else None
     if not by_score and fit is None and (flat_degrees is None or positions is None):
         return connectivity, 0
     edges = set(edge_keys(connectivity.edges, n).tolist())

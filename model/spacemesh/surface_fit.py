@@ -204,20 +204,23 @@ class QuadFit:
     Parameters
     ----------
     points : (P, 3) float
+        Non-finite rows are left out.
     positions : (N, 3) float
+        Finite at the corners of ``triangles``.
     triangles : (T, 3) int
         Rows are updated in place by the caller; :meth:`flipped` is told which.
     """
 
     def __init__(self, points: FloatArray, positions: FloatArray, triangles: IntArray):
-        self.points = np.asarray(points, dtype=np.float64)
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        self.points = points[np.isfinite(points).all(axis=1)]  # (P, 3)
         self.positions = positions
         self.triangles = triangles
         self.owner = nearest_triangles(self.points, positions, triangles)  # (P,)
         self._version = np.zeros(len(triangles), dtype=np.int64)
         residual = squared_distances(self.points, positions[triangles[self.owner]])
         #: The median squared distance of the points to the triangulation: their noise.
-        self.noise = float(np.median(residual))
+        self.noise = float(np.median(residual)) if len(residual) else 0.0
         self._cache: dict[tuple[int, ...], tuple[float, float]] = {}
 
     def errors(self, pairs: IntArray, corners: IntArray) -> tuple[FloatArray, FloatArray]:

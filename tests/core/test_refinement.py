@@ -196,9 +196,10 @@ def test_fit_flips_turn_wrong_diagonals_to_the_points():
                                   points=points, fit_gain=0.5)
     assert count == 6
     assert fixed.to_mesh(sphere.vertices).face_key_set() == sphere.face_key_set()
-    # no points, or no gain: no fit flips
+    # no (finite) points, or no gain: no fit flips
     for kwargs in ({"points": None, "fit_gain": 0.5}, {"points": points, "fit_gain": None},
-                   {"points": points[:0], "fit_gain": 0.5}):
+                   {"points": points[:0], "fit_gain": 0.5},
+                   {"points": np.full((4, 3), np.nan), "fit_gain": 0.5}):
         same, none = flip_diagonals(wrong, operands, sphere.vertices, by_score=False, **kwargs)
         assert none == 0 and same is wrong
     # points only at the vertices: both diagonals pass through them, nothing to gain
