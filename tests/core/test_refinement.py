@@ -208,27 +208,40 @@ def test_fit_flips_turn_wrong_diagonals_to_the_points():
     assert far[1] == 0
 
 
-def test_a_score_flip_the_points_oppose_is_not_made():
+def test_fit_and_score_flips_leave_each_others_diagonals():
     sphere = icosphere(1)
+    points = _surface_points(sphere)
+    # the fit turns six wrong diagonals right, though the network prefers the wrong
+    # ones: the score does not turn them back (no cycle between the two)
+    wrong, turned = _flipped_edges(sphere, 6)
+    x = sphere.vertices.copy()
+    wrong_pairs = set()
+    for a, b in turned:
+        faces = [f for f in np.asarray(sphere.faces).tolist() if a in f and b in f]
+        c, d = sorted({v for f in faces for v in f} - {a, b})
+        x[[c, d]] = x[[c, d]] + 0.45 * (x[[d, c]] - x[[c, d]])  # the wrong pair "closer"
+        wrong_pairs.add((c, d))
+    true_pairs = {tuple(sorted(e)) for e in turned}
+    assert wrong_pairs <= _edges(wrong)
+    fixed, _ = flip_diagonals(wrong, _operands(x), sphere.vertices, points=points,
+                              fit_gain=0.5)
+    assert true_pairs <= _edges(fixed) and not wrong_pairs & _edges(fixed)
+    assert _valid(fixed, sphere.vertices)
+    # without the points the network's preference wins
+    kept, _ = flip_diagonals(wrong, _operands(x), sphere.vertices)
+    assert wrong_pairs <= _edges(kept)
+    # a score flip the points disagree with is not turned back by the fit either
     connectivity = encode_connectivity(sphere)
     a, b = connectivity.edges[0]
     faces = [f.tolist() for f in sphere.faces if a in f and b in f]
     c, d = ({v for f in faces for v in f} - {a, b})
     x = sphere.vertices.copy()
     x[[c, d]] = 0.5 * (x[c] + x[d])  # the network "prefers" c d
-    points = _surface_points(sphere)
-    kept, count = flip_diagonals(connectivity, _operands(x), sphere.vertices,
-                                 points=points, fit_gain=0.5)
-    assert count == 0 and kept is connectivity
-    # the points do not oppose a flip they cannot see: none on that quad
-    quad = np.isin(np.asarray(sphere.faces), [a, b, c, d]).sum(axis=1) == 3
-    elsewhere = points[~np.isin(np.arange(len(points)), np.flatnonzero(
-        np.linalg.norm(points[:, None] - sphere.vertices[[a, b, c, d]][None], axis=2).min(
-            axis=1) < 0.45))]
-    assert quad.sum() == 2
-    flipped, count = flip_diagonals(connectivity, _operands(x), sphere.vertices,
-                                    points=elsewhere, fit_gain=0.5)
-    assert count >= 1 and (min(c, d), max(c, d)) in _edges(flipped)
+    with_points, count = flip_diagonals(connectivity, _operands(x), sphere.vertices,
+                                        points=points, fit_gain=0.5)
+    without, count_without = flip_diagonals(connectivity, _operands(x), sphere.vertices)
+    assert count == count_without >= 1 and (min(c, d), max(c, d)) in _edges(with_points)
+    assert _edges(with_points) == _edges(without)
 
 
 def test_the_points_bring_a_noisy_decode_closer_to_the_truth(fitted):
