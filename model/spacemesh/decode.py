@@ -541,9 +541,6 @@ def decode(
     DecodeResult
     """
     positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-    if points is not None:
-        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        points = points[np.isfinite(points).all(axis=1)]
     connectivity, stats = decode_connectivity(emb, options, alive, positions, points)
     full = connectivity.to_mesh(positions)
     mesh, kept = full.remove_unreferenced_vertices()

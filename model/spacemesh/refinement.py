@@ -267,7 +267,8 @@ def flip_diagonals(
     by_score : bool
         Flip non-flat quads to the diagonal with the smaller embedding distance.
     points : (P, 3) float, optional
-        The conditioning point cloud, in the frame of ``positions``.
+        The conditioning point cloud, in the frame of ``positions`` (non-finite rows
+        are left out).
     fit_gain : float, optional
         With ``points``: flip a non-flat quad when its points' summed squared distance
         to the other diagonal's two triangles is lower by more than this fraction and

@@ -120,9 +120,10 @@ def _subtriangle_centroids(level: int) -> FloatArray:
 
 
 def nearest_triangles(points: FloatArray, positions: FloatArray, triangles: IntArray
-                      ) -> IntArray:
-    """The triangle nearest to each point: the owner of its nearest surface sample
-    (the centroids of a :data:`SAMPLE_LEVEL` subdivision of every triangle).
+                      ) -> tuple[IntArray, FloatArray]:
+    """The triangle nearest to each point, measured exactly among the triangles of its
+    :data:`NEAREST_SAMPLES` nearest surface samples (the centroids of a
+    :data:`SAMPLE_LEVEL` subdivision of every triangle).
 
     Parameters
     ----------
@@ -132,8 +133,10 @@ def nearest_triangles(points: FloatArray, positions: FloatArray, triangles: IntA
 
     Returns
     -------
-    (P,) int
+    owner : (P,) int
         Row of ``triangles``.
+    gap : (P,) float
+        Squared distance from each point to its triangle.
     """
     corners = positions[triangles]  # (T, 3, 3)
     weights = _subtriangle_centroids(SAMPLE_LEVEL)  # (S, 3)
@@ -142,7 +145,9 @@ def nearest_triangles(points: FloatArray, positions: FloatArray, triangles: IntA
     _, near = cKDTree(samples).query(points, k=k)
     near = np.asarray(near, dtype=np.int64).reshape(len(points), k) // len(weights)  # (P, k)
     gap = squared_distances(np.repeat(points, k, axis=0), corners[near.reshape(-1)])
-    return near[np.arange(len(points)), np.argmin(gap.reshape(-1, k), axis=1)]
+    best = np.argmin(gap.reshape(-1, k), axis=1)
+    rows = np.arange(len(points))
+    return near[rows, best], gap.reshape(-1, k)[rows, best]
 
 
 def quad_fit_errors(
@@ -216,9 +221,8 @@ class QuadFit:
         self.points = points[np.isfinite(points).all(axis=1)]  # (P, 3)
         self.positions = positions
         self.triangles = triangles
-        self.owner = nearest_triangles(self.points, positions, triangles)  # (P,)
+        self.owner, residual = nearest_triangles(self.points, positions, triangles)  # (P,)
         self._version = np.zeros(len(triangles), dtype=np.int64)
-        residual = squared_distances(self.points, positions[triangles[self.owner]])
         #: The median squared distance of the points to the triangulation: their noise.
         self.noise = float(np.median(residual)) if len(residual) else 0.0
         self._cache: dict[tuple[int, ...], tuple[float, float]] = {}
@@ -267,6 +271,6 @@ class QuadFit:
         moved = np.flatnonzero(np.isin(self.owner, pairs))
         if not len(moved):
             return
-        new = nearest_triangles(self.points[moved], self.positions, self.triangles)
+        new, _ = nearest_triangles(self.points[moved], self.positions, self.triangles)
         self._version[np.union1d(self.owner[moved], new)] += 1
         self.owner[moved] = new

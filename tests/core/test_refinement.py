@@ -124,13 +124,18 @@ def test_a_removed_vertex_goes_back_and_the_flips_restore_its_fan():
     assert count == 0 and none is restored
 
 
+def _noisy(emb):
+    """``emb`` with Gaussian noise of 0.3 times its mean magnitude on the adjacency."""
+    rng = np.random.default_rng(0)
+    scale = np.abs(emb.adjacency).mean()
+    return replace(emb, adjacency=emb.adjacency + 0.3 * scale * rng.normal(
+        size=emb.adjacency.shape))
+
+
 def test_refinement_brings_a_noisy_decode_closer_to_the_truth(fitted):
     mesh, emb = fitted
     truth = encode_connectivity(mesh)
-    rng = np.random.default_rng(0)
-    scale = np.abs(emb.adjacency).mean()
-    noisy = replace(emb, adjacency=emb.adjacency + 0.3 * scale * rng.normal(
-        size=emb.adjacency.shape))
+    noisy = _noisy(emb)
     plain = DecodeOptions(max_sides=3)
     refined = replace(plain, reinsert=True, flip=True, flat_delaunay_degrees=1.0)
     before = decode(mesh.vertices, noisy, plain)
@@ -247,10 +252,7 @@ def test_fit_and_score_flips_leave_each_others_diagonals():
 def test_the_points_bring_a_noisy_decode_closer_to_the_truth(fitted):
     mesh, emb = fitted
     truth = encode_connectivity(mesh)
-    rng = np.random.default_rng(0)
-    scale = np.abs(emb.adjacency).mean()
-    noisy = replace(emb, adjacency=emb.adjacency + 0.3 * scale * rng.normal(
-        size=emb.adjacency.shape))
+    noisy = _noisy(emb)
     refined = DecodeOptions(max_sides=3, reinsert=True, flip=True, flat_delaunay_degrees=1.0)
     points = _surface_points(mesh)
     without = decode(mesh.vertices, noisy, replace(refined, fit_gain=0.5))  # no points

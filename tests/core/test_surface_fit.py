@@ -72,10 +72,11 @@ def test_nearest_triangles_are_the_nearest():
     sphere, points = _sphere_points()
     faces = np.asarray(sphere.faces, dtype=np.int64)
     points = points + 0.02 * np.random.default_rng(3).normal(size=points.shape)
-    owner = nearest_triangles(points, sphere.vertices, faces)
+    owner, gap = nearest_triangles(points, sphere.vertices, faces)
     every = _brute_force_distances(points, sphere.vertices, faces)
     np.testing.assert_allclose(every[np.arange(len(points)), owner], every.min(axis=1),
                                atol=1e-12)
+    np.testing.assert_allclose(gap, every.min(axis=1), atol=1e-12)
 
 
 def _quad(faces: np.ndarray):
@@ -92,7 +93,7 @@ def _quad(faces: np.ndarray):
 def test_quad_errors_are_zero_on_the_true_diagonal_and_positive_on_the_other():
     sphere, points = _sphere_points()
     faces = np.asarray(sphere.faces, dtype=np.int64)
-    owner = nearest_triangles(points, sphere.vertices, faces)
+    owner, _ = nearest_triangles(points, sphere.vertices, faces)
     t1, t2, (a, b, c, d) = _quad(faces)
     current = np.array([[[a, b, c], [b, a, d]]])
     flipped = np.array([[[d, b, c], [c, a, d]]])
