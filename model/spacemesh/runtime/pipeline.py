@@ -29,10 +29,18 @@ import numpy as np
 
 from spacemesh.data.validate import signed_volume
 from spacemesh.decode import DecodeOptions, Embeddings, decode
+from spacemesh.geometry import (
+    FitReport,
+    GeometryOptions,
+    farthest_point_sampling,
+    fit_report,
+    refine_geometry,
+)
 from spacemesh.mesh import PolygonMesh
 from spacemesh.runtime.backend import Backend
+from spacemesh.runtime.options import GenerateOptions
 from spacemesh.runtime.sampler import ProgressFn, sample, split_tokens
-from spacemesh.runtime.schedule import METHODS, NoiseSchedule
+from spacemesh.runtime.schedule import NoiseSchedule
 from spacemesh.typed import FloatArray, IntArray
 
 #: Seed of the fixed generator that picks the encoder's points from a larger cloud.
@@ -42,6 +50,13 @@ POINT_SUBSET_SEED = 0
 #: vertices (e.g. two tokens clipped to the same corner of the cube) would give the
 #: connectivity network identical inputs, hence exact ties in the decode.
 DUPLICATE_TOLERANCE = 1e-4
+
+#: Vertices ``start=points`` chooses when the request sets no ``target_vertices`` and the
+#: manifest no ``sampler.vertices``.
+DEFAULT_VERTICES = 200
+
+#: Input points the geometry stage fits to at most (a fixed subset of larger clouds).
+MAX_FIT_POINTS = 20_000
 
 
 #: The manifest ``decode`` keys that are :class:`~spacemesh.decode.DecodeOptions` fields.
@@ -84,6 +99,16 @@ class ModelSpec:
         Calibrated on the training set's val split at export
         (:func:`spacemesh.export.repository.calibrate_vertex_spacing`);
         ``manifest["sampler"]["vertex_spacing"]``, default :data:`DUPLICATE_TOLERANCE`.
+    start : {"noise", "points"}
+        Default vertex start (``manifest["sampler"]["start"]``; ``noise`` for models
+        whose manifest predates it).
+    start_time : float
+        Default start time of ``start=points`` (``manifest["sampler"]["start_time"]``).
+    vertices : int
+        Vertices ``start=points`` chooses without ``target_vertices``
+        (``manifest["sampler"]["vertices"]``).
+    geometry : GeometryOptions
+        The geometry stage (``manifest["geometry"]`` overrides the defaults).
     """
 
     n_points: int
@@ -94,6 +119,10 @@ class ModelSpec:
     steps: int
     decode: DecodeOptions
     vertex_spacing: float = DUPLICATE_TOLERANCE
+    start: str = "noise"
+    start_time: float = 0.0
+    vertices: int = DEFAULT_VERTICES
+    geometry: GeometryOptions = field(default_factory=GeometryOptions)
 
     @classmethod
     def from_config(cls, config: dict[str, Any], betas: Sequence[float] | None = None,
@@ -140,9 +169,15 @@ class ModelSpec:
             manifest["config"], manifest["schedule"]["betas"],
             manifest.get("embedding", {}).get("reduction_params"),
         )
-        spacing = manifest.get("sampler", {}).get("vertex_spacing", DUPLICATE_TOLERANCE)
+        sampler = manifest.get("sampler", {})
         decode = replace(spec.decode, **decode_changes(manifest.get("decode", {})))
-        return replace(spec, vertex_spacing=float(spacing), decode=decode)
+        return replace(
+            spec, vertex_spacing=float(sampler.get("vertex_spacing", DUPLICATE_TOLERANCE)),
+            decode=decode, start=str(sampler.get("start", "noise")),
+            start_time=float(sampler.get("start_time", 0.0)),
+            vertices=int(sampler.get("vertices", DEFAULT_VERTICES)),
+            geometry=GeometryOptions.from_section(manifest.get("geometry", {})),
+        )
 
 
 @dataclass(frozen=True)
@@ -154,18 +189,13 @@ class GenerateRequest:
     points : (P, 3) float
         Conditioning points, any frame and scale.
     normals : (P, 3) float, optional
-    seed : int
-    steps : int, optional
-        Sampler steps (the model's default when None).
-    method : {"ddim", "ddpm"}, optional
-        Sampler (the model's default when None).
+    options : GenerateOptions
+        As the user sent them (resolved against the model by the generator).
     """
 
     points: FloatArray
     normals: FloatArray | None = None
-    seed: int = 0
-    steps: int | None = None
-    method: str | None = None
+    options: GenerateOptions = field(default_factory=GenerateOptions)
 
 
 @dataclass
@@ -176,25 +206,48 @@ class GenerateResult:
     ----------
     mesh : PolygonMesh
         In the input's frame and scale, faces oriented outward.
-    seed, steps : int
-    method : str
+    options : GenerateOptions
+        Resolved (the model's defaults filled in); ``options.seed`` is the seed of this
+        mesh (with ``samples > 1``, the winner's).
     timings : dict of str to float
-        Seconds spent in ``encoder``, ``sampler``, ``connectivity``, ``extraction`` and
-        ``total``. For a batch, the network stages are the whole batch's times.
+        Seconds spent in ``encoder``, ``sampler``, ``connectivity``, ``extraction``
+        (decode), ``geometry``, ``report`` and ``total``. For a batch, the network
+        stages are the whole batch's times.
     n_sampled_vertices : int
-        Tokens the mask channel kept, coincident ones merged (before the decode
-        removed any).
+        Vertices given to the connectivity network (before the decode removed any).
     decode_stats : dict
         From :class:`spacemesh.decode.DecodeResult`.
+    geometry_stats : dict
+        From :class:`spacemesh.geometry.GeometryResult` (empty with ``raw``).
+    fit : FitReport
+        How well the mesh fits the uploaded points.
+    sample_scores : list of (int, float)
+        ``(seed, fit score)`` of every seed tried, in seed order.
     """
 
     mesh: PolygonMesh
-    seed: int
-    steps: int
-    method: str
+    options: GenerateOptions
     timings: dict[str, float] = field(default_factory=dict)
     n_sampled_vertices: int = 0
     decode_stats: dict[str, Any] = field(default_factory=dict)
+    geometry_stats: dict[str, Any] = field(default_factory=dict)
+    fit: FitReport | None = None
+    sample_scores: list[tuple[int, float]] = field(default_factory=list)
+
+    @property
+    def seed(self) -> int:
+        """The seed of this mesh."""
+        return int(self.options.seed)
+
+    @property
+    def steps(self) -> int:
+        """Sampler steps of the whole schedule."""
+        return int(self.options.steps or 0)
+
+    @property
+    def method(self) -> str:
+        """The sampler."""
+        return str(self.options.sampler)
 
 
 def normalize_points(points: FloatArray) -> tuple[FloatArray, FloatArray, float]:
@@ -347,11 +400,10 @@ class MeshGenerator:
         self,
         points: FloatArray,
         normals: FloatArray | None = None,
+        options: GenerateOptions | None = None,
         *,
-        seed: int = 0,
-        steps: int | None = None,
-        method: str | None = None,
         progress: ProgressFn | None = None,
+        **fields: Any,
     ) -> GenerateResult:
         """Generate one mesh.
 
@@ -360,21 +412,29 @@ class MeshGenerator:
         points : (P, 3) float
             Conditioning points in any frame and scale.
         normals : (P, 3) float, optional
-            Needed only by models whose encoder reads normals.
-        seed : int
-            The same seed gives the same mesh.
-        steps : int, optional
-            Sampler steps (default: the model's).
-        method : {"ddim", "ddpm"}, optional
-            Sampler (default: the model's).
+            Used by the geometry stage (estimated when absent), and needed by models
+            whose encoder reads normals.
+        options : GenerateOptions, optional
+            Default: the model's defaults with seed 0.
         progress : callable, optional
             ``progress(done, total)`` after each denoiser step.
+        **fields
+            :class:`~spacemesh.runtime.options.GenerateOptions` fields by name (e.g.
+            ``seed=3, raw=True``), applied over ``options``.
 
         Returns
         -------
         GenerateResult
+
+        Raises
+        ------
+        OptionError
+            An option out of range.
+        ValueError
+            Points (or normals) that cannot be used.
         """
-        request = GenerateRequest(points, normals, seed, steps, method)
+        options = replace(options or GenerateOptions(), **fields)
+        request = GenerateRequest(points, normals, options)
         return self.generate_batch([request], progress=progress)[0]
 
     def generate_batch(
@@ -382,7 +442,9 @@ class MeshGenerator:
     ) -> list[GenerateResult]:
         """Generate several meshes, sharing each network call.
 
-        Requests with different ``steps``/``method`` run as separate groups.
+        Requests with different sampler settings (steps, sampler, start, start time)
+        run as separate groups; a request with ``samples = K`` runs its K seeds in its
+        group and keeps the best-fitting mesh.
 
         Parameters
         ----------
@@ -394,33 +456,53 @@ class MeshGenerator:
         -------
         list of GenerateResult
             In request order.
+
+        Raises
+        ------
+        OptionError
+            An option out of range (before any network runs).
         """
-        groups: dict[tuple[int, str], list[int]] = {}
-        for i, r in enumerate(requests):
-            groups.setdefault(self._sampler_key(r), []).append(i)
-        total = sum(k[0] for k in groups)
-        results: list[GenerateResult | None] = [None] * len(requests)
+        resolved = [r.options.resolve(self.spec) for r in requests]
+        for request in requests:
+            self.prepare_points(request.points, request.normals)  # fail before any work
+        jobs: list[tuple[int, GenerateRequest]] = []  # (request index, one seed)
+        for index, (request, options) in enumerate(zip(requests, resolved, strict=True)):
+            for k in range(options.samples):
+                single = replace(options, seed=options.seed + k)
+                jobs.append((index, replace(request, options=single)))
+        groups: dict[tuple[int, str, str, float], list[int]] = {}
+        for j, (_, job) in enumerate(jobs):
+            groups.setdefault(self._sampler_key(job.options), []).append(j)
+        total = sum(self._denoiser_steps(key) for key in groups)
+        outcomes: list[GenerateResult | None] = [None] * len(jobs)
         done = 0
         for key, members in groups.items():
             def report(step: int, _total: int, offset: int = done) -> None:
                 if progress is not None:
                     progress(offset + step, total)
 
-            batch = self._run_group([requests[i] for i in members], *key, report)
-            for i, result in zip(members, batch, strict=True):
-                results[i] = result
-            done += key[0]
-        return [r for r in results if r is not None]
+            batch = self._run_group([jobs[j][1] for j in members], key, report)
+            for j, result in zip(members, batch, strict=True):
+                outcomes[j] = result
+            done += self._denoiser_steps(key)
+        results = []
+        for index, options in enumerate(resolved):
+            tried = [outcomes[j] for j, (i, _) in enumerate(jobs) if i == index]
+            results.append(_best_fit([r for r in tried if r is not None], options))
+        return results
 
     # ------------------------------------------------------------------ stages
-    def _sampler_key(self, request: GenerateRequest) -> tuple[int, str]:
-        steps = self.spec.steps if request.steps is None else int(request.steps)
-        method = self.spec.method if request.method is None else str(request.method)
-        if method not in METHODS:
-            raise ValueError(f"unknown sampler {method!r}; choose from {', '.join(METHODS)}")
-        if not 1 <= steps <= self.spec.schedule.timesteps:
-            raise ValueError(f"steps must be in 1..{self.spec.schedule.timesteps}, not {steps}")
-        return steps, method
+    @staticmethod
+    def _sampler_key(options: GenerateOptions) -> tuple[int, str, str, float]:
+        return (int(options.steps), str(options.sampler), str(options.start),
+                float(options.start_time))
+
+    def _denoiser_steps(self, key: tuple[int, str, str, float]) -> int:
+        from spacemesh.runtime.sampler import start_steps
+
+        steps, _, start, start_time = key
+        respaced = self.spec.schedule.respaced(steps)
+        return len(respaced) if start == "noise" else start_steps(respaced, start_time)
 
     def prepare_points(
         self, points: FloatArray, normals: FloatArray | None
@@ -438,21 +520,49 @@ class MeshGenerator:
             columns.append((n / np.where(length > 0, length, 1.0))[pick])
         return np.concatenate(columns, axis=1).astype(np.float32), centre, scale
 
+    def vertex_count(self, options: GenerateOptions) -> int:
+        """Vertices ``start=points`` chooses: the target, else the model's default."""
+        return int(options.target_vertices or self.spec.vertices)
+
+    def _start_tokens(self, requests: list[GenerateRequest]) -> np.ndarray:
+        """Clean tokens ``(B, N, 4)`` of the farthest-point vertices of each request's
+        normalised cloud (real tokens first, padding after with mask -1)."""
+        chosen = []
+        for request in requests:
+            unit, _, _ = normalize_points(check_points(request.points)[0])
+            wanted = self.vertex_count(request.options)
+            if not request.options.raw:
+                wanted = min(wanted, self.spec.max_vertices)  # the stage splits the rest
+            pick = farthest_point_sampling(unit, wanted, seed=request.options.seed)
+            chosen.append(unit[pick])
+        n = max([self.spec.max_vertices, *(len(c) for c in chosen)])
+        tokens = np.zeros((len(requests), n, 4), dtype=np.float32)
+        tokens[..., 3] = -1.0
+        for b, c in enumerate(chosen):
+            tokens[b, : len(c), :3] = c
+            tokens[b, : len(c), 3] = 1.0
+        return tokens
+
     def _run_group(
-        self, requests: list[GenerateRequest], steps: int, method: str, progress: ProgressFn
+        self, requests: list[GenerateRequest], key: tuple[int, str, str, float],
+        progress: ProgressFn,
     ) -> list[GenerateResult]:
+        steps, method, start, start_time = key
         t0 = time.perf_counter()
         prepared = [self.prepare_points(r.points, r.normals) for r in requests]
         points = np.stack([p[0] for p in prepared])  # (B, P, C)
         volumes = self.backend.encode(points)
         t1 = time.perf_counter()
+        clean = self._start_tokens(requests) if start == "points" else None
+        n_tokens = self.spec.max_vertices if clean is None else clean.shape[1]
         tokens = sample(
             lambda x, t: self.backend.denoise(x, t, volumes),
-            seeds=[r.seed for r in requests], n_vertices=self.spec.max_vertices,
+            seeds=[r.options.seed for r in requests], n_vertices=n_tokens,
             steps=self.spec.schedule.respaced(steps), method=method, progress=progress,
+            start=clean, start_time=start_time,
         )
         positions, alive = split_tokens(tokens)  # (B, N, 3), (B, N)
-        spacing = self.spec.vertex_spacing
+        spacing = self.spec.vertex_spacing if start == "noise" else DUPLICATE_TOLERANCE
         alive = np.stack([drop_duplicates(p, a, spacing)
                           for p, a in zip(positions, alive, strict=True)])
         t2 = time.perf_counter()
@@ -468,16 +578,60 @@ class MeshGenerator:
             )
             decoded = decode(positions[b].astype(np.float64), embeddings, self.spec.decode,
                              alive=alive[b], points=cloud[:, :3])
-            mesh = decoded.mesh
-            if mesh.n_faces and signed_volume(mesh) < 0:
-                mesh = flip_faces(mesh)
+            mesh = _outward(decoded.mesh)
+            e1 = time.perf_counter()
+            geometry_stats: dict[str, Any] = {}
+            if not request.options.raw:
+                unit, normals = self._fit_points(request, centre, scale)
+                refined = refine_geometry(
+                    mesh, unit, normals, self.spec.geometry,
+                    target_vertices=(self.vertex_count(request.options)
+                                     if start == "points" else None),
+                )
+                mesh, geometry_stats = _outward(refined.mesh), refined.stats
             mesh = mesh.with_vertices(mesh.vertices * scale + centre)
-            extraction = time.perf_counter() - e0
+            e2 = time.perf_counter()
+            report = fit_report(mesh, check_points(request.points)[0])
             timings = {"encoder": t1 - t0, "sampler": t2 - t1, "connectivity": t3 - t2,
-                       "extraction": extraction}
+                       "extraction": e1 - e0, "geometry": e2 - e1,
+                       "report": time.perf_counter() - e2}
             timings["total"] = sum(timings.values())
             results.append(GenerateResult(
-                mesh=mesh, seed=int(request.seed), steps=steps, method=method, timings=timings,
+                mesh=mesh, options=request.options, timings=timings,
                 n_sampled_vertices=int(alive[b].sum()), decode_stats=dict(decoded.stats),
+                geometry_stats=geometry_stats, fit=report,
             ))
         return results
+
+    @staticmethod
+    def _fit_points(request: GenerateRequest, centre: FloatArray, scale: float
+                    ) -> tuple[FloatArray, FloatArray | None]:
+        """The request's points (and normals) in the normalised frame, at most
+        :data:`MAX_FIT_POINTS` of them (a fixed subset)."""
+        points, normals = check_points(request.points, request.normals)
+        if len(points) > MAX_FIT_POINTS:
+            pick = np.sort(np.random.default_rng(POINT_SUBSET_SEED).choice(
+                len(points), MAX_FIT_POINTS, replace=False))
+            points = points[pick]
+            normals = None if normals is None else normals[pick]
+        return (points - centre) / scale, normals
+
+
+def _outward(mesh: PolygonMesh) -> PolygonMesh:
+    """``mesh`` with its faces flipped when its signed volume is negative."""
+    return flip_faces(mesh) if mesh.n_faces and signed_volume(mesh) < 0 else mesh
+
+
+def _best_fit(tried: list[GenerateResult], options: GenerateOptions) -> GenerateResult:
+    """The result of the seed that fits best (lowest fit score; ties: the lower seed),
+    with every seed's score and the request's resolved options at the winner's seed."""
+    def score(result: GenerateResult) -> float:
+        value = result.fit.score if result.fit is not None else float("nan")
+        return value if np.isfinite(value) else float("inf")
+
+    scores = [(r.seed, score(r)) for r in tried]
+    best = min(range(len(tried)), key=lambda i: (scores[i][1], scores[i][0]))
+    winner = tried[best]
+    winner.options = replace(options, seed=winner.seed)
+    winner.sample_scores = scores
+    return winner

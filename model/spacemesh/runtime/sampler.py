@@ -30,8 +30,10 @@ def sample(
     steps: SamplingSteps,
     method: str = "ddim",
     progress: ProgressFn | None = None,
+    start: FloatArray | None = None,
+    start_time: float = 1.0,
 ) -> FloatArray:
-    """Run the reverse process from pure noise to vertex tokens.
+    """Run the reverse process from pure noise (or from noised tokens) to vertex tokens.
 
     Parameters
     ----------
@@ -46,6 +48,11 @@ def sample(
     method : {"ddim", "ddpm"}
     progress : callable, optional
         ``progress(done, total)`` after each step.
+    start : (B, N, 4) float, optional
+        Clean tokens to start from (SDEdit): they are noised to the last step at or
+        below ``start_time`` and only the steps from there down run. None: pure noise.
+    start_time : float
+        Fraction t/T of the diffusion where ``start`` begins (0: returned unchanged).
 
     Returns
     -------
@@ -58,6 +65,13 @@ def sample(
     shape = (n_vertices, 4)
     x = np.stack([r.standard_normal(shape) for r in rngs]).astype(np.float32)  # (B, N, 4)
     total = len(steps)
+    if start is not None:
+        total = start_steps(steps, start_time)
+        if total == 0:
+            return np.asarray(start, dtype=np.float32)
+        abar = float(steps.alphas_cumprod[total - 1])
+        x = (np.sqrt(abar) * np.asarray(start, np.float64)
+             + np.sqrt(1.0 - abar) * x).astype(np.float32)
     for done, i in enumerate(reversed(range(total)), start=1):
         t = np.full(len(rngs), steps.timesteps[i], dtype=np.int64)  # (B,)
         eps = np.asarray(denoise(x, t), dtype=np.float64)  # (B, N, 4)
@@ -68,6 +82,13 @@ def sample(
         if progress is not None:
             progress(done, total)
     return x
+
+
+def start_steps(steps: SamplingSteps, start_time: float) -> int:
+    """How many of ``steps`` run from ``start_time`` (a fraction t/T): those whose
+    timestep is at or below it."""
+    limit = float(start_time) * (int(steps.timesteps[-1]) + 1)
+    return int(np.count_nonzero(np.asarray(steps.timesteps) < limit))
 
 
 def reverse_step(

@@ -1,0 +1,26 @@
+"""Post-decode geometry: everything that happens to the mesh after the networks.
+
+* :mod:`~spacemesh.geometry.sampling`: vertices chosen on the input (farthest points);
+* :mod:`~spacemesh.geometry.fitting`: the vertex fit (one energy, one sparse solve);
+* :mod:`~spacemesh.geometry.stage`: the stage itself (splits, fit, flips, guard);
+* :mod:`~spacemesh.geometry.intersections`: self-intersecting faces (numpy + scipy);
+* :mod:`~spacemesh.geometry.report`: the fit report of every response.
+
+numpy and scipy only: the service uses all of it without torch, trimesh or pymeshlab.
+"""
+
+from spacemesh.geometry.fitting import FitOptions, fit_vertices
+from spacemesh.geometry.report import FitReport, fit_report
+from spacemesh.geometry.sampling import farthest_point_sampling
+from spacemesh.geometry.stage import GeometryOptions, GeometryResult, refine_geometry
+
+__all__ = [
+    "FitOptions",
+    "FitReport",
+    "GeometryOptions",
+    "GeometryResult",
+    "farthest_point_sampling",
+    "fit_report",
+    "fit_vertices",
+    "refine_geometry",
+]

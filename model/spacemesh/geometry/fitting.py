@@ -1,0 +1,316 @@
+"""Vertex positions fitted to the conditioning points: one energy, one sparse solve.
+
+After the decode has fixed the connectivity, the vertices move so that the mesh passes
+through the points, as in Hoppe et al. 1993 ("Mesh Optimization"), with the tangent
+planes of the points added so that vertices near creases and corners go onto them, as
+dual contouring's QEF does. With the points' closest-point assignments held fixed, the
+energy of the vertex positions ``V`` (N, 3) is quadratic::
+
+    E(V) =  w_d / P  sum_i || p_i - sum_k b_ik v_k ||^2              points -> mesh
+          + w_f / S  sum_s ( n_q(s) . (sum_k c_sk v_k - q(s)) )^2     mesh -> points
+          + w_q / N  sum_v sum_j g_vj ( n_j . (v - p_j) )^2           tangent planes (QEF)
+          + w_s / E  sum_(a,b) || v_a - v_b ||^2                      springs
+          + w_r / N  sum_v || v - v_prev ||^2                         step damping
+
+* ``b_ik``: barycentric coordinates of point ``p_i``'s closest point on its nearest
+  triangle (Hoppe's projection step);
+* ``q(s)``: the input point nearest to surface sample ``s`` (a fixed barycentric
+  position ``c_s`` on a triangle), with that point's normal ``n_q``: faces come close
+  to the points, point-to-plane so that faces may slide along the surface;
+* ``g_vj``: Gaussian weights of the points ``p_j`` nearest to vertex ``v``, with their
+  normals ``n_j``: in a flat region the planes agree and only the normal direction is
+  held (the vertex stays where it is in the plane); near a crease two families of
+  planes meet and the minimiser is on the crease line; near a corner, at the corner;
+* springs (graph Laplacian) keep the system well posed where no point pulls.
+
+The solver alternates the projection (closest points, nearest points, neighbourhoods)
+with one sparse symmetric solve of the ``3N`` normal equations (the tangent planes
+couple a vertex's coordinates). Only positions change here, so the connectivity,
+hence the manifold guarantee, is untouched; :func:`spacemesh.geometry.stage.refine_geometry`
+adds the edge operations. Normals: the upload's when it has them, otherwise
+:func:`estimate_point_normals` (the sign does not matter to any term).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import spsolve
+from scipy.spatial import cKDTree
+
+from spacemesh.surface_fit import closest_points_on_triangles, nearest_triangles
+from spacemesh.typed import FloatArray, IntArray
+
+#: Neighbours of the plane fit of :func:`estimate_point_normals`.
+NORMAL_NEIGHBOURS = 12
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """Weights and rounds of the vertex fit (see the module docstring).
+
+    Attributes
+    ----------
+    iterations : int
+        Projection / solve rounds.
+    data_weight : float
+        ``w_d``, points -> mesh.
+    face_weight : float
+        ``w_f``, mesh -> points.
+    plane_weight : float
+        ``w_q``, the tangent-plane quadric (sharp features); 0 turns it off.
+    plane_neighbours : int
+        Points in each vertex's quadric.
+    spring_weight : float
+        ``w_s`` (every term is a mean of squared lengths, so weights are scale-free).
+    damping : float
+        ``w_r``.
+    face_samples : int
+        Surface samples per triangle of the mesh -> points term (1, 4 or 7).
+    """
+
+    iterations: int = 6
+    data_weight: float = 1.0
+    face_weight: float = 1.0
+    plane_weight: float = 1.0
+    plane_neighbours: int = 8
+    spring_weight: float = 1e-3
+    damping: float = 1e-3
+    face_samples: int = 4
+
+
+def estimate_point_normals(points: FloatArray, k: int = NORMAL_NEIGHBOURS) -> FloatArray:
+    """Unoriented unit normals from a plane fit to each point's ``k`` nearest neighbours.
+
+    Parameters
+    ----------
+    points : (P, 3) float
+    k : int
+
+    Returns
+    -------
+    (P, 3) float64
+        The direction of least variance of each neighbourhood (sign arbitrary).
+    """
+    points = np.asarray(points, dtype=np.float64)
+    k = int(min(k, len(points)))
+    if k < 3:
+        return np.tile([0.0, 0.0, 1.0], (len(points), 1))
+    _, near = cKDTree(points).query(points, k=k)
+    patch = points[near] - points[near].mean(axis=1, keepdims=True)  # (P, k, 3)
+    covariance = np.einsum("pki,pkj->pij", patch, patch)  # (P, 3, 3)
+    _, vectors = np.linalg.eigh(covariance)
+    return vectors[:, :, 0]
+
+
+def barycentric(points: FloatArray, corners: FloatArray) -> FloatArray:
+    """Barycentric coordinates of points that lie on their triangles.
+
+    Parameters
+    ----------
+    points : (M, 3) float
+    corners : (M, 3, 3) float
+
+    Returns
+    -------
+    (M, 3) float64
+        Rows sum to 1; a degenerate triangle gives its centroid's coordinates.
+    """
+    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+    e0, e1, ep = b - a, c - a, points - a
+    d00 = np.einsum("md,md->m", e0, e0)
+    d01 = np.einsum("md,md->m", e0, e1)
+    d11 = np.einsum("md,md->m", e1, e1)
+    d20 = np.einsum("md,md->m", ep, e0)
+    d21 = np.einsum("md,md->m", ep, e1)
+    denominator = d00 * d11 - d01 * d01
+    good = denominator > 1e-30 * np.maximum(d00 * d11, 1e-300)
+    safe = np.where(good, denominator, 1.0)
+    v = np.where(good, (d11 * d20 - d01 * d21) / safe, 1 / 3)
+    w = np.where(good, (d00 * d21 - d01 * d20) / safe, 1 / 3)
+    out = np.column_stack([1.0 - v - w, v, w])
+    return np.clip(out, 0.0, 1.0) / np.clip(out, 0.0, 1.0).sum(axis=1, keepdims=True)
+
+
+def _sample_weights(count: int) -> FloatArray:
+    """Fixed barycentric positions ``(S, 3)`` of the mesh -> points samples."""
+    if count <= 1:
+        return np.full((1, 3), 1 / 3)
+    inner = np.array([[4, 1, 1], [1, 4, 1], [1, 1, 4]], dtype=np.float64) / 6
+    rows = [np.full((1, 3), 1 / 3), inner]
+    if count >= 7:
+        rows.append(np.array([[1, 1, 0], [0, 1, 1], [1, 0, 1]], dtype=np.float64) / 2)
+    return np.concatenate(rows)
+
+
+def _plane_rows(columns: IntArray, weights: FloatArray, normals: FloatArray, n_vertices: int
+                ) -> sp.csr_matrix:
+    """Rows ``n . (sum_k w_k v_{c_k})`` over the ``3N`` unknowns (vertex-major)."""
+    m, k = columns.shape
+    index = (3 * columns[:, :, None] + np.arange(3)).reshape(m, -1)  # (M, 3k)
+    values = (weights[:, :, None] * normals[:, None, :]).reshape(m, -1)  # (M, 3k)
+    rows = np.repeat(np.arange(m), 3 * k)
+    return sp.csr_matrix((values.ravel(), (rows, index.ravel())), shape=(m, 3 * n_vertices))
+
+
+def _point_rows(columns: IntArray, weights: FloatArray, n_vertices: int) -> sp.csr_matrix:
+    """Rows ``sum_k w_k v_{c_k}`` (one per point) over the ``N`` vertices."""
+    m, k = columns.shape
+    rows = np.repeat(np.arange(m), k)
+    return sp.csr_matrix((weights.ravel(), (rows, columns.ravel())), shape=(m, n_vertices))
+
+
+def _edges(triangles: IntArray) -> IntArray:
+    pairs = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    return np.unique(np.sort(pairs, axis=1), axis=0)
+
+
+def fit_energy_terms(
+    positions: FloatArray, triangles: IntArray, points: FloatArray, normals: FloatArray,
+    tree: cKDTree, options: FitOptions,
+) -> tuple[sp.csr_matrix, FloatArray, float]:
+    """The normal equations ``A x = r`` of the energy at the current projection.
+
+    Parameters
+    ----------
+    positions : (N, 3) float
+    triangles : (T, 3) int
+    points, normals : (P, 3) float
+    tree : cKDTree
+        Of ``points``.
+    options : FitOptions
+
+    Returns
+    -------
+    A : (3N, 3N) sparse
+    r : (3N,) float
+    energy : float
+        The energy at ``positions`` (without damping).
+    """
+    n = len(positions)
+    x = positions.reshape(-1)
+    edges = _edges(triangles)
+    blocks: list[sp.spmatrix] = []
+    rhs = np.zeros(3 * n)
+    energy = 0.0
+
+    # points -> mesh: p_i ~ sum_k b_ik v_k (each coordinate)
+    owner, _ = nearest_triangles(points, positions, triangles)
+    corners = positions[triangles[owner]]  # (P, 3, 3)
+    closest = closest_points_on_triangles(points, corners)
+    bary = barycentric(closest, corners)
+    rows = _point_rows(triangles[owner], bary, n)  # (P, N)
+    weight = options.data_weight / len(points)
+    gram = (rows.T @ rows) * weight
+    blocks.append(sp.kron(gram, sp.identity(3), format="csr"))
+    rhs += (rows.T @ points * weight).reshape(-1)
+    energy += weight * float(np.sum((rows @ positions - points) ** 2))
+
+    # mesh -> points: samples on the faces onto the nearest point's plane
+    if options.face_weight > 0:
+        sample_bary = _sample_weights(options.face_samples)  # (S0, 3)
+        cols = np.repeat(triangles, len(sample_bary), axis=0)  # (T S0, 3)
+        wts = np.tile(sample_bary, (len(triangles), 1))
+        samples = np.einsum("mk,mkd->md", wts, positions[cols])
+        _, nearest = tree.query(samples)
+        plane = normals[nearest]
+        planes = _plane_rows(cols, wts, plane, n)
+        weight = options.face_weight / len(samples)
+        target = np.einsum("md,md->m", plane, points[nearest])
+        blocks.append((planes.T @ planes) * weight)
+        rhs += planes.T @ target * weight
+        energy += weight * float(np.sum((planes @ x - target) ** 2))
+
+    # tangent planes of the points near each vertex (sharp features)
+    if options.plane_weight > 0:
+        k = int(min(options.plane_neighbours, len(points)))
+        distance, near = tree.query(positions, k=k)
+        distance, near = distance.reshape(n, k), near.reshape(n, k)
+        sigma2 = np.maximum(distance[:, -1:] ** 2, 1e-12)
+        gauss = np.exp(-(distance ** 2) / sigma2)  # (N, k)
+        gauss /= gauss.sum(axis=1, keepdims=True)
+        cols = np.repeat(np.arange(n), k)[:, None]
+        plane = normals[near.reshape(-1)]
+        planes = _plane_rows(cols, np.ones((n * k, 1)), plane, n)
+        target = np.einsum("md,md->m", plane, points[near.reshape(-1)])
+        weight = options.plane_weight / n * gauss.reshape(-1)
+        weighted = sp.diags(weight) @ planes
+        blocks.append(planes.T @ weighted)
+        rhs += weighted.T @ target
+        energy += float(np.sum(weight * (planes @ x - target) ** 2))
+
+    # springs over the edges
+    if options.spring_weight > 0 and len(edges):
+        m = len(edges)
+        incidence = sp.csr_matrix(
+            (np.tile([1.0, -1.0], m), (np.repeat(np.arange(m), 2), edges.reshape(-1))),
+            shape=(m, n),
+        )
+        weight = options.spring_weight / m
+        laplacian = (incidence.T @ incidence) * weight
+        blocks.append(sp.kron(laplacian, sp.identity(3), format="csr"))
+        energy += weight * float(np.sum((incidence @ positions) ** 2))
+
+    matrix = blocks[0]
+    for block in blocks[1:]:
+        matrix = matrix + block
+    return matrix.tocsr(), rhs, energy
+
+
+def fit_vertices(
+    positions: FloatArray,
+    triangles: IntArray,
+    points: FloatArray,
+    normals: FloatArray | None = None,
+    options: FitOptions | None = None,
+) -> tuple[FloatArray, list[float]]:
+    """Move the vertices to minimise the fit energy (see the module docstring).
+
+    Parameters
+    ----------
+    positions : (N, 3) float
+        Vertices of a triangle mesh (unused vertices stay where they are).
+    triangles : (T, 3) int
+    points : (P, 3) float
+        Finite conditioning points, in the frame of ``positions``.
+    normals : (P, 3) float, optional
+        The points' normals (any sign); estimated when None.
+    options : FitOptions, optional
+
+    Returns
+    -------
+    positions : (N, 3) float64
+    energies : list of float
+        The energy after each round's projection (before its solve).
+    """
+    options = options or FitOptions()
+    positions = np.asarray(positions, dtype=np.float64).copy()
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if len(triangles) == 0 or len(points) < 4:
+        return positions, []
+    if normals is None:
+        normals = estimate_point_normals(points)
+    else:
+        normals = np.asarray(normals, dtype=np.float64)
+        length = np.linalg.norm(normals, axis=1, keepdims=True)
+        normals = np.where(length > 0, normals / np.where(length > 0, length, 1.0), 0.0)
+    tree = cKDTree(points)
+    used = np.zeros(len(positions), dtype=bool)
+    used[triangles.reshape(-1)] = True
+    energies = []
+    for _ in range(options.iterations):
+        matrix, rhs, energy = fit_energy_terms(positions, triangles, points, normals, tree,
+                                               options)
+        energies.append(energy)
+        damping = options.damping / len(positions)
+        # unused vertices only feel the damping, so they stay put
+        diagonal = np.repeat(np.where(used, damping, 1.0), 3)
+        matrix = matrix + sp.diags(diagonal)
+        solution = spsolve(matrix.tocsc(), rhs + diagonal * positions.reshape(-1))
+        if not np.isfinite(solution).all():
+            break
+        positions = solution.reshape(-1, 3)
+    return positions, energies

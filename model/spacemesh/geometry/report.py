@@ -1,0 +1,138 @@
+"""How well a mesh fits the points it was made from: the fit report of every response.
+
+One definition, used by the service's headers and JSON, gRPC stats, both command
+lines and ``samples=K`` (which keeps the seed with the lowest :attr:`FitReport.score`):
+
+* ``points_to_mesh_mean`` / ``_p95``: distance from the input points (all of them, up
+  to :data:`MAX_REPORT_POINTS`, a fixed deterministic subset beyond) to the mesh;
+* ``mesh_to_points_mean`` / ``_p95``: distance from :data:`MESH_SAMPLES` points spread
+  over the mesh (area-weighted, fixed seed) to the nearest input point;
+* each also as a fraction of the input's bounding-box diagonal (``*_rel``);
+* ``coverage``: the share of input points within :data:`COVERAGE_FRACTION` of the
+  diagonal from the mesh;
+* ``components``: connected components of faces;
+* ``self_intersections``: the share of faces that intersect another face
+  (:mod:`spacemesh.geometry.intersections`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from spacemesh.data.validate import triangles_of
+from spacemesh.geometry.intersections import self_intersecting_faces
+from spacemesh.mesh import PolygonMesh
+from spacemesh.surface_fit import nearest_triangles
+from spacemesh.typed import FloatArray
+
+#: Input points measured at most (a fixed subset of larger clouds).
+MAX_REPORT_POINTS = 20_000
+#: Points spread over the mesh for the mesh -> points distances.
+MESH_SAMPLES = 4096
+#: Coverage threshold, as a fraction of the bounding-box diagonal.
+COVERAGE_FRACTION = 0.01
+#: Seed of the report's subsets and samples (the report is deterministic).
+REPORT_SEED = 0
+
+
+@dataclass(frozen=True)
+class FitReport:
+    """Distances between a mesh and its input points (see the module docstring).
+
+    Distances are in the input's units; ``*_rel`` ones are fractions of ``diagonal``.
+    """
+
+    points_to_mesh_mean: float
+    points_to_mesh_p95: float
+    mesh_to_points_mean: float
+    mesh_to_points_p95: float
+    points_to_mesh_mean_rel: float
+    points_to_mesh_p95_rel: float
+    mesh_to_points_mean_rel: float
+    mesh_to_points_p95_rel: float
+    coverage: float
+    components: int
+    self_intersections: float
+    diagonal: float
+    n_points: int
+
+    @property
+    def score(self) -> float:
+        """Lower is better: the two mean distances summed, relative to the diagonal."""
+        return self.points_to_mesh_mean_rel + self.mesh_to_points_mean_rel
+
+    def to_dict(self) -> dict[str, float | int]:
+        """Every field by name."""
+        return asdict(self)
+
+
+def face_components(mesh: PolygonMesh) -> int:
+    """Connected components of the faces (faces sharing a vertex are connected)."""
+    if mesh.n_faces == 0:
+        return 0
+    face = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
+    incidence = csr_matrix((np.ones(face.size), (face, mesh.face_indices)),
+                           shape=(mesh.n_faces, mesh.n_vertices))
+    count, _ = connected_components(incidence @ incidence.T, directed=False)
+    return int(count)
+
+
+def _surface_samples(vertices: FloatArray, triangles: np.ndarray, count: int) -> FloatArray:
+    corners = vertices[triangles]  # (T, 3, 3)
+    area = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
+                                   corners[:, 2] - corners[:, 0]), axis=1)
+    rng = np.random.default_rng(REPORT_SEED)
+    weights = area / area.sum() if area.sum() > 0 else None
+    pick = rng.choice(len(triangles), count, p=weights)
+    u, v = rng.random(count), rng.random(count)
+    flip = u + v > 1
+    u, v = np.where(flip, 1 - u, u), np.where(flip, 1 - v, v)
+    c = corners[pick]
+    return c[:, 0] + u[:, None] * (c[:, 1] - c[:, 0]) + v[:, None] * (c[:, 2] - c[:, 0])
+
+
+def fit_report(mesh: PolygonMesh, points: FloatArray) -> FitReport:
+    """The fit report of ``mesh`` against the finite rows of ``points``.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+        In the points' frame.
+    points : (P, 3) float
+
+    Returns
+    -------
+    FitReport
+        Distances are NaN and coverage 0 for a mesh without faces.
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    points = points[np.isfinite(points).all(axis=1)]
+    if len(points) > MAX_REPORT_POINTS:
+        pick = np.random.default_rng(REPORT_SEED).choice(len(points), MAX_REPORT_POINTS,
+                                                         replace=False)
+        points = points[np.sort(pick)]
+    diagonal = float(np.linalg.norm(np.ptp(points, axis=0))) if len(points) else 0.0
+    relative = diagonal if diagonal > 0 else 1.0
+    nan = float("nan")
+    if mesh.n_faces == 0 or len(points) == 0:
+        return FitReport(nan, nan, nan, nan, nan, nan, nan, nan, 0.0, face_components(mesh),
+                         0.0, diagonal, len(points))
+    triangles, _ = triangles_of(mesh)
+    _, gap = nearest_triangles(points, mesh.vertices, triangles)
+    to_mesh = np.sqrt(np.maximum(gap, 0.0))
+    samples = _surface_samples(mesh.vertices, triangles, MESH_SAMPLES)
+    to_points, _ = cKDTree(points).query(samples)
+    values = [float(to_mesh.mean()), float(np.percentile(to_mesh, 95)),
+              float(to_points.mean()), float(np.percentile(to_points, 95))]
+    return FitReport(
+        *values, *(v / relative for v in values),
+        coverage=float(np.mean(to_mesh <= COVERAGE_FRACTION * relative)),
+        components=face_components(mesh),
+        self_intersections=float(self_intersecting_faces(mesh).mean()),
+        diagonal=diagonal, n_points=len(points),
+    )

@@ -1,0 +1,253 @@
+"""The geometry stage: what happens to the decoded mesh before the user gets it.
+
+After the networks and the decode have fixed a valid oriented manifold mesh, in the
+normalised frame, :func:`refine_geometry`
+
+1. splits its longest edges until it has the requested vertex count
+   (:func:`split_longest_edges`; the network reads at most its token count);
+2. alternates the vertex fit (:func:`spacemesh.geometry.fitting.fit_vertices`: points
+   -> mesh, mesh -> points, tangent-plane quadrics for sharp features, springs) with
+   diagonal flips toward the points (:func:`spacemesh.refinement.flip_diagonals` with
+   the point fit only), each a manifold-keeping local operation;
+3. guards self-intersections: vertices of faces that intersect after the fit but did
+   not before go back toward where they were (halfway, then all the way), and if the
+   share of self-intersecting faces still grew, the stage's result is dropped.
+
+Edge splits and flips keep a closed oriented manifold closed, oriented and manifold,
+and the fit moves positions only, so the decode's guarantee holds for the output.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from spacemesh.encode import connectivity_from_faces
+from spacemesh.geometry.fitting import FitOptions, fit_vertices
+from spacemesh.geometry.intersections import intersecting_triangles
+from spacemesh.mesh import PolygonMesh
+from spacemesh.refinement import flip_diagonals
+from spacemesh.typed import FloatArray, IntArray
+
+#: Rounds of the intersection guard's backtracking.
+GUARD_ROUNDS = 3
+
+
+@dataclass(frozen=True)
+class GeometryOptions:
+    """What the geometry stage does (``manifest["geometry"]`` may override these).
+
+    Attributes
+    ----------
+    fit : FitOptions
+        The vertex fit's weights.
+    rounds : int
+        Fit / flip rounds.
+    flips : bool
+        Flip diagonals toward the points between fits.
+    fit_gain : float
+        Relative gain a flip needs (:func:`spacemesh.refinement.flip_diagonals`).
+    guard : bool
+        Never let the share of self-intersecting faces grow.
+    """
+
+    fit: FitOptions = field(default_factory=FitOptions)
+    rounds: int = 2
+    flips: bool = True
+    fit_gain: float = 0.2
+    guard: bool = True
+
+    @classmethod
+    def from_section(cls, section: dict[str, Any]) -> GeometryOptions:
+        """From a manifest's ``geometry`` section (unknown keys are refused)."""
+        fit_keys = set(FitOptions.__dataclass_fields__)
+        own = {k: v for k, v in section.items() if k in cls.__dataclass_fields__ and k != "fit"}
+        fit = {k: v for k, v in section.get("fit", {}).items() if k in fit_keys}
+        unknown = set(section) - set(cls.__dataclass_fields__) - {"why"}
+        if unknown:
+            raise ValueError(f"unknown geometry options {sorted(unknown)}")
+        return cls(fit=FitOptions(**fit), **own)
+
+
+@dataclass
+class GeometryResult:
+    """The refined mesh and what the stage did.
+
+    Attributes
+    ----------
+    mesh : PolygonMesh
+    stats : dict
+        ``n_split``, ``n_flipped``, ``energy_before`` / ``energy_after`` (of the first
+        and last fit), ``intersections_before`` / ``intersections_after`` (shares of
+        faces), ``n_guarded`` (vertices moved back) and ``kept`` (False when the guard
+        dropped the stage's result).
+    """
+
+    mesh: PolygonMesh
+    stats: dict[str, Any]
+
+
+def _intersection_share(positions: FloatArray, triangles: IntArray) -> tuple[float, np.ndarray]:
+    hit = intersecting_triangles(positions, triangles)
+    return (float(hit.mean()) if len(hit) else 0.0), hit
+
+
+def split_longest_edges(positions: FloatArray, triangles: IntArray, target: int
+                        ) -> tuple[FloatArray, IntArray]:
+    """Split interior edges at their midpoints, longest first, up to ``target`` vertices.
+
+    Each split of edge ``a - b`` (triangles ``a b c`` and ``b a d``) adds vertex ``m``
+    and four triangles ``a m c``, ``m b c``, ``b m d``, ``m a d``: a closed oriented
+    manifold stays one. A pass splits edges that share no triangle.
+
+    Parameters
+    ----------
+    positions : (N, 3) float
+    triangles : (T, 3) int
+        Oriented triangles.
+    target : int
+        Vertex count to reach (nothing happens when ``N >= target``).
+
+    Returns
+    -------
+    positions : (N', 3) float64
+    triangles : (T', 3) int64
+    """
+    positions = np.asarray(positions, dtype=np.float64)
+    tri = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    while len(positions) < target and len(tri):
+        src, dst = tri.reshape(-1), np.roll(tri, -1, axis=1).reshape(-1)
+        opp = np.roll(tri, -2, axis=1).reshape(-1)
+        face = np.repeat(np.arange(len(tri)), 3)
+        n = len(positions)
+        key, twin_key = src * n + dst, dst * n + src
+        order = np.argsort(key)
+        at = np.minimum(np.searchsorted(key[order], twin_key), len(order) - 1)
+        twin = order[at]
+        half = np.flatnonzero((key[twin] == twin_key) & (src < dst))
+        if len(half) == 0:
+            break
+        length = np.linalg.norm(positions[src[half]] - positions[dst[half]], axis=1)
+        used = np.zeros(len(tri), dtype=bool)
+        new_tri, new_pos, drop = [], [], []
+        for h in half[np.argsort(-length, kind="stable")].tolist():
+            if len(positions) + len(new_pos) >= target:
+                break
+            g = int(twin[h])
+            f1, f2 = int(face[h]), int(face[g])
+            if used[f1] or used[f2]:
+                continue
+            used[f1] = used[f2] = True
+            a, b, c, d = int(src[h]), int(dst[h]), int(opp[h]), int(opp[g])
+            m = len(positions) + len(new_pos)
+            new_pos.append((positions[a] + positions[b]) / 2)
+            new_tri += [(a, m, c), (m, b, c), (b, m, d), (m, a, d)]
+            drop += [f1, f2]
+        if not new_pos:
+            break
+        keep = np.ones(len(tri), dtype=bool)
+        keep[drop] = False
+        tri = np.concatenate([tri[keep], np.asarray(new_tri, dtype=np.int64)])
+        positions = np.concatenate([positions, np.asarray(new_pos)])
+    return positions, tri
+
+
+def _flip_toward(positions: FloatArray, tri: IntArray, points: FloatArray, gain: float
+                 ) -> tuple[IntArray, int]:
+    n = len(positions)
+    connectivity = connectivity_from_faces(list(tri), n)
+    unused = (np.zeros((n, 1)), np.zeros((n, 1)))  # no score flips: the network is not read
+    flipped, count = flip_diagonals(connectivity, unused, positions, by_score=False,
+                                    points=points, fit_gain=gain)
+    if count == 0:
+        return tri, 0
+    return np.stack(flipped.to_mesh(positions).faces).astype(np.int64), count
+
+
+def refine_geometry(
+    mesh: PolygonMesh,
+    points: FloatArray,
+    normals: FloatArray | None = None,
+    options: GeometryOptions | None = None,
+    *,
+    target_vertices: int | None = None,
+) -> GeometryResult:
+    """Fit a decoded mesh to its points (see the module docstring).
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+        A valid decode, in the points' frame; triangle meshes get every operation,
+        polygon meshes only the vertex fit (on a triangulation).
+    points : (P, 3) float
+        Conditioning points (non-finite rows are left out).
+    normals : (P, 3) float, optional
+        Their normals (estimated when None).
+    options : GeometryOptions, optional
+    target_vertices : int, optional
+        Split edges up to this many vertices first.
+
+    Returns
+    -------
+    GeometryResult
+    """
+    options = options or GeometryOptions()
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    finite = np.isfinite(points).all(axis=1)
+    if normals is not None:
+        normals = np.asarray(normals, dtype=np.float64).reshape(-1, 3)[finite]
+        normals = normals if np.isfinite(normals).all() else None
+    points = points[finite]
+    stats: dict[str, Any] = {"n_split": 0, "n_flipped": 0, "n_guarded": 0, "kept": True}
+    if mesh.n_faces == 0 or len(points) < 4:
+        return GeometryResult(mesh, stats)
+    if not mesh.is_triangle_mesh():
+        from spacemesh.data.validate import triangles_of
+
+        tri, _ = triangles_of(mesh)
+        moved, energies = fit_vertices(mesh.vertices, tri, points, normals, options.fit)
+        stats.update(energy_before=energies[0] if energies else None,
+                     energy_after=energies[-1] if energies else None)
+        return GeometryResult(mesh.with_vertices(moved), stats)
+    start_positions = mesh.vertices.astype(np.float64)
+    tri = mesh.face_indices.reshape(-1, 3).astype(np.int64)
+    positions = start_positions
+    if target_vertices is not None and target_vertices > len(positions):
+        positions, tri = split_longest_edges(positions, tri, target_vertices)
+        stats["n_split"] = len(positions) - len(start_positions)
+    before_share, before_hit = _intersection_share(positions, tri)
+    unfitted, unflipped = positions.copy(), tri.copy()
+    energies: list[float] = []
+    for round_index in range(max(options.rounds, 1)):
+        positions, round_energies = fit_vertices(positions, tri, points, normals, options.fit)
+        energies += round_energies
+        if options.flips and round_index < options.rounds - 1:
+            tri, count = _flip_toward(positions, tri, points, options.fit_gain)
+            stats["n_flipped"] += count
+    stats.update(energy_before=energies[0] if energies else None,
+                 energy_after=energies[-1] if energies else None,
+                 intersections_before=before_share)
+    share, hit = _intersection_share(positions, tri)
+    if options.guard and share > before_share:
+        for _ in range(GUARD_ROUNDS + 1):
+            new = hit.copy()
+            if len(new) == len(before_hit) and stats["n_flipped"] == 0:
+                new &= ~before_hit
+            moved = np.unique(tri[new].reshape(-1))
+            stats["n_guarded"] += len(moved)
+            positions[moved] = (positions[moved] + unfitted[moved]) / 2
+            share, hit = _intersection_share(positions, tri)
+            if share <= before_share:
+                break
+        if share > before_share:
+            positions[moved] = unfitted[moved]
+            share, hit = _intersection_share(positions, tri)
+    if options.guard and share > before_share:
+        stats["kept"] = False
+        share = before_share
+        positions, tri = unfitted, unflipped
+    stats["intersections_after"] = share
+    out = PolygonMesh(positions, tri.reshape(-1), np.arange(0, 3 * len(tri) + 1, 3))
+    return GeometryResult(out, stats)
