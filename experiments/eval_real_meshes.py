@@ -1,7 +1,10 @@
-"""Evaluate a model and the baselines on the real closed CAD, ABC and low-poly meshes.
+"""Evaluate a model and the baselines on the real closed meshes of one split.
 
-Reads ../shared/meshes (its manifest.csv picks the categories ``cad``, ``cad-abc`` and
-``lowpoly``; only closed, consistently oriented manifolds are used). Each mesh is
+Reads ../shared/meshes. ``experiments/real_meshes_split.csv`` fixes which closed meshes
+are ``dev`` (tuning) and which ``test`` (reporting): within each category (cad,
+cad-abc, lowpoly, organic, polygon, polygon-cad), sorted by the sha256 of the file
+name, alternately dev and test; it was written before any tuning. Only closed,
+consistently oriented manifolds are used. Each mesh is
 normalised (longest axis to [-1, 1]) and 2048 points with normals are sampled on it,
 as for the synthetic datasets; then the same evaluation as ``spacemesh eval`` runs and
 writes the same report, plus one table per category. The mesh files are never copied
@@ -9,7 +12,8 @@ into the repository; the script skips cleanly (exit 0) when the folder is absent
 
 Usage::
 
-    python experiments/eval_real_meshes.py [--model MODEL_REPO] [--out docs/results/real]
+    python experiments/eval_real_meshes.py --split test [--model MODEL_REPO]
+        [--out docs/results/real] [--modes default,raw,samples4,gt] [--noise 0.01] [--partial]
 """
 
 from __future__ import annotations
@@ -21,7 +25,8 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-CATEGORIES = ("cad", "cad-abc", "lowpoly")
+CATEGORIES = ("cad", "cad-abc", "lowpoly", "organic", "polygon", "polygon-cad")
+SPLIT_FILE = ROOT / "experiments" / "real_meshes_split.csv"
 
 
 def main() -> int:
@@ -32,7 +37,12 @@ def main() -> int:
     )
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "real")
     parser.add_argument("--categories", default=",".join(CATEGORIES))
-    parser.add_argument("--baselines", default="psr,psr_star,bpa")
+    parser.add_argument("--split", choices=("dev", "test", "all"), default="test")
+    parser.add_argument("--baselines", default="psr,psr_star,psr_star_gt")
+    parser.add_argument("--modes", default="default")
+    parser.add_argument("--noise", type=float, default=0.0)
+    parser.add_argument("--partial", action="store_true")
+    parser.add_argument("--limit", type=int, default=None)
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--steps", type=int, default=None)
@@ -50,15 +60,19 @@ def main() -> int:
 
     pin_threads(args.threads)  # before pymeshlab and onnxruntime load
     from spacemesh.cli.evaluate import parse_baselines
-    from spacemesh.evaluate.runner import mesh_shapes, run_evaluation, write_report
+    from spacemesh.evaluate.runner import mesh_shapes, parse_modes, run_evaluation, write_report
     from spacemesh.io import load_mesh
     from spacemesh.metrics.report import markdown_tables, summarise
     from spacemesh.runtime import MeshGenerator
     from spacemesh.topology import check_topology
 
     wanted = set(args.categories.split(","))
+    with SPLIT_FILE.open() as handle:
+        chosen = {e["file"] for e in csv.DictReader(handle)
+                  if args.split in ("all", e["split"])}
     with manifest.open() as handle:
-        entries = [e for e in csv.DictReader(handle) if e["category"] in wanted]
+        entries = [e for e in csv.DictReader(handle)
+                   if e["category"] in wanted and e["file"] in chosen]
     paths, categories = [], []
     for entry in sorted(entries, key=lambda e: (e["category"], int(e["n_vertices"]))):
         path = args.meshes / entry["file"]
@@ -67,7 +81,7 @@ def main() -> int:
             categories.append(entry["category"])
         else:
             print(f"skipped {entry['file']}: not a closed oriented manifold")
-    shapes = mesh_shapes(paths, categories=categories, seed=args.seed)
+    shapes = mesh_shapes(paths, categories=categories, seed=args.seed)[: args.limit]
     generator = MeshGenerator.from_repository(args.model, intra_op_threads=args.threads)
     result = run_evaluation(
         shapes,
@@ -79,10 +93,13 @@ def main() -> int:
         threads=args.threads,
         psr_star_target=args.psr_star_target,
         progress=not args.no_progress,
+        modes=parse_modes(args.modes),
+        noise=args.noise,
+        partial=args.partial,
     )
     result.config.update(
         model_path=str(generator.repository.path),
-        data=f"../shared/meshes ({', '.join(sorted(wanted))})",
+        data=f"../shared/meshes ({', '.join(sorted(wanted))}; split {args.split})",
     )
     command = "python experiments/eval_real_meshes.py " + shlex.join(sys.argv[1:])
     paths_out = write_report(result, args.out, title=args.title, command=command.strip())

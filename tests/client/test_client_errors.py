@@ -60,7 +60,8 @@ def test_input_errors(client, case):
     assert "coplanar" in expect(client, E.DegenerateGeometry, flat).detail
     expect(client, E.InvalidNormals, case.points, normals=case.points[:5])
     expect(client, E.InvalidParameter, case.points, format="stl")
-    expect(client, E.InvalidParameter, case.points, steps=100_000)
+    assert expect(client, E.InvalidOption, case.points, steps=100_000).extra["option"] == (
+        "steps")
     expect(client, E.MalformedInput, b"ply\nformat ascii 1.0\nelement vertex 3\nend_header\n",
            filename="c.ply")
     expect(client, E.UnsupportedFormat, bytes(range(256)) * 10, filename="c.docx")

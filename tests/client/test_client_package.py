@@ -82,3 +82,12 @@ def test_pyproject_declares_the_console_script_and_extras():
     assert project["scripts"]["spacemesh-client"] == "spacemesh_client.cli:main"
     assert sorted(d.split(">")[0] for d in project["dependencies"]) == ["httpx", "numpy"]
     assert set(project["optional-dependencies"]) >= {"trimesh", "grpc"}
+
+
+def test_the_service_and_the_sdk_commit_the_same_generated_code():
+    """Both copies come from scripts/gen_proto.sh; the SDK's is checked against the proto
+    above, so the service's is too."""
+    for name in ("spacemesh_pb2.py", "spacemesh_pb2.pyi", "spacemesh_pb2_grpc.py"):
+        service = ROOT / "service" / "spacemesh_service" / "pb" / name
+        client = ROOT / "client" / "spacemesh_client" / "pb" / name
+        assert service.read_bytes() == client.read_bytes(), f"{name}: run scripts/gen_proto.sh"

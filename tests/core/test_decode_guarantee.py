@@ -7,6 +7,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from spacemesh.decode import DecodeOptions, Embeddings, decode
+from spacemesh.geometry import GeometryOptions, refine_geometry
+from spacemesh.geometry.intersections import self_intersecting_faces
 from spacemesh.halfedge import HalfedgeMesh
 from spacemesh.spacetime import pairwise_distance
 from spacemesh.topology import check_topology
@@ -100,6 +102,39 @@ def test_any_embedding_decodes_to_valid_mesh(case):
                 diagonals = [(min(face[i], face[j]), max(face[i], face[j]))
                              for i in range(m) for j in range(i + 2, m) if (i, j) != (0, m - 1)]
                 assert all(d in edges for d in diagonals)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(embeddings(), st.sampled_from([None, 10, 80]), st.booleans(), st.booleans())
+def test_the_geometry_stage_keeps_the_guarantee(case, target, flips, guard):
+    """Splits, fit and flips of any decode stay a closed oriented manifold; with the
+    guard, the share of self-intersecting faces never grows."""
+    emb, options, alive, positions, points = case
+    decoded = decode(positions, emb, options, alive, points=points)
+    cloud = points if points is not None else np.zeros((0, 3))
+    refined = refine_geometry(decoded.mesh, cloud, None,
+                              GeometryOptions(flips=flips, guard=guard, rounds=2),
+                              target_vertices=target)
+    mesh = refined.mesh
+    assert mesh.n_vertices >= decoded.mesh.n_vertices
+    if mesh.n_faces:
+        assert check_topology(mesh).is_closed_oriented_manifold
+        assert np.isfinite(mesh.vertices).all() or not refined.stats["kept"]
+    if guard and decoded.mesh.n_faces > 1 and np.isfinite(decoded.mesh.vertices).all():
+        before = self_intersecting_faces(decoded.mesh).mean()
+        assert self_intersecting_faces(mesh).mean() <= before + 1e-12 or refined.stats[
+            "n_split"] > 0
+
+
+def test_splits_leave_a_two_triangle_pillow_alone():
+    from spacemesh.geometry.stage import split_longest_edges
+    from spacemesh.mesh import PolygonMesh
+
+    positions = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    pillow = np.array([[0, 1, 2], [0, 2, 1]])
+    moved, triangles = split_longest_edges(positions, pillow, 10)
+    mesh = PolygonMesh(moved, triangles.reshape(-1), np.arange(0, 3 * len(triangles) + 1, 3))
+    assert check_topology(mesh).is_closed_oriented_manifold
 
 
 @settings(max_examples=30, deadline=None)

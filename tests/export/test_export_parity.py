@@ -53,8 +53,8 @@ def test_pipeline_gives_the_same_mesh_in_torch_and_onnxruntime(backends):
     rng = np.random.default_rng(5)
     points = rng.normal(size=(500, 3)) * [3.0, 1.0, 2.0] + 10.0
     for seed, method in ((0, "ddim"), (1, "ddpm")):
-        a = in_torch.generate(points, seed=seed, method=method)
-        b = in_ort.generate(points, seed=seed, method=method)
+        a = in_torch.generate(points, seed=seed, sampler=method, start="noise")
+        b = in_ort.generate(points, seed=seed, sampler=method, start="noise")
         assert a.n_sampled_vertices == b.n_sampled_vertices
         assert a.mesh.face_key_set() == b.mesh.face_key_set()
         assert np.allclose(a.mesh.vertices, b.mesh.vertices, atol=1e-3)

@@ -46,3 +46,55 @@ def test_generate_reports_user_errors(toy_model, tmp_path):
                            "--model", str(tmp_path)], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and "manifest.json" in done.stderr
     pytest.importorskip("onnxruntime")
+
+
+def test_generate_options_and_fit_report(toy_model, tmp_path):
+    from spacemesh.geometry.report import FitReport
+
+    points = tmp_path / "cloud.xyz"
+    d = np.random.default_rng(2).normal(size=(150, 3))
+    np.savetxt(points, d / np.linalg.norm(d, axis=1, keepdims=True))
+    out = tmp_path / "mesh.obj"
+    done = subprocess.run(
+        [*CLI, "generate", str(points), "-o", str(out), "--model", str(toy_model.repository),
+         "--seed", "3", "--start", "points", "--start-time", "0", "--target-vertices", "60",
+         "--samples", "2", "--raw", "--threads", "1", "--json"],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    summary = json.loads(done.stdout)
+    assert (summary["start"], summary["start_time"], summary["target_vertices"],
+            summary["samples"], summary["raw"]) == ("points", 0.0, 60, 2, True)
+    assert [seed for seed, _ in summary["sample_scores"]] == [3, 4]
+    assert summary["seed"] in (3, 4)
+    assert set(summary["fit"]) == set(FitReport.__dataclass_fields__)
+    assert summary["fit"]["n_points"] == 150
+
+
+@pytest.mark.parametrize(("flags", "message"), [
+    (["--start", "bogus"], "--start: start must be one of noise, points"),
+    (["--start", "noise", "--start-time", "0.5"], "--start-time: start_time applies to"),
+    (["--start", "points", "--start-time", "2"], "--start-time: start_time must be in [0, 1]"),
+    (["--start", "points", "--target-vertices", "3"], "--target-vertices: target_vertices "
+                                                      "must be in 4..4096, not 3"),
+    (["--start", "points", "--target-vertices", "5000"], "not 5000"),
+    (["--samples", "0"], "--samples: samples must be in 1..16, not 0"),
+    (["--samples", "17"], "--samples: samples must be in 1..16, not 17"),
+    (["--sampler", "euler"], "--sampler: sampler must be one of"),
+])
+def test_generate_option_errors_are_one_line(toy_model, tmp_path, flags, message):
+    from typer.testing import CliRunner
+
+    from spacemesh.cli import _register, app
+
+    _register()
+    cloud = tmp_path / "c.xyz"
+    np.savetxt(cloud, np.random.default_rng(0).normal(size=(40, 3)))
+    out = tmp_path / "m.obj"
+    result = CliRunner().invoke(app, ["generate", str(cloud), "-o", str(out), "--model",
+                                      str(toy_model.repository), "--no-progress", *flags])
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("spacemesh: error: "), result.stderr
+    assert message in lines[0]
+    assert not out.exists()

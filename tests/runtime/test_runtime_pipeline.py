@@ -10,6 +10,7 @@ pytest.importorskip("onnxruntime")
 from spacemesh.data.validate import signed_volume
 from spacemesh.mesh import PolygonMesh
 from spacemesh.runtime import GenerateRequest, MeshGenerator
+from spacemesh.runtime.options import GenerateOptions, OptionError
 from spacemesh.runtime.pipeline import (
     drop_duplicates,
     flip_faces,
@@ -31,7 +32,7 @@ def cloud():
 
 
 def test_results_are_valid_outward_meshes_with_timings(generator, cloud):
-    result = generator.generate(cloud, seed=3)
+    result = generator.generate(cloud, seed=3, start="noise")
     mesh = result.mesh
     if mesh.n_faces:
         assert check_topology(mesh).is_closed_oriented_manifold
@@ -39,8 +40,10 @@ def test_results_are_valid_outward_meshes_with_timings(generator, cloud):
         # (the tiny model can return a flat one; it is oriented in the normalised frame)
         extent = float(np.ptp(mesh.vertices, axis=0).max())
         assert signed_volume(mesh) >= -1e-9 * extent**3
-    assert set(result.timings) == {"encoder", "sampler", "connectivity", "extraction", "total"}
+    assert set(result.timings) == {"encoder", "sampler", "connectivity", "extraction",
+                                   "geometry", "report", "total"}
     assert result.steps == generator.spec.steps and result.method == generator.spec.method
+    assert result.fit is not None and result.sample_scores == [(3, result.fit.score)]
 
 
 def test_output_is_in_the_input_frame(generator, cloud):
@@ -52,21 +55,31 @@ def test_output_is_in_the_input_frame(generator, cloud):
 
 
 def test_batch_equals_single_requests_and_seeds_matter(generator, cloud):
-    requests = [GenerateRequest(cloud, seed=s) for s in (0, 1)]
-    requests.append(GenerateRequest(cloud * 2, seed=0, steps=3, method="ddpm"))
+    requests = [GenerateRequest(cloud, options=GenerateOptions(seed=s, start="noise"))
+                for s in (0, 1)]
+    requests.append(GenerateRequest(cloud * 2, options=GenerateOptions(
+        seed=0, steps=3, sampler="ddpm", start="noise")))
+    requests.append(GenerateRequest(cloud, options=GenerateOptions(seed=4, start="points",
+                                                                   start_time=0.2)))
+    requests.append(GenerateRequest(cloud, options=GenerateOptions(seed=4, samples=2)))
     batch = generator.generate_batch(requests)
     for request, result in zip(requests, batch, strict=True):
-        alone = generator.generate(request.points, seed=request.seed, steps=request.steps,
-                                   method=request.method)
+        alone = generator.generate(request.points, options=request.options)
         assert alone.mesh.face_key_set() == result.mesh.face_key_set()
         assert np.allclose(alone.mesh.vertices, result.mesh.vertices, atol=1e-5)
     assert batch[2].steps == 3 and batch[2].method == "ddpm"
+    assert batch[0].mesh.face_key_set() != batch[1].mesh.face_key_set()
 
 
 def test_progress_is_reported_for_every_step(generator, cloud):
     seen = []
-    generator.generate(cloud, seed=0, steps=4, progress=lambda d, t: seen.append((d, t)))
+    generator.generate(cloud, seed=0, steps=4, start="noise",
+                       progress=lambda d, t: seen.append((d, t)))
     assert seen == [(1, 4), (2, 4), (3, 4), (4, 4)]
+    seen.clear()  # from the points at half the diffusion: the lower half of the steps
+    generator.generate(cloud, seed=0, steps=4, start="points", start_time=0.5,
+                       progress=lambda d, t: seen.append((d, t)))
+    assert seen == [(1, 2), (2, 2)]
 
 
 def test_bad_requests_are_refused(generator, cloud):
@@ -77,11 +90,20 @@ def test_bad_requests_are_refused(generator, cloud):
     with pytest.raises(ValueError):
         generator.generate(np.full((5, 3), np.nan))
     with pytest.raises(ValueError):
-        generator.generate(cloud, steps=0)
-    with pytest.raises(ValueError):
-        generator.generate(cloud, method="euler")
-    with pytest.raises(ValueError):
         generator.generate(cloud, normals=np.zeros((3, 3)))
+    bad = [("steps", {"steps": 0}), ("sampler", {"sampler": "euler"}),
+           ("start", {"start": "mesh"}), ("start_time", {"start": "noise", "start_time": 0.1}),
+           ("start_time", {"start": "points", "start_time": 1.5}),
+           ("start_time", {"start": "points", "start_time": float("nan")}),
+           ("target_vertices", {"target_vertices": 3}),
+           ("target_vertices", {"target_vertices": 5000}),
+           ("target_vertices", {"start": "noise", "target_vertices": 100}),
+           ("samples", {"samples": 0}), ("samples", {"samples": 17}),
+           ("seed", {"seed": -1}), ("raw", {"raw": "yes"}), ("steps", {"steps": 2.5})]
+    for option, fields in bad:
+        with pytest.raises(OptionError) as caught:
+            generator.generate(cloud, **fields)
+        assert caught.value.option == option, fields
 
 
 def test_helpers():
@@ -106,13 +128,38 @@ def test_vertex_spacing_thins_the_sampled_vertices(generator, cloud):
     spec = generator.spec
     assert spec.vertex_spacing == generator.repository.manifest["sampler"].get(
         "vertex_spacing", 1e-4)
-    dense = generator.generate(cloud, seed=3)
+    dense = generator.generate(cloud, seed=3, start="noise")
     try:
         generator.spec = replace(spec, vertex_spacing=0.5)
-        sparse = generator.generate(cloud, seed=3)
+        sparse = generator.generate(cloud, seed=3, start="noise")
         generator.spec = replace(spec, vertex_spacing=10.0)  # one vertex survives
-        single = generator.generate(cloud, seed=3)
+        single = generator.generate(cloud, seed=3, start="noise")
     finally:
         generator.spec = spec
     assert sparse.n_sampled_vertices < dense.n_sampled_vertices
     assert single.n_sampled_vertices == 1 and single.mesh.n_faces == 0
+
+
+def test_points_start_budget_raw_and_samples(generator, cloud):
+    """start=points: the count is the target (or the model's default) whatever the
+    seed; the seed still changes the mesh; raw skips the geometry stage; samples keeps
+    the best-fitting seed, which samples=1 at that seed reproduces."""
+    counts = {generator.generate(cloud, seed=s, start="points", raw=True).n_sampled_vertices
+              for s in (0, 1, 2)}
+    assert counts == {min(generator.spec.vertices, len(cloud))}
+    a = generator.generate(cloud, seed=0, start="points", target_vertices=120)
+    b = generator.generate(cloud, seed=1, start="points", target_vertices=120)
+    assert a.mesh.face_key_set() != b.mesh.face_key_set()
+    for result in (a, b):
+        if result.mesh.n_faces:
+            assert check_topology(result.mesh).is_closed_oriented_manifold
+            assert abs(result.mesh.n_vertices - 120) <= 12
+    raw = generator.generate(cloud, seed=0, start="points", target_vertices=120, raw=True)
+    assert raw.geometry_stats == {} and a.geometry_stats
+    best = generator.generate(cloud, seed=5, start="points", samples=3)
+    scores = dict(best.sample_scores)
+    assert sorted(scores) == [5, 6, 7]
+    assert scores[best.seed] == min(scores.values())
+    again = generator.generate(cloud, seed=best.seed, start="points")
+    assert again.mesh.face_key_set() == best.mesh.face_key_set()
+    assert again.fit.score == pytest.approx(best.fit.score)

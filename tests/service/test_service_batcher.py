@@ -9,12 +9,14 @@ import numpy as np
 import pytest
 
 from spacemesh.mesh import PolygonMesh
+from spacemesh.runtime.options import GenerateOptions
 from spacemesh.runtime.pipeline import GenerateRequest, GenerateResult
 from spacemesh_service.batcher import Batcher, QueueFull, ShuttingDown
 
 
 def request(seed: int, steps: int = 4) -> GenerateRequest:
-    return GenerateRequest(np.zeros((4, 3)), seed=seed, steps=steps, method="ddim")
+    return GenerateRequest(np.zeros((4, 3)), options=GenerateOptions(seed=seed, steps=steps,
+                                                                     sampler="ddim"))
 
 
 class FakeGenerator:
@@ -27,14 +29,14 @@ class FakeGenerator:
     def generate_batch(self, requests, *, progress=None):
         if self.gate is not None:
             self.gate.wait(30)
-        self.batches.append([r.seed for r in requests])
+        self.batches.append([r.options.seed for r in requests])
         for step in range(1, 3):
             if progress is not None:
                 progress(step, 2)
-        if any(r.seed == 13 for r in requests):
+        if any(r.options.seed == 13 for r in requests):
             raise ValueError("bad request")
-        return [GenerateResult(PolygonMesh.empty(), r.seed, r.steps, r.method,
-                               timings={"encoder": 0.0}) for r in requests]
+        return [GenerateResult(PolygonMesh.empty(), r.options, timings={"encoder": 0.0})
+                for r in requests]
 
 
 def run(coroutine):
@@ -191,3 +193,17 @@ def test_a_call_runs_alone_between_batches_and_stops_when_given_up():
     assert outcome.result == "repaired" and outcome.batch_size == 1 and calls == ["ran"]
     assert seen == [(1, 3), (2, 3), (3, 3)]
     assert sorted(map(sorted, fake.batches)) == [[1], [2, 3]]  # never batched with the call
+
+
+def test_an_explicit_key_decides_which_requests_batch():
+    async def scenario():
+        fake = FakeGenerator()
+        batcher = Batcher(fake.generate_batch, max_batch_size=4, max_delay_s=0.2, queue_size=8)
+        batcher.start()
+        # the same sampler settings in the options, but two keys (e.g. two resolved starts)
+        await asyncio.gather(*(batcher.submit(request(s), key="odd" if s % 2 else "even")
+                               for s in range(4)))
+        assert await batcher.close(5)
+        return fake
+
+    assert sorted(map(sorted, run(scenario()).batches)) == [[0, 2], [1, 3]]

@@ -102,7 +102,7 @@ def test_grpc_errors_carry_the_problem_type(stub, case):
     assert_rpc_problem(lambda: stub.Generate(big), grpc.StatusCode.RESOURCE_EXHAUSTED,
                        "payload-too-large")
     assert_rpc_problem(lambda: stub.Generate(points_request(case.points, steps=10_000)),
-                       grpc.StatusCode.INVALID_ARGUMENT, "invalid-parameter")
+                       grpc.StatusCode.INVALID_ARGUMENT, "invalid-option")
     assert_rpc_problem(lambda: stub.Generate(points_request(np.ones((40, 3)))),
                        grpc.StatusCode.INVALID_ARGUMENT, "degenerate-geometry")
     assert_rpc_problem(lambda: list(stub.GenerateStream(points_request(case.points[:5]))),

@@ -255,7 +255,10 @@ def test_malformed_requests_are_400(http, stub):
     no_file = http.post("/repair", files={"other": ("m.obj", b"x")},
                         data={"region": json.dumps(region)})
     assert "'file'" in assert_problem(no_file, 400, "malformed-input")["detail"]
-    assert_problem(post_repair(http, mesh, region, steps=0), 400, "invalid-parameter")
+    assert assert_problem(post_repair(http, mesh, region, steps=0), 422,
+                          "invalid-option")["option"] == "steps"
+    assert assert_problem(post_repair(http, mesh, region, sampler="euler"), 422,
+                          "invalid-option")["option"] == "sampler"
     assert_problem(post_repair(http, mesh, region, fmt="stl"), 400, "invalid-parameter")
     nan = b"v 0 0 0\nv 1 0 0\nv nan 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n"
     assert_problem(post_repair(http, mesh, region, data=nan), 422, "non-finite")
@@ -274,7 +277,7 @@ def test_malformed_requests_are_400(http, stub):
     shapeless = pb.RepairRequest(mesh=mesh_file(mesh), region=pb.Region())
     assert_rpc_problem(lambda: stub.Repair(shapeless), rpc.INVALID_ARGUMENT, "malformed-input")
     assert_rpc_problem(lambda: stub.Repair(repair_pb(mesh, region, steps=0)),
-                       rpc.INVALID_ARGUMENT, "invalid-parameter")
+                       rpc.INVALID_ARGUMENT, "invalid-option")
     assert_rpc_problem(lambda: stub.Repair(pb.RepairRequest(mesh=b"v 0 0 0\n" * 300_000,
                                                             faces=[0])),
                        rpc.RESOURCE_EXHAUSTED, "payload-too-large")
@@ -307,7 +310,8 @@ def test_openapi_describes_repair(http):
     form = repair["requestBody"]["content"]["multipart/form-data"]
     assert set(form["schema"]["required"]) == {"file", "region"}
     assert set(form["examples"]) == {"faces", "vertices", "sphere", "box"}
-    assert {p["name"] for p in repair["parameters"]} == {"format", "seed", "steps", "weld"}
+    assert {p["name"] for p in repair["parameters"]} == {"format", "seed", "steps", "sampler",
+                                                         "weld"}
     assert "weld" in form["schema"]["properties"]
     for status in ("200", "400", "413", "415", "422", "503"):
         assert status in repair["responses"], status

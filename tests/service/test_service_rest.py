@@ -151,12 +151,14 @@ def test_malformed_input_is_400(http):
                    400, "malformed-input")
 
 
-def test_invalid_options_are_400(http, case):
+def test_invalid_format_is_400_and_invalid_options_422(http, case):
     points = case.points.tolist()
-    for params in ({"format": "stl"}, {"steps": 0}, {"steps": 100000}, {"seed": -3},
-                   {"seed": "abc"}):
+    response = http.post("/generate", params={"format": "stl"}, json={"points": points})
+    assert assert_problem(response, 400, "invalid-parameter")["parameter"] == "format"
+    for params in ({"steps": 0}, {"steps": 100000}, {"seed": -3}, {"seed": "abc"},
+                   {"sampler": "euler"}):
         response = http.post("/generate", params=params, json={"points": points})
-        assert_problem(response, 400, "invalid-parameter")
+        assert assert_problem(response, 422, "invalid-option")["option"] == next(iter(params))
 
 
 def test_too_large_is_413(http, case):
@@ -253,11 +255,24 @@ def test_openapi(http):
     body = generate["requestBody"]["content"]
     assert "file" in body["multipart/form-data"]["schema"]["properties"]
     assert body["application/json"]["examples"]
-    assert {p["name"] for p in generate["parameters"]} == {"format", "seed", "steps"}
+    assert [p["name"] for p in generate["parameters"]] == [
+        "format", "seed", "steps", "sampler", "start", "start_time", "target_vertices",
+        "samples", "raw"]
+    schemas = {p["name"]: p["schema"] for p in generate["parameters"]}
+    assert schemas["samples"] == {**schemas["samples"], "type": "integer", "minimum": 1,
+                                  "maximum": 16}
+    assert schemas["start"]["enum"] == ["noise", "points"]
+    assert schemas["raw"]["type"] == "boolean" and schemas["start_time"]["type"] == "number"
+    form = body["multipart/form-data"]["schema"]["properties"]
+    json_fields = spec["components"]["schemas"]["PointsRequest"]["properties"]
+    assert set(schemas) <= set(form) and set(schemas) <= set(json_fields)
     for status in ("200", "400", "413", "415", "422", "503", "504"):
         assert status in generate["responses"], status
     assert generate["responses"]["422"]["content"][PROBLEM]["examples"]
-    assert "X-SpaceMesh-Seed" in generate["responses"]["200"]["headers"]
+    headers = generate["responses"]["200"]["headers"]
+    for name in ("Seed", "Start", "Start-Time", "Raw", "Sample-Scores", "Fit-Coverage",
+                 "Fit-Points-To-Mesh-Mean", "Fit-Self-Intersections"):
+        assert "X-SpaceMesh-" + name in headers, name
     for schema in ("PointsRequest", "MeshJSON", "ProblemModel"):
         assert schema in spec["components"]["schemas"]
     assert http.get("/docs").status_code == 200

@@ -10,12 +10,18 @@ import pytest
 from spacemesh_service import problems as P
 from spacemesh_service.inputs import (
     check_degenerate,
-    parse_options,
     read_json,
     read_mesh_upload,
     read_region,
     read_upload,
     validate_cloud,
+)
+from spacemesh_service.options import (
+    GENERATE_OPTIONS,
+    GENERATE_ROUTE_OPTIONS,
+    REPAIR_ROUTE_OPTIONS,
+    attribute_docs,
+    resolve_request,
 )
 from spacemesh_service.outputs import OUTPUT_FORMATS, stats_headers, validate_mesh
 from spacemesh_service.problems import Problem
@@ -93,28 +99,123 @@ def test_repair_inputs():
         "unsupported-format")
 
 
+def toy_spec(**changes):
+    """A model spec without networks: 64 timesteps, 8 default steps, start=noise."""
+    from dataclasses import replace
+
+    from spacemesh.decode import DecodeOptions
+    from spacemesh.runtime.pipeline import ModelSpec
+    from spacemesh.runtime.schedule import NoiseSchedule
+
+    spec = ModelSpec(n_points=64, max_vertices=16, normals=False,
+                     schedule=NoiseSchedule(np.linspace(1e-4, 0.02, 64)), method="ddim",
+                     steps=8, decode=DecodeOptions())
+    return replace(spec, **changes)
+
+
+def resolve(values, table=GENERATE_ROUTE_OPTIONS, spec=None, **settings):
+    return resolve_request(values, table, spec or toy_spec(),
+                           Settings.from_env({}, **{"max_steps": 100, **settings}))
+
+
 def test_options():
-    settings = Settings.from_env({}, max_steps=100)
-    opts = parse_options({"format": "OBJ", "seed": "7", "steps": 20}, settings,
-                         max_model_steps=64)
-    assert (opts.format, opts.seed, opts.steps) == ("obj", 7, 20)
-    assert parse_options({}, settings, max_model_steps=64).format == "glb"
-    assert 0 <= parse_options({}, settings, max_model_steps=64).seed < 2**31
-    assert parse_options({}, settings, max_model_steps=64).steps is None
-    for bad in ({"format": "stl"}, {"seed": -1}, {"seed": "x"}, {"steps": 0},
-                {"steps": 65}, {"steps": 2.5}, {"seed": True}):
-        assert kind_of(lambda b=bad: parse_options(b, settings, max_model_steps=64)) == (
-            "invalid-parameter")
+    opts = resolve({"format": "OBJ", "seed": "7", "steps": 20})
+    assert (opts.format, opts.resolved.seed, opts.resolved.steps) == ("obj", 7, 20)
+    assert opts.sent.seed == 7 and opts.sent.start is None  # as sent, the policy applied
+    assert resolve({}).format == "glb"
+    assert 0 <= resolve({}).resolved.seed < 2**31
+    assert resolve({}).sent.steps is None and resolve({}).resolved.steps == 8
+    assert resolve({"seed": str(2**62 + 1)}).resolved.seed == 2**62 + 1  # exact
+    assert resolve({}, default_steps=12).resolved.steps == 12
+    assert kind_of(lambda: resolve({"format": "stl"})) == "invalid-parameter"
+    for bad in ({"seed": -1}, {"seed": "x"}, {"steps": 0}, {"steps": 65}, {"steps": 2.5},
+                {"seed": True}, {"sampler": "euler"}):
+        assert kind_of(lambda b=bad: resolve(b)) == "invalid-option", bad
     assert set(OUTPUT_FORMATS) == {"glb", "gltf", "obj", "ply", "off", "json"}
 
 
+def test_settings_max_steps_is_checked_with_the_options():
+    assert resolve({"steps": 30}, max_steps=30).resolved.steps == 30
+    with pytest.raises(Problem) as info:
+        resolve({"steps": 31}, max_steps=30)
+    assert info.value.kind.slug == "invalid-option" and info.value.extra == {"option": "steps"}
+    assert "1..30" in info.value.detail
+
+
+@pytest.mark.parametrize(("values", "option"), [
+    ({"start": "bogus"}, "start"),
+    ({"start_time": 0.5}, "start_time"),  # start_time with the default start (noise)
+    ({"start": "noise", "start_time": "0.5"}, "start_time"),
+    ({"start": "points", "start_time": 2}, "start_time"),
+    ({"start": "points", "start_time": "abc"}, "start_time"),
+    ({"start": "points", "target_vertices": 3}, "target_vertices"),
+    ({"start": "points", "target_vertices": "5000"}, "target_vertices"),
+    ({"target_vertices": 100}, "target_vertices"),  # needs start=points
+    ({"samples": 0}, "samples"),
+    ({"samples": "17"}, "samples"),
+    ({"raw": "maybe"}, "raw"),
+])
+def test_generate_option_errors_name_the_option(values, option):
+    with pytest.raises(Problem) as info:
+        resolve(values)
+    assert info.value.kind is P.INVALID_OPTION and info.value.kind.status == 422
+    assert info.value.extra == {"option": option}, info.value.detail
+
+
+def test_new_generate_options_resolve():
+    opts = resolve({"start": "points", "start_time": "0.25", "target_vertices": "100",
+                    "samples": "4", "raw": "true"})
+    r = opts.resolved
+    assert (r.start, r.start_time, r.target_vertices, r.samples, r.raw) == (
+        "points", 0.25, 100, 4, True)
+    assert opts.batch_key == (8, "ddim", "points", 0.25)
+    spec = toy_spec(start="points", start_time=0.5)
+    assert resolve({}, spec=spec).resolved.start_time == 0.5  # the model's default
+
+
+def test_repair_takes_no_generate_only_option():
+    names = {o.name for o in REPAIR_ROUTE_OPTIONS}
+    assert names == {"format", "seed", "steps", "sampler", "weld"}
+    assert resolve({"start": "bogus", "samples": 0}, REPAIR_ROUTE_OPTIONS).resolved.samples == 1
+
+
+def test_the_option_table_is_generate_options():
+    from spacemesh.runtime.options import OPTION_FIELDS
+
+    assert tuple(o.name for o in GENERATE_OPTIONS) == OPTION_FIELDS
+    assert [o.name for o in GENERATE_ROUTE_OPTIONS] == ["format", *OPTION_FIELDS]
+    kinds = {o.name: o.kind for o in GENERATE_OPTIONS}
+    assert kinds == {"seed": int, "steps": int, "sampler": str, "start": str,
+                     "start_time": float, "target_vertices": int, "samples": int, "raw": bool}
+    assert all(o.description for o in GENERATE_OPTIONS)
+    assert "farthest-point" in {o.name: o.description for o in GENERATE_OPTIONS}["start"]
+
+
+def test_attribute_docs_reads_a_numpydoc_section():
+    class Example:
+        """Summary.
+
+        Attributes
+        ----------
+        a : int
+            First line
+            second line, see :class:`~pkg.Thing` and ``code``.
+        b : str, optional
+
+        Methods
+        -------
+        c : not an attribute
+        """
+
+    assert attribute_docs(Example) == {
+        "a": "First line second line, see pkg.Thing and `code`.", "b": ""}
+
+
 def test_weld_option():
-    settings = Settings.from_env({}, max_steps=100)
-
     def weld(value):
-        return parse_options({"weld": value}, settings, max_model_steps=64).weld
+        return resolve({"weld": value}, REPAIR_ROUTE_OPTIONS).weld
 
-    assert parse_options({}, settings, max_model_steps=64).weld is False
+    assert resolve({}, REPAIR_ROUTE_OPTIONS).weld is False
     for value in (True, "true", "True", " 1 ", "yes", "on", 1):
         assert weld(value) is True, value
     for value in (False, None, "", "false", "0", "no", "OFF", 0):
@@ -178,6 +279,33 @@ def test_mesh_validation_and_headers():
     assert kind_of(lambda: validate_mesh(PolygonMesh.empty())) == "no-surface"
     open_mesh = PolygonMesh.from_faces(np.eye(3), [[0, 1, 2]])
     assert kind_of(lambda: validate_mesh(open_mesh)) == "invalid-output"
+
+
+def test_the_fit_report_becomes_headers_json_and_grpc_by_its_field_names():
+    from dataclasses import fields as dataclass_fields
+    from dataclasses import replace
+
+    from spacemesh.geometry.report import FitReport, fit_report
+    from spacemesh_service.grpc_server import stats_to_pb
+    from spacemesh_service.outputs import encode_mesh
+
+    mesh = cube_quads()
+    fit = fit_report(mesh, mesh.vertices).to_dict()
+    encoded = encode_mesh(mesh, "json", {"seed": 1}, fit)
+    assert json.loads(encoded.body)["stats"]["fit"] == fit
+    headers = stats_headers(encoded.stats)
+    names = [f.name for f in dataclass_fields(FitReport)]
+    fit_headers = {k for k in headers if k.startswith("X-SpaceMesh-Fit-")}
+    assert len(fit_headers) == len(names)
+    assert headers["X-SpaceMesh-Fit-Points-To-Mesh-Mean-Rel"] == str(fit["points_to_mesh_mean_rel"])
+    assert headers["X-SpaceMesh-Fit-Self-Intersections"] == str(fit["self_intersections"])
+    assert headers["X-SpaceMesh-Fit-Components"] == "1"
+    message = stats_to_pb(encoded.stats)
+    assert {f.name: getattr(message.fit, f.name) for f in message.fit.DESCRIPTOR.fields} == fit
+    assert not stats_to_pb(replace(encoded.stats, fit=None)).HasField("fit")
+    nan = {**fit, "points_to_mesh_mean": float("nan")}
+    assert json.loads(encode_mesh(mesh, "json", {}, nan).body)["stats"]["fit"][
+        "points_to_mesh_mean"] is None
 
 
 def test_every_setting_is_a_flag_with_its_env_var():

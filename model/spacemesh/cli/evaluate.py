@@ -69,6 +69,17 @@ def evaluate(
         str, typer.Option("--psr-star-target", help="PSR* vertex count: ours (per shape) or gt.")
     ] = "ours",
     no_model: Annotated[bool, typer.Option("--no-model", help="Run the baselines only.")] = False,
+    modes: Annotated[
+        str, typer.Option("--modes", help="Our pipeline's modes, comma-separated: default, "
+                                          "raw, paper, samples4, gt.")
+    ] = "default",
+    noise: Annotated[
+        float, typer.Option("--noise", min=0.0, help="Gaussian noise on the input points "
+                                                      "(fraction of the diagonal).")
+    ] = 0.0,
+    partial: Annotated[
+        bool, typer.Option("--partial", help="Keep one side of the input points only.")
+    ] = False,
     title: Annotated[str | None, typer.Option("--title", help="Report title.")] = None,
     progress: Annotated[
         bool, typer.Option("--progress/--no-progress", help="Progress bar.")
@@ -83,7 +94,12 @@ def evaluate(
     from spacemesh.evaluate.runner import pin_threads
 
     pin_threads(threads)  # before pymeshlab and onnxruntime load
-    from spacemesh.evaluate.runner import load_shapes, run_evaluation, write_report
+    from spacemesh.evaluate.runner import (
+        load_shapes,
+        parse_modes,
+        run_evaluation,
+        write_report,
+    )
     from spacemesh.runtime import MeshGenerator, ModelRepositoryError
 
     if split not in ("train", "val", "test", "all"):
@@ -110,6 +126,9 @@ def evaluate(
         threads=threads,
         psr_star_target=psr_star_target,
         progress=progress,
+        modes=parse_modes(modes),
+        noise=noise,
+        partial=partial,
     )
     if generator is not None and generator.repository is not None:
         result.config["model_path"] = str(generator.repository.path)
@@ -129,6 +148,9 @@ def evaluate(
     command += ["--limit", str(limit)] if limit else []
     command += ["--psr-star-target", psr_star_target] if psr_star_target != "ours" else []
     command += ["--steps", str(steps)] if steps else []
+    command += ["--modes", modes] if modes != "default" else []
+    command += ["--noise", str(noise)] if noise else []
+    command += ["--partial"] if partial else []
     command = shlex.join(command)
     paths = write_report(
         result, out, title=title or f"SpaceMesh evaluation: {data.name}", command=command

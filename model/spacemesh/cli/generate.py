@@ -1,4 +1,10 @@
-"""``spacemesh generate``: a point cloud in, a manifold polygon mesh out (onnxruntime only)."""
+"""``spacemesh generate``: a point cloud in, a manifold polygon mesh out (onnxruntime only).
+
+The generate options are :class:`spacemesh.runtime.options.GenerateOptions`, one flag
+each (``--start-time`` for ``start_time``); the generator resolves them once, and an
+option out of range is one line on stderr and exit code 2. The summary reports the
+resolved options, the fit report (:meth:`FitReport.to_dict`) and every seed's score.
+"""
 
 from __future__ import annotations
 
@@ -33,6 +39,27 @@ def generate(
     sampler: Annotated[
         str | None, typer.Option("--sampler", help="ddim or ddpm (default: the model's).")
     ] = None,
+    start: Annotated[
+        str | None, typer.Option("--start", help="Where the vertices start: noise (the "
+                                 "paper) or points (chosen on the input) (default: the "
+                                 "model's).")
+    ] = None,
+    start_time: Annotated[
+        float | None, typer.Option("--start-time", help="With --start points: the fraction "
+                                   "of the diffusion to denoise from, 0..1 (0: the chosen "
+                                   "points as they are).")
+    ] = None,
+    target_vertices: Annotated[
+        int | None, typer.Option("--target-vertices", help="Vertices of the mesh (within "
+                                 "10%), 4..4096; needs --start points.")
+    ] = None,
+    samples: Annotated[
+        int, typer.Option("--samples", help="Try this many seeds (1..16) from --seed on and "
+                          "keep the mesh that fits the points best.")
+    ] = 1,
+    raw: Annotated[
+        bool, typer.Option("--raw", help="The networks' mesh without the geometry stage.")
+    ] = False,
     threads: Annotated[
         int, typer.Option("--threads", min=0, help="onnxruntime threads (0: all).")
     ] = 0,
@@ -48,6 +75,7 @@ def generate(
     from spacemesh.io.errors import MeshFormatError
     from spacemesh.io.points import load_points
     from spacemesh.runtime import MeshGenerator, ModelRepositoryError
+    from spacemesh.runtime.options import GenerateOptions, OptionError
 
     if output.suffix.lower() not in MESH_SUFFIXES:
         fail(f"{output}: the output must end in one of {', '.join(MESH_SUFFIXES)}")
@@ -70,9 +98,13 @@ def generate(
         bar.n = done
         bar.refresh()
 
+    options = GenerateOptions(seed=seed, steps=steps, sampler=sampler, start=start,
+                              start_time=start_time, target_vertices=target_vertices,
+                              samples=samples, raw=raw)
     try:
-        result = generator.generate(points, normals, seed=seed, steps=steps, method=sampler,
-                                    progress=report)
+        result = generator.generate(points, normals, options, progress=report)
+    except OptionError as error:
+        fail(f"--{error.option.replace('_', '-')}: {error}")
     except ValueError as error:
         fail(str(error))
     finally:
@@ -80,14 +112,19 @@ def generate(
     save_mesh(result.mesh, output)
     if result.mesh.n_faces == 0:
         typer.echo("spacemesh: warning: the model produced an empty mesh", err=True)
+    fit = result.fit.to_dict() if result.fit is not None else {}
     summary = {
-        "output": str(output), "model": generator.name, "seed": result.seed,
-        "steps": result.steps, "sampler": result.method, "vertices": result.mesh.n_vertices,
-        "faces": result.mesh.n_faces,
+        "output": str(output), "model": generator.name, **result.options.to_dict(),
+        "vertices": result.mesh.n_vertices, "faces": result.mesh.n_faces, "fit": fit,
+        "sample_scores": [[s, score] for s, score in result.sample_scores],
         "timings": {k: round(v, 4) for k, v in result.timings.items()},
     }
     if as_json:
         typer.echo(json.dumps(summary))
     else:
-        typer.echo(f"{output}: {result.mesh.n_vertices} vertices, {result.mesh.n_faces} faces "
-                   f"({result.timings['total']:.2f} s)")
+        typer.echo(f"{output}: {result.mesh.n_vertices} vertices, {result.mesh.n_faces} faces, "
+                   f"seed {result.seed}, start {result.options.start} "
+                   f"({result.timings['total']:.2f} s); fit: points->mesh "
+                   f"{fit.get('points_to_mesh_mean_rel', float('nan')):.4g}, mesh->points "
+                   f"{fit.get('mesh_to_points_mean_rel', float('nan')):.4g} of the diagonal, "
+                   f"coverage {100 * fit.get('coverage', float('nan')):.0f}%")

@@ -54,8 +54,18 @@ THREAD_VARIABLES = (
     "VECLIB_MAXIMUM_THREADS",
     "NUMEXPR_NUM_THREADS",
 )
-#: Baselines the runner knows, in table order.
-BASELINES = ("psr", "psr_star", "bpa")
+#: Baselines the runner knows, in table order (``psr_star_gt``: PSR decimated to the
+#: ground truth's vertex count).
+BASELINES = ("psr", "psr_star", "psr_star_gt", "bpa")
+#: Modes of our pipeline the runner knows: the method name of each row and the
+#: generate options it runs with (``gt``: ``target_vertices`` = the ground truth's count).
+MODES = {
+    "default": ("ours", {}),
+    "raw": ("ours_raw", {"raw": True}),
+    "paper": ("ours_paper", {"raw": True, "start": "noise"}),
+    "samples4": ("ours_s4", {"samples": 4}),
+    "gt": ("ours_gt", {}),
+}
 #: Conditioning points sampled on a mesh file (as in the datasets).
 N_POINTS = 2048
 
@@ -223,9 +233,45 @@ def _timed(
 
 
 def _generate(
-    generator: Any, points: FloatArray, normals: FloatArray | None, *, seed: int, steps: int | None
+    generator: Any, points: FloatArray, normals: FloatArray | None, **options: Any
 ) -> PolygonMesh:
-    return generator.generate(points, normals, seed=seed, steps=steps).mesh
+    return generator.generate(points, normals, **options).mesh
+
+
+def parse_modes(text: str) -> list[str]:
+    """``"default,raw"`` -> a checked list of :data:`MODES` names."""
+    names = [m.strip() for m in text.split(",") if m.strip()]
+    unknown = [m for m in names if m not in MODES]
+    if unknown or not names:
+        raise ValueError(f"unknown modes {unknown or text!r}; choose from {', '.join(MODES)}")
+    return list(dict.fromkeys(names))
+
+
+def corrupt_points(points: FloatArray, *, noise: float = 0.0, partial: bool = False,
+                   seed: int | list[int] = 0) -> FloatArray:
+    """Conditioning points as a scan would give them: with ``partial`` only one side
+    (the points at or above the median x), and Gaussian noise of ``noise`` times the
+    bounding-box diagonal.
+
+    Parameters
+    ----------
+    points : (P, 3) float
+    noise : float
+    partial : bool
+    seed : int or list of int
+
+    Returns
+    -------
+    (P', 3) float64
+    """
+    points = np.asarray(points, dtype=np.float64)
+    rng = np.random.default_rng(seed)
+    if partial:
+        points = points[points[:, 0] >= np.median(points[:, 0])]
+    if noise > 0:
+        diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
+        points = points + rng.normal(scale=noise * diagonal, size=points.shape)
+    return points
 
 
 def _row(
@@ -275,6 +321,9 @@ def run_evaluation(
     psr_star_target: str = "ours",
     options: MetricOptions | None = None,
     progress: bool = True,
+    modes: Sequence[str] = ("default",),
+    noise: float = 0.0,
+    partial: bool = False,
 ) -> EvalResult:
     """Run ours and the baselines on every shape and score them (see the module doc).
 
@@ -300,6 +349,12 @@ def run_evaluation(
     options : MetricOptions, optional
     progress : bool
         Show a tqdm progress bar.
+    modes : sequence of str
+        Our pipeline's modes (:data:`MODES`), one row each.
+    noise : float
+        Gaussian noise on the conditioning points, as a fraction of their diagonal.
+    partial : bool
+        Keep only the points of one side (:func:`corrupt_points`).
 
     Returns
     -------
@@ -315,7 +370,8 @@ def run_evaluation(
     if psr_star_target not in ("ours", "gt"):
         raise ValueError(f"psr_star_target must be 'ours' or 'gt', not {psr_star_target!r}")
     options = options or MetricOptions()
-    methods = (["ours"] if generator is not None else []) + list(baselines) + ["gt"]
+    ours_methods = [MODES[m][0] for m in parse_modes(",".join(modes))] if generator else []
+    methods = ours_methods + list(baselines) + ["gt"]
     result = EvalResult(
         distributions={m: {"edge_lengths": [], "corner_angles": []} for m in methods},
         config={
@@ -327,6 +383,9 @@ def run_evaluation(
             "shapes": len(shapes),
             "metrics": options.__dict__.copy(),
             "model": getattr(generator, "name", None),
+            "modes": list(modes),
+            "noise": noise,
+            "partial": partial,
         },
     )
     keep = gallery_indices(len(shapes), gallery)
@@ -335,33 +394,40 @@ def run_evaluation(
         centre, scale = normalisation(shape.mesh)
         gt = apply_normalisation(shape.mesh, centre, scale)
         points = (np.asarray(shape.points, np.float64) - centre) / scale  # (P, 3)
+        points = corrupt_points(points, noise=noise, partial=partial, seed=[seed, index])
         reference = Reference.from_mesh(gt, seed=[seed, index, 0], options=options)
         normals = estimate_normals(points)  # (P, 3), what every method may use
         meshes: dict[str, tuple[PolygonMesh | None, str, float]] = {}
         if generator is not None:
-            bar.set_postfix_str("ours")
             wants_normals = bool(getattr(getattr(generator, "spec", None), "normals", False))
-            meshes["ours"] = _timed(
-                _generate,
-                generator,
-                points,
-                normals if wants_normals else None,
-                seed=seed,
-                steps=steps,
-            )
-        if "psr" in baselines or "psr_star" in baselines:
+            for mode in parse_modes(",".join(modes)):
+                method, extra = MODES[mode]
+                bar.set_postfix_str(method)
+                extra = dict(extra, seed=seed, steps=steps)
+                if mode == "gt":
+                    extra["target_vertices"] = gt.n_vertices
+                meshes[method] = _timed(
+                    _generate, generator, points, normals if wants_normals else None, **extra
+                )
+        if any(b in baselines for b in ("psr", "psr_star", "psr_star_gt")):
             bar.set_postfix_str("psr")
             psr = _timed(screened_poisson, points, normals, threads=threads)
             if "psr" in baselines:
                 meshes["psr"] = psr
-            if "psr_star" in baselines:
-                ours = meshes.get("ours", (None,))[0] if psr_star_target == "ours" else None
-                target = ours.n_vertices if ours is not None and ours.n_faces else gt.n_vertices
+            ours = meshes.get("ours", (None,))[0] if psr_star_target == "ours" else None
+            targets = {
+                "psr_star": ours.n_vertices if ours is not None and ours.n_faces
+                else gt.n_vertices,
+                "psr_star_gt": gt.n_vertices,
+            }
+            for name, target in targets.items():
+                if name not in baselines:
+                    continue
                 if psr[0] is None:
-                    meshes["psr_star"] = psr
+                    meshes[name] = psr
                 else:
                     star = _timed(psr_star, psr[0], target)
-                    meshes["psr_star"] = (star[0], star[1], star[2] + psr[2])
+                    meshes[name] = (star[0], star[1], star[2] + psr[2])
         if "bpa" in baselines:
             bar.set_postfix_str("bpa")
             meshes["bpa"] = _timed(ball_pivoting, points, normals)

@@ -52,6 +52,7 @@ import numpy as np
 import torch
 
 from spacemesh.export.onnx_export import GRAPH_FILES, OPSET, export_onnx
+from spacemesh.geometry.stage import geometry_section
 from spacemesh.nn.base_model import BaseModel, OnnxEncoder
 from spacemesh.nn.model import SpaceMeshModel
 from spacemesh.permutation import SINKHORN_ITERS
@@ -62,6 +63,7 @@ from spacemesh.runtime.backend import (
     ENCODER_INPUTS,
     volume_names,
 )
+from spacemesh.runtime.options import POINTS_START
 from spacemesh.runtime.pipeline import decode_changes
 from spacemesh.runtime.repository import (
     FORMAT,
@@ -137,7 +139,9 @@ def build_manifest(
                    "normals": config.encoder.normals},
         "schedule": {"kind": config.diffusion.schedule, "timesteps": config.diffusion.timesteps,
                      "betas": model.diffusion.schedule.betas.tolist()},
-        "sampler": {"method": config.diffusion.sampler, "steps": config.diffusion.steps},
+        "sampler": {"method": config.diffusion.sampler, "steps": config.diffusion.steps,
+                    **POINTS_START},
+        "geometry": geometry_section(),
         "embedding": embedding,
         "graphs": graph_signatures(len(config.encoder.resolutions)),
         "files": files,
@@ -665,7 +669,9 @@ def repackage_repository(
                                 "decode": manifest.get("decode", {}),
                                 "what": "the same graphs, byte for byte, with the decode "
                                         "of this release"}
-    manifest.update(name=name, version=version, decode=decode_section(manifest["data"]))
+    manifest.update(name=name, version=version, decode=decode_section(manifest["data"]),
+                    geometry=geometry_section())
+    manifest["sampler"].update(POINTS_START)
     write_manifest(directory, manifest)
     if calibrate_data is not None:
         manifest = record_vertex_spacing(directory, calibrate_data,

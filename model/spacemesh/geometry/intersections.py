@@ -19,8 +19,12 @@ from spacemesh.data.validate import triangles_intersect, triangles_of
 from spacemesh.mesh import PolygonMesh
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
-#: Shrink of triangles that share corners, as a fraction of their size.
-SHRINK = 1e-6
+#: Shrink of triangles that share corners, as a fraction of their size (large enough
+#: that rounding in nearly coplanar neighbours never reads as a crossing).
+SHRINK = 1e-3
+#: Two triangles on one edge are compared only when folded onto each other: their
+#: normals' dot product is below minus this.
+FOLDED_COSINE = 0.999
 
 
 def _shrunk(corners: FloatArray, factor: float) -> FloatArray:
@@ -74,7 +78,14 @@ def intersecting_triangles(vertices: FloatArray, triangles: IntArray,
     if source_face is not None:
         near &= source_face[i] != source_face[j]
     i, j = i[near], j[near]
-    shared = (triangles[i][:, :, None] == triangles[j][:, None, :]).any(axis=(1, 2))
+    common = (triangles[i][:, :, None] == triangles[j][:, None, :]).sum(axis=(1, 2))
+    # triangles on one edge meet elsewhere only when folded flat onto each other
+    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    folded = np.einsum("md,md->m", normal[i], normal[j]) < -FOLDED_COSINE
+    keep = (common < 2) | folded
+    i, j, common = i[keep], j[keep], common[keep]
+    shared = common > 0
     ta, tb = corners[i], corners[j]
     ta = np.where(shared[:, None, None], _shrunk(ta, SHRINK), ta)
     tb = np.where(shared[:, None, None], _shrunk(tb, SHRINK), tb)

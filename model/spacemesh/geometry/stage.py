@@ -24,15 +24,18 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh.data.validate import triangles_of
 from spacemesh.encode import connectivity_from_faces
 from spacemesh.geometry.fitting import FitOptions, fit_vertices
-from spacemesh.geometry.intersections import intersecting_triangles
+from spacemesh.geometry.intersections import intersecting_triangles, self_intersecting_faces
 from spacemesh.mesh import PolygonMesh
 from spacemesh.refinement import flip_diagonals
 from spacemesh.typed import FloatArray, IntArray
 
-#: Rounds of the intersection guard's backtracking.
+#: Rounds of the intersection guard's halfway backtracking.
 GUARD_ROUNDS = 3
+#: Rounds of the guard's full reverts after those.
+MAX_REVERT_ROUNDS = 8
 
 
 @dataclass(frozen=True)
@@ -71,6 +74,16 @@ class GeometryOptions:
         return cls(fit=FitOptions(**fit), **own)
 
 
+def geometry_section(options: GeometryOptions | None = None) -> dict[str, Any]:
+    """A manifest's ``geometry`` section: every option, and why."""
+    from dataclasses import asdict
+
+    return {**asdict(options or GeometryOptions()),
+            "why": "vertices fitted to the points (points -> mesh, mesh -> points, "
+                   "tangent-plane quadrics for sharp features, springs), diagonals "
+                   "flipped toward the points, self-intersections never increased"}
+
+
 @dataclass
 class GeometryResult:
     """The refined mesh and what the stage did.
@@ -89,18 +102,26 @@ class GeometryResult:
     stats: dict[str, Any]
 
 
-def _intersection_share(positions: FloatArray, triangles: IntArray) -> tuple[float, np.ndarray]:
-    hit = intersecting_triangles(positions, triangles)
-    return (float(hit.mean()) if len(hit) else 0.0), hit
+def _intersection_share(mesh: PolygonMesh, positions: FloatArray, triangles: IntArray,
+                        source: IntArray | None) -> tuple[float, np.ndarray]:
+    """The share of faces that intersect another face, and which of ``triangles`` are
+    hit. A triangle mesh is measured on ``triangles``; a polygon mesh (``source``: the
+    face of each triangle) face by face at ``positions``, triangulated anew."""
+    if source is None:
+        hit = intersecting_triangles(positions, triangles)
+        return (float(hit.mean()) if len(hit) else 0.0), hit
+    faces = self_intersecting_faces(mesh.with_vertices(positions))
+    return (float(faces.mean()) if len(faces) else 0.0), faces[source]
 
 
 def split_longest_edges(positions: FloatArray, triangles: IntArray, target: int
                         ) -> tuple[FloatArray, IntArray]:
-    """Split interior edges at their midpoints, longest first, up to ``target`` vertices.
+    """Split edges at their midpoints, longest first, up to ``target`` vertices.
 
-    Each split of edge ``a - b`` (triangles ``a b c`` and ``b a d``) adds vertex ``m``
-    and four triangles ``a m c``, ``m b c``, ``b m d``, ``m a d``: a closed oriented
-    manifold stays one. A pass splits edges that share no triangle.
+    Each split of edge ``a - b`` (triangles ``a b c`` and ``b a d``, ``c != d``) adds
+    vertex ``m`` and four triangles ``a m c``, ``m b c``, ``b m d``, ``m a d``: a closed
+    oriented manifold stays one. A pass splits edges that share no triangle; when no
+    edge can split (a two-triangle pillow), the largest triangle splits at its centroid.
 
     Parameters
     ----------
@@ -137,16 +158,24 @@ def split_longest_edges(positions: FloatArray, triangles: IntArray, target: int
                 break
             g = int(twin[h])
             f1, f2 = int(face[h]), int(face[g])
-            if used[f1] or used[f2]:
+            a, b, c, d = int(src[h]), int(dst[h]), int(opp[h]), int(opp[g])
+            if used[f1] or used[f2] or c == d:  # c == d: a two-triangle pillow
                 continue
             used[f1] = used[f2] = True
-            a, b, c, d = int(src[h]), int(dst[h]), int(opp[h]), int(opp[g])
             m = len(positions) + len(new_pos)
             new_pos.append((positions[a] + positions[b]) / 2)
             new_tri += [(a, m, c), (m, b, c), (b, m, d), (m, a, d)]
             drop += [f1, f2]
-        if not new_pos:
-            break
+        if not new_pos:  # no edge can split (a pillow): split the largest triangle
+            corners = positions[tri]
+            area = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
+                                           corners[:, 2] - corners[:, 0]), axis=1)
+            f = int(np.argmax(area))
+            a, b, c = tri[f].tolist()
+            m = len(positions)
+            new_pos.append(corners[f].mean(axis=0))
+            new_tri += [(a, b, m), (b, c, m), (c, a, m)]
+            drop.append(f)
         keep = np.ones(len(tri), dtype=bool)
         keep[drop] = False
         tri = np.concatenate([tri[keep], np.asarray(new_tri, dtype=np.int64)])
@@ -164,6 +193,27 @@ def _flip_toward(positions: FloatArray, tri: IntArray, points: FloatArray, gain:
     if count == 0:
         return tri, 0
     return np.stack(flipped.to_mesh(positions).faces).astype(np.int64), count
+
+
+def _backtrack(mesh: PolygonMesh, positions: FloatArray, unfitted: FloatArray,
+               tri: IntArray, source: IntArray | None, hit: np.ndarray, limit: float,
+               stats: dict[str, Any]) -> tuple[FloatArray, float]:
+    """Move the corners of intersecting triangles back toward their unfitted positions
+    (halfway for :data:`GUARD_ROUNDS` rounds, then all the way, round after round)
+    until the share of intersecting triangles is at most ``limit``."""
+    positions = positions.copy()
+    guarded = np.zeros(len(positions), dtype=bool)
+    share = limit
+    for round_index in range(GUARD_ROUNDS + MAX_REVERT_ROUNDS):
+        corners = np.unique(tri[hit].reshape(-1))
+        guarded[corners] = True
+        weight = 0.5 if round_index < GUARD_ROUNDS else 1.0
+        positions[corners] += weight * (unfitted[corners] - positions[corners])
+        share, hit = _intersection_share(mesh, positions, tri, source)
+        if share <= limit or not hit.any():
+            break
+    stats["n_guarded"] = int(guarded.sum())
+    return positions, share
 
 
 def refine_geometry(
@@ -201,53 +251,41 @@ def refine_geometry(
         normals = normals if np.isfinite(normals).all() else None
     points = points[finite]
     stats: dict[str, Any] = {"n_split": 0, "n_flipped": 0, "n_guarded": 0, "kept": True}
-    if mesh.n_faces == 0 or len(points) < 4:
+    if mesh.n_faces == 0 or len(points) < 4 or not np.isfinite(mesh.vertices).all():
+        stats["kept"] = False
         return GeometryResult(mesh, stats)
-    if not mesh.is_triangle_mesh():
-        from spacemesh.data.validate import triangles_of
-
-        tri, _ = triangles_of(mesh)
-        moved, energies = fit_vertices(mesh.vertices, tri, points, normals, options.fit)
-        stats.update(energy_before=energies[0] if energies else None,
-                     energy_after=energies[-1] if energies else None)
-        return GeometryResult(mesh.with_vertices(moved), stats)
+    triangle_mesh = mesh.is_triangle_mesh()
     start_positions = mesh.vertices.astype(np.float64)
-    tri = mesh.face_indices.reshape(-1, 3).astype(np.int64)
+    if triangle_mesh:
+        tri, source = mesh.face_indices.reshape(-1, 3).astype(np.int64), None
+    else:  # polygons: the fit only, on a triangulation
+        tri, source = triangles_of(mesh)
     positions = start_positions
-    if target_vertices is not None and target_vertices > len(positions):
+    if triangle_mesh and target_vertices is not None and target_vertices > len(positions):
         positions, tri = split_longest_edges(positions, tri, target_vertices)
         stats["n_split"] = len(positions) - len(start_positions)
-    before_share, before_hit = _intersection_share(positions, tri)
+    before_share, _ = _intersection_share(mesh, positions, tri, source)
     unfitted, unflipped = positions.copy(), tri.copy()
     energies: list[float] = []
     for round_index in range(max(options.rounds, 1)):
-        positions, round_energies = fit_vertices(positions, tri, points, normals, options.fit)
-        energies += round_energies
-        if options.flips and round_index < options.rounds - 1:
+        if triangle_mesh and options.flips and round_index > 0:
             tri, count = _flip_toward(positions, tri, points, options.fit_gain)
             stats["n_flipped"] += count
+        positions, round_energies = fit_vertices(positions, tri, points, normals, options.fit)
+        energies += round_energies
     stats.update(energy_before=energies[0] if energies else None,
                  energy_after=energies[-1] if energies else None,
                  intersections_before=before_share)
-    share, hit = _intersection_share(positions, tri)
+    share, hit = _intersection_share(mesh, positions, tri, source)
     if options.guard and share > before_share:
-        for _ in range(GUARD_ROUNDS + 1):
-            new = hit.copy()
-            if len(new) == len(before_hit) and stats["n_flipped"] == 0:
-                new &= ~before_hit
-            moved = np.unique(tri[new].reshape(-1))
-            stats["n_guarded"] += len(moved)
-            positions[moved] = (positions[moved] + unfitted[moved]) / 2
-            share, hit = _intersection_share(positions, tri)
-            if share <= before_share:
-                break
-        if share > before_share:
-            positions[moved] = unfitted[moved]
-            share, hit = _intersection_share(positions, tri)
+        positions, share = _backtrack(mesh, positions, unfitted, tri, source, hit,
+                                      before_share, stats)
     if options.guard and share > before_share:
         stats["kept"] = False
         share = before_share
         positions, tri = unfitted, unflipped
     stats["intersections_after"] = share
+    if not triangle_mesh:
+        return GeometryResult(mesh.with_vertices(positions), stats)
     out = PolygonMesh(positions, tri.reshape(-1), np.arange(0, 3 * len(tri) + 1, 3))
     return GeometryResult(out, stats)

@@ -33,8 +33,13 @@ ROW_KEYS = ("shape_id", "method", "category", "status", "seconds")
 #: Display names of methods, in table order (unknown methods follow, as given).
 METHOD_LABELS = {
     "ours": "Ours",
+    "ours_s4": "Ours (samples=4)",
+    "ours_raw": "Ours (raw)",
+    "ours_paper": "Ours (paper: raw, start=noise)",
+    "ours_gt": "Ours (target = GT count)",
     "psr": "PSR",
     "psr_star": "PSR*",
+    "psr_star_gt": "PSR* (GT count)",
     "bpa": "BPA",
     "gt": "GT (resampled)",
 }

@@ -56,7 +56,7 @@ DUPLICATE_TOLERANCE = 1e-4
 DEFAULT_VERTICES = 200
 
 #: Input points the geometry stage fits to at most (a fixed subset of larger clouds).
-MAX_FIT_POINTS = 20_000
+MAX_FIT_POINTS = 4096
 
 
 #: The manifest ``decode`` keys that are :class:`~spacemesh.decode.DecodeOptions` fields.
