@@ -45,6 +45,9 @@ def test_model_metadata(http, generator):
     assert meta["limits"]["max_points"] == 5000 and meta["limits"]["min_points"] == 16
     assert meta["limits"]["max_upload_bytes"] == 2_000_000
     assert meta["limits"]["max_vertices"] == generator.spec.max_vertices
+    assert meta["sampler"] == {"sampler": generator.spec.method, "default_steps": 8,
+                               "timesteps": 64, "start": generator.spec.start,
+                               "start_time": generator.spec.start_time}
     assert {"ply", "xyz", "pts", "txt", "npy", "npz", "obj"} <= set(meta["input_formats"]["upload"])
     assert set(meta["output_formats"]) == {"glb", "gltf", "obj", "ply", "off", "json"}
     assert meta["data"]["source"] == "toy"  # the training data card from the manifest

@@ -62,7 +62,10 @@ class FitOptions:
     plane_weight : float
         ``w_q``, the tangent-plane quadric (sharp features); 0 turns it off.
     plane_neighbours : int
-        Points in each vertex's quadric.
+        Nearest points considered for each vertex's quadric.
+    plane_reach : float
+        Their Gaussian weights fall off over this fraction of the vertex's mean edge
+        length.
     spring_weight : float
         ``w_s`` (every term is a mean of squared lengths, so weights are scale-free).
     damping : float
@@ -75,7 +78,8 @@ class FitOptions:
     data_weight: float = 1.0
     face_weight: float = 1.0
     plane_weight: float = 1.0
-    plane_neighbours: int = 8
+    plane_neighbours: int = 24
+    plane_reach: float = 0.5
     spring_weight: float = 1e-3
     damping: float = 1e-3
     face_samples: int = 4
@@ -162,6 +166,15 @@ def _point_rows(columns: IntArray, weights: FloatArray, n_vertices: int) -> sp.c
     return sp.csr_matrix((weights.ravel(), (rows, columns.ravel())), shape=(m, n_vertices))
 
 
+def _vertex_reach(positions: FloatArray, edges: IntArray) -> FloatArray:
+    """``(N,)`` mean length of each vertex's edges (the mean over all for none)."""
+    length = np.linalg.norm(positions[edges[:, 0]] - positions[edges[:, 1]], axis=1)
+    total = np.bincount(edges.reshape(-1), np.repeat(length, 2), len(positions))
+    count = np.bincount(edges.reshape(-1), minlength=len(positions))
+    fallback = float(length.mean()) if len(length) else 1.0
+    return np.where(count > 0, total / np.maximum(count, 1), fallback)
+
+
 def _edges(triangles: IntArray) -> IntArray:
     pairs = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
     return np.unique(np.sort(pairs, axis=1), axis=0)
@@ -223,12 +236,14 @@ def fit_energy_terms(
         rhs += planes.T @ target * weight
         energy += weight * float(np.sum((planes @ x - target) ** 2))
 
-    # tangent planes of the points near each vertex (sharp features)
+    # tangent planes of the points near each vertex (sharp features): the points
+    # within about half the vertex's edge length, as dual contouring's cell
     if options.plane_weight > 0:
         k = int(min(options.plane_neighbours, len(points)))
         distance, near = tree.query(positions, k=k)
         distance, near = distance.reshape(n, k), near.reshape(n, k)
-        sigma2 = np.maximum(distance[:, -1:] ** 2, 1e-12)
+        reach = _vertex_reach(positions, edges) * options.plane_reach  # (N,)
+        sigma2 = np.maximum(reach, distance[:, 0] + 1e-12)[:, None] ** 2  # (N, 1)
         gauss = np.exp(-(distance ** 2) / sigma2)  # (N, k)
         gauss /= gauss.sum(axis=1, keepdims=True)
         cols = np.repeat(np.arange(n), k)[:, None]

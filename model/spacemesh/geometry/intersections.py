@@ -3,8 +3,9 @@ pymeshlab).
 
 Candidate pairs are triangles whose bounding spheres overlap (one KD-tree query);
 a vectorised plane-separation test drops the pairs where one triangle lies strictly on
-one side of the other's plane, and the few left are confirmed exactly with
-:func:`spacemesh.data.validate.triangles_intersect`. As in
+one side of the other's plane, and the rest are confirmed exactly by
+:func:`triangle_pairs_intersect`, the vectorised form of
+:func:`spacemesh.data.validate.triangles_intersect` (a test holds the two together). As in
 :func:`spacemesh.metrics.quality.self_intersecting_faces`, pairs that share corners are
 shrunk slightly first, so that a shared edge or corner does not count, and triangles of
 the same polygon face are never compared.
@@ -15,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from spacemesh.data.validate import triangles_intersect, triangles_of
+from spacemesh.data.validate import triangles_of
 from spacemesh.mesh import PolygonMesh
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
@@ -43,6 +44,83 @@ def _separated(ta: FloatArray, tb: FloatArray, eps: float) -> BoolArray:
         out |= np.all(side > eps, axis=1) | np.all(side < -eps, axis=1)
         out |= length[:, 0] == 0  # a degenerate triangle intersects nothing
     return out
+
+
+def _unit_normals(t: FloatArray) -> tuple[FloatArray, BoolArray]:
+    normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])  # (M, 3)
+    length = np.linalg.norm(normal, axis=1, keepdims=True)
+    return normal / np.where(length > 0, length, 1.0), length[:, 0] > 0
+
+
+def _segments_hit(p0: FloatArray, p1: FloatArray, t: FloatArray, normal: FloatArray,
+                  eps: float) -> BoolArray:
+    """``(M,)`` whether segments ``p0 - p1`` cross triangles ``t`` (M, 3, 3) away from
+    their plane (a segment in the plane is left to the coplanar test)."""
+    s0 = np.einsum("md,md->m", p0 - t[:, 0], normal)
+    s1 = np.einsum("md,md->m", p1 - t[:, 0], normal)
+    apart = ((s0 > eps) & (s1 > eps)) | ((s0 < -eps) & (s1 < -eps))
+    flat = np.abs(s0 - s1) <= eps
+    step = np.where(flat, 1.0, s0 - s1)
+    x = p0 + (s0 / step)[:, None] * (p1 - p0)  # (M, 3) where the segment meets the plane
+    inside = np.ones(len(p0), dtype=bool)
+    for k in range(3):
+        u, w = t[:, k], t[:, (k + 1) % 3]
+        inward = np.cross(normal, w - u)
+        inward /= np.maximum(np.linalg.norm(inward, axis=1, keepdims=True), 1e-300)
+        inside &= np.einsum("md,md->m", x - u, inward) >= -eps
+    return ~apart & ~flat & inside
+
+
+def _coplanar_overlap(ta: FloatArray, tb: FloatArray, normal: FloatArray, eps: float
+                      ) -> BoolArray:
+    """``(M,)`` separating-axis test of coplanar triangle pairs in their plane."""
+    axis = np.argmax(np.abs(normal), axis=1)  # (M,)
+    keep = np.array([[1, 2], [0, 2], [0, 1]])[axis]  # (M, 2)
+    rows = np.arange(len(ta))[:, None, None]
+    a2 = ta[rows, np.arange(3)[None, :, None], keep[:, None, :]]  # (M, 3, 2)
+    b2 = tb[rows, np.arange(3)[None, :, None], keep[:, None, :]]
+    overlap = np.ones(len(ta), dtype=bool)
+    for poly in (a2, b2):
+        for k in range(3):
+            edge = poly[:, (k + 1) % 3] - poly[:, k]
+            n = np.stack([-edge[:, 1], edge[:, 0]], axis=1)
+            length = np.linalg.norm(n, axis=1, keepdims=True)
+            n = n / np.where(length > 0, length, 1.0)
+            pa, pb = np.einsum("mkd,md->mk", a2, n), np.einsum("mkd,md->mk", b2, n)
+            apart = (pa.max(axis=1) < pb.min(axis=1) - eps) | (
+                pb.max(axis=1) < pa.min(axis=1) - eps)
+            overlap &= ~(apart & (length[:, 0] > 0))
+    return overlap
+
+
+def triangle_pairs_intersect(ta: FloatArray, tb: FloatArray, eps: float = 1e-9) -> BoolArray:
+    """:func:`spacemesh.data.validate.triangles_intersect` for many pairs at once.
+
+    Parameters
+    ----------
+    ta, tb : (M, 3, 3) float
+        Corner positions of the pairs (pairs that share corners: shrink them first).
+    eps : float
+        Distance below which touching counts as intersecting.
+
+    Returns
+    -------
+    (M,) bool
+    """
+    ta, tb = np.asarray(ta, dtype=np.float64), np.asarray(tb, dtype=np.float64)
+    na, good_a = _unit_normals(ta)
+    nb, good_b = _unit_normals(tb)
+    da = np.einsum("mkd,md->mk", tb - ta[:, None, 0], na)  # b's corners from a's plane
+    db = np.einsum("mkd,md->mk", ta - tb[:, None, 0], nb)
+    apart = (np.all(da > eps, axis=1) | np.all(da < -eps, axis=1)
+             | np.all(db > eps, axis=1) | np.all(db < -eps, axis=1))
+    coplanar = np.all(np.abs(da) <= eps, axis=1) & np.all(np.abs(db) <= eps, axis=1)
+    crossing = np.zeros(len(ta), dtype=bool)
+    for s, t, normal in ((ta, tb, nb), (tb, ta, na)):
+        for k in range(3):
+            crossing |= _segments_hit(s[:, k], s[:, (k + 1) % 3], t, normal, eps)
+    out = np.where(coplanar, _coplanar_overlap(ta, tb, na, eps), crossing)
+    return out & ~apart & good_a & good_b
 
 
 def intersecting_triangles(vertices: FloatArray, triangles: IntArray,
@@ -90,11 +168,9 @@ def intersecting_triangles(vertices: FloatArray, triangles: IntArray,
     ta = np.where(shared[:, None, None], _shrunk(ta, SHRINK), ta)
     tb = np.where(shared[:, None, None], _shrunk(tb, SHRINK), tb)
     maybe = np.flatnonzero(~_separated(ta, tb, eps))
-    for k in maybe.tolist():
-        if hit[i[k]] and hit[j[k]]:
-            continue
-        if triangles_intersect(ta[k], tb[k], eps):
-            hit[i[k]] = hit[j[k]] = True
+    crossing = maybe[triangle_pairs_intersect(ta[maybe], tb[maybe], eps)]
+    hit[i[crossing]] = True
+    hit[j[crossing]] = True
     return hit
 
 

@@ -26,7 +26,7 @@ MAX_SAMPLES = 16
 #: Fewest vertices a mesh may be asked for (a tetrahedron).
 MIN_TARGET_VERTICES = 4
 #: Most vertices a mesh may be asked for.
-MAX_TARGET_VERTICES = 4096
+MAX_TARGET_VERTICES = 10_000
 #: The vertex start a release records in ``manifest["sampler"]``: farthest-point
 #: samples of the input, not denoised (the shipped denoiser moves good vertices away
 #: from the surface; docs/RESULTS.md), 200 of them unless the request sets a target.

@@ -1,0 +1,202 @@
+"""spacemesh.geometry: farthest points, the vertex fit, sharp features, splits, the
+self-intersection test and the fit report."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from spacemesh.data.sampling import sample_surface
+from spacemesh.examples import cube_quads, icosphere
+from spacemesh.geometry import (
+    FitOptions,
+    GeometryOptions,
+    farthest_point_sampling,
+    fit_report,
+    fit_vertices,
+    refine_geometry,
+)
+from spacemesh.geometry.fitting import barycentric, estimate_point_normals
+from spacemesh.geometry.intersections import intersecting_triangles, self_intersecting_faces
+from spacemesh.geometry.stage import split_longest_edges
+from spacemesh.mesh import PolygonMesh
+from spacemesh.topology import check_topology
+
+
+def _triangles(mesh: PolygonMesh) -> np.ndarray:
+    return mesh.face_indices.reshape(-1, 3)
+
+
+def _mesh(positions, triangles) -> PolygonMesh:
+    triangles = np.asarray(triangles).reshape(-1, 3)
+    return PolygonMesh(np.asarray(positions, float), triangles.reshape(-1),
+                       np.arange(0, 3 * len(triangles) + 1, 3))
+
+
+def test_farthest_points_are_distinct_spread_and_seeded():
+    points = np.random.default_rng(0).random((2000, 3))
+    a = farthest_point_sampling(points, 100, seed=0)
+    assert len(set(a.tolist())) == 100
+    assert np.array_equal(a, farthest_point_sampling(points, 100, seed=0))
+    assert not np.array_equal(a, farthest_point_sampling(points, 100, seed=1))
+    random = np.random.default_rng(1).choice(2000, 100, replace=False)
+
+    def gap(index):
+        d = np.linalg.norm(points[index][:, None] - points[index][None], axis=2)
+        return np.min(d + np.eye(len(index)) * 9)
+
+    assert gap(a) > 2 * gap(random)  # spread: the closest pair is far apart
+    assert len(farthest_point_sampling(points[:5], 100)) == 5
+    assert len(farthest_point_sampling(points, 0)) == 0
+
+
+def test_barycentric_coordinates_rebuild_the_point():
+    rng = np.random.default_rng(2)
+    corners = rng.normal(size=(50, 3, 3))
+    weights = rng.dirichlet([1, 1, 1], size=50)
+    points = np.einsum("mk,mkd->md", weights, corners)
+    assert np.allclose(barycentric(points, corners), weights, atol=1e-9)
+
+
+def test_the_fit_brings_a_shrunk_sphere_back_to_its_points():
+    sphere = icosphere(2)
+    unit = sphere.vertices / np.linalg.norm(sphere.vertices, axis=1, keepdims=True)
+    points, _ = sample_surface(sphere.with_vertices(unit), 3000, np.random.default_rng(0))
+    moved, energies = fit_vertices(unit * 0.8, _triangles(sphere), points)
+    radius = np.linalg.norm(moved, axis=1)
+    assert np.abs(radius - 1).max() < 0.03 and np.abs(0.8 - 1) > 0.15
+    assert energies[-1] < 0.05 * energies[0]
+
+
+def test_tangent_planes_put_vertices_on_the_corners():
+    """A rounded cube's vertices near the corners go onto the corners when the
+    tangent-plane quadric is on, not without it."""
+    cube = cube_quads(2.0).with_vertices(cube_quads(2.0).vertices - 1.0)
+    points, normals = sample_surface(cube, 6000, np.random.default_rng(1))
+    sphere = icosphere(3)
+    start = sphere.vertices / np.linalg.norm(sphere.vertices, axis=1, keepdims=True) * 1.5
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+
+    def corner_error(options):
+        moved, _ = fit_vertices(start, _triangles(sphere), points, normals, options)
+        gap = np.linalg.norm(moved[None] - corners[:, None], axis=2).min(axis=1)
+        return gap.max()
+
+    with_planes = corner_error(FitOptions(iterations=12))
+    without = corner_error(FitOptions(iterations=12, plane_weight=0.0))
+    assert with_planes < 0.6 * without
+
+
+def test_flat_regions_stay_flat():
+    """Points on a plane: vertices on it stay on it (the quadric holds the normal
+    direction only), and move little within it."""
+    grid = np.stack(np.meshgrid(np.linspace(0, 1, 6), np.linspace(0, 1, 6)), -1).reshape(-1, 2)
+    positions = np.c_[grid, np.zeros(len(grid))]
+    triangles = [(i * 6 + j, i * 6 + j + 1, (i + 1) * 6 + j) for i in range(5) for j in range(5)]
+    triangles += [(i * 6 + j + 1, (i + 1) * 6 + j + 1, (i + 1) * 6 + j)
+                  for i in range(5) for j in range(5)]
+    rng = np.random.default_rng(3)
+    points = np.c_[rng.random((2000, 2)), np.zeros(2000)]
+    moved, _ = fit_vertices(positions, np.asarray(triangles), points)
+    assert np.abs(moved[:, 2]).max() < 1e-9
+    assert np.linalg.norm(moved - positions, axis=1).max() < 0.1
+
+
+def test_point_normals_are_the_planes_of_the_neighbourhoods():
+    rng = np.random.default_rng(4)
+    points = np.c_[rng.random((500, 2)), 0.3 * np.ones(500)]
+    assert np.allclose(np.abs(estimate_point_normals(points)[:, 2]), 1.0)
+
+
+def test_splits_reach_the_count_and_keep_the_manifold():
+    sphere = icosphere(1)
+    for target in (sphere.n_vertices, 50, 97, 300):
+        positions, triangles = split_longest_edges(sphere.vertices, _triangles(sphere), target)
+        mesh = _mesh(positions, triangles)
+        assert mesh.n_vertices == max(target, sphere.n_vertices)
+        assert check_topology(mesh).is_closed_oriented_manifold
+
+
+def test_intersections_match_the_pymeshlab_confirmed_metric():
+    pytest.importorskip("pymeshlab")
+    from spacemesh.metrics.quality import self_intersecting_faces as metric
+
+    a, b = icosphere(2), icosphere(2)
+    both = _mesh(np.concatenate([a.vertices, b.vertices + [0.8, 0.1, 0.0]]),
+                 np.concatenate([_triangles(a), _triangles(b) + a.n_vertices]))
+    folded = a.with_vertices(a.vertices.copy())
+    folded.vertices[0] *= -0.2  # a vertex pushed through the opposite side
+    for mesh in (a, both, folded, cube_quads()):
+        ours = self_intersecting_faces(mesh)
+        assert np.array_equal(ours, metric(mesh)), mesh
+    assert self_intersecting_faces(both).any() and not self_intersecting_faces(a).any()
+
+
+def test_the_vectorised_pair_test_agrees_with_the_reference():
+    from spacemesh.data.validate import triangles_intersect
+    from spacemesh.geometry.intersections import triangle_pairs_intersect
+
+    rng = np.random.default_rng(7)
+    ta = rng.normal(size=(400, 3, 3))
+    tb = ta + rng.normal(scale=0.7, size=(400, 3, 3))
+    flat = rng.normal(size=(200, 3, 3))
+    flat[..., 2] = 0.0  # coplanar pairs, overlapping or not
+    ta = np.concatenate([ta, flat[:100]])
+    tb = np.concatenate([tb, flat[100:] * 0.5])
+    ours = triangle_pairs_intersect(ta, tb)
+    reference = [triangles_intersect(a, b) for a, b in zip(ta, tb, strict=True)]
+    assert ours.tolist() == reference
+    assert 0.1 < ours.mean() < 0.9  # both answers are exercised
+
+
+def test_coplanar_neighbours_are_not_intersections():
+    grid = np.stack(np.meshgrid(np.linspace(0, 1, 5), np.linspace(0, 1, 5)), -1).reshape(-1, 2)
+    positions = np.c_[grid, np.zeros(len(grid))]
+    triangles = [(i * 5 + j, i * 5 + j + 1, (i + 1) * 5 + j) for i in range(4) for j in range(4)]
+    triangles += [(i * 5 + j + 1, (i + 1) * 5 + j + 1, (i + 1) * 5 + j)
+                  for i in range(4) for j in range(4)]
+    assert not intersecting_triangles(positions, np.asarray(triangles)).any()
+    crossing = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0],
+                         [0.2, 0.2, -0.5], [0.3, 0.2, 0.5], [0.2, 0.3, 0.5]], float)
+    assert intersecting_triangles(crossing, np.array([[0, 1, 2], [3, 4, 5]])).all()
+
+
+def test_the_fit_report_measures_distances_coverage_and_components():
+    sphere = icosphere(3)
+    unit = sphere.with_vertices(sphere.vertices / np.linalg.norm(sphere.vertices, axis=1,
+                                                                 keepdims=True))
+    points, _ = sample_surface(unit, 3000, np.random.default_rng(5))
+    good = fit_report(unit, points)
+    assert good.points_to_mesh_mean < 0.01 and good.coverage > 0.95
+    assert good.components == 1 and good.self_intersections == 0.0
+    assert good.diagonal == pytest.approx(np.linalg.norm(np.ptp(points, axis=0)))
+    small = fit_report(unit.with_vertices(unit.vertices * 0.8), points)
+    assert small.points_to_mesh_mean == pytest.approx(0.2, abs=0.01)
+    assert small.coverage < 0.05 and small.score > 10 * good.score
+    assert small.points_to_mesh_mean_rel == pytest.approx(
+        small.points_to_mesh_mean / small.diagonal)
+    two = _mesh(np.concatenate([unit.vertices, unit.vertices + 5]),
+                np.concatenate([_triangles(unit), _triangles(unit) + unit.n_vertices]))
+    assert fit_report(two, points).components == 2
+    empty = fit_report(PolygonMesh.empty(), points)
+    assert np.isnan(empty.score) and empty.coverage == 0.0
+    scaled = fit_report(unit.with_vertices(unit.vertices * 10), points * 10)
+    assert scaled.mesh_to_points_mean_rel == pytest.approx(good.mesh_to_points_mean_rel,
+                                                           rel=1e-6)
+
+
+def test_the_stage_fits_a_coarse_decode_and_keeps_it_valid():
+    sphere = icosphere(1)
+    unit = sphere.vertices / np.linalg.norm(sphere.vertices, axis=1, keepdims=True)
+    truth = icosphere(4)
+    truth = truth.with_vertices(truth.vertices / np.linalg.norm(truth.vertices, axis=1,
+                                                                keepdims=True) * [2, 1, 1])
+    points, _ = sample_surface(truth, 4000, np.random.default_rng(6))
+    coarse = sphere.with_vertices(unit * [1.6, 0.8, 0.8])
+    result = refine_geometry(coarse, points, None, GeometryOptions(), target_vertices=120)
+    assert result.mesh.n_vertices == 120 and result.stats["n_split"] == 120 - 42
+    assert check_topology(result.mesh).is_closed_oriented_manifold
+    assert fit_report(result.mesh, points).score < 0.5 * fit_report(coarse, points).score
+    assert result.stats["intersections_after"] <= result.stats["intersections_before"]
+    untouched = refine_geometry(coarse, np.full((10, 3), np.nan))
+    assert untouched.mesh is coarse and not untouched.stats["kept"]
