@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Point cloud in, mesh out, with curl: upload examples/points.ply, get mesh.glb back.
-# The mesh's statistics come back as X-SpaceMesh-* headers; errors as problem+json.
+# The mesh's statistics, its fit report (X-SpaceMesh-Fit-*) and the options used come
+# back as X-SpaceMesh-* headers; errors as problem+json. More options: &start=points
+# &target_vertices=500 &samples=4 &raw=true (docs/SERVICE.md).
 # Run from the repository root:  bash examples/curl_generate.sh [POINTS]
 set -euo pipefail
 URL="${SPACEMESH_URL:-http://localhost:8000}"

@@ -31,4 +31,5 @@ with grpc.insecure_channel(target) as channel:
         sys.exit(f"{error.code().name}: {error.details()} [{problem.get('problem-type')}]")
 Path("mesh.glb").write_bytes(reply.mesh)
 print(f"mesh.glb: {reply.stats.vertices} vertices, {reply.stats.faces} faces, "
-      f"closed={reply.stats.closed}, seed {reply.seed}, model {reply.model_name}")
+      f"closed={reply.stats.closed}, seed {reply.seed}, model {reply.model_name}, "
+      f"start {reply.start}, fit coverage {reply.stats.fit.coverage:.3f}")

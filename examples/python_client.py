@@ -21,3 +21,9 @@ s = mesh.stats
 print(f"mesh.obj: {len(mesh.vertices)} vertices, {len(mesh.faces)} faces "
       f"(sizes {s.face_degrees}), closed={s.closed}, oriented={s.oriented}, "
       f"genus {s.genus}, seed {mesh.seed}")
+# How well it fits the points (the same report over REST and gRPC); more options:
+# client.generate(points, start="points", target_vertices=500, samples=4, raw=False)
+fit = s.fit or {}
+print(f"fit: mean distance points->mesh {fit.get('points_to_mesh_mean_rel')} and "
+      f"mesh->points {fit.get('mesh_to_points_mean_rel')} of the diagonal, "
+      f"coverage {fit.get('coverage')}")

@@ -21,7 +21,14 @@ import httpx
 from spacemesh_client._formats import MEDIA_TYPES
 from spacemesh_client._inputs import Arrays, Upload
 from spacemesh_client.errors import ClientTimeout, ConnectionFailed, error_from_http
-from spacemesh_client.mesh import HEADER_PREFIX, Mesh, MeshStats, repair_summary
+from spacemesh_client.mesh import (
+    HEADER_PREFIX,
+    Mesh,
+    MeshStats,
+    repair_summary,
+    sample_scores_from_text,
+)
+from spacemesh_client.options import options_from_headers, query_params
 
 _FORMAT_OF_MEDIA = {v: k for k, v in MEDIA_TYPES.items()}
 #: The model ``model_info()`` asks for when the server does not list its models.
@@ -65,15 +72,15 @@ class Call:
         return out
 
 
-def _options(fmt: str | None, seed: int | None, steps: int | None) -> dict[str, Any]:
-    return {k: v for k, v in (("format", fmt), ("seed", seed), ("steps", steps))
-            if v is not None}
+def _params(fmt: str | None, options: Mapping[str, Any]) -> dict[str, Any]:
+    return {**({"format": fmt} if fmt is not None else {}), **query_params(options)}
 
 
-def generate_request(source: Upload | Arrays, fmt: str | None, seed: int | None,
-                     steps: int | None) -> Call:
-    """``POST /generate``: a multipart upload, or JSON points; options in the query."""
-    params = _options(fmt, seed, steps)
+def generate_request(source: Upload | Arrays, fmt: str | None,
+                     options: Mapping[str, Any]) -> Call:
+    """``POST /generate``: a multipart upload, or JSON points; the format and the generate
+    options (:data:`~spacemesh_client.options.GENERATE_OPTIONS`) in the query."""
+    params = _params(fmt, options)
     if isinstance(source, Upload):
         files = {"file": (source.filename, source.data, "application/octet-stream")}
         return Call("POST", "/generate", params, files=files)
@@ -87,12 +94,12 @@ def generate_request(source: Upload | Arrays, fmt: str | None, seed: int | None,
                 headers={"content-type": "application/json"})
 
 
-def repair_request(mesh: Upload, region: Mapping[str, Any], fmt: str | None, seed: int | None,
-                   steps: int | None, weld: bool = False) -> Call:
+def repair_request(mesh: Upload, region: Mapping[str, Any], fmt: str | None,
+                   options: Mapping[str, Any], weld: bool = False) -> Call:
     """``POST /repair``: the mesh as multipart field ``file``, the region as field
-    ``region`` (JSON); ``weld=true`` in the query when asked for."""
+    ``region`` (JSON); options and ``weld=true`` (when asked for) in the query."""
     files = {"file": (mesh.filename, mesh.data, "application/octet-stream")}
-    params = _options(fmt, seed, steps)
+    params = _params(fmt, options)
     if weld:
         params["weld"] = "true"
     return Call("POST", "/repair", params, files=files,
@@ -145,6 +152,8 @@ def mesh_from_response(response: httpx.Response, fmt: str | None) -> Mesh:
         timings=_timings(headers.get("server-timing", "")),
         batch_size=_int(headers.get(HEADER_PREFIX + "batch-size")) or 0,
         repair=_repair(headers.get(HEADER_PREFIX + "repair")),
+        options=options_from_headers(headers),
+        sample_scores=sample_scores_from_text(headers.get(HEADER_PREFIX + "sample-scores", "")),
     )
 
 
@@ -201,14 +210,14 @@ class HttpTransport:
         with translate(self.url):
             return check(self.http.request(**call.kwargs()))
 
-    def generate(self, source: Upload | Arrays, fmt: str | None, seed: int | None,
-                 steps: int | None, progress: Any = None) -> Mesh:
-        call = generate_request(source, fmt, seed, steps)
+    def generate(self, source: Upload | Arrays, fmt: str | None,
+                 options: Mapping[str, Any], progress: Any = None) -> Mesh:
+        call = generate_request(source, fmt, options)
         return mesh_from_response(self.send(call), fmt)
 
     def repair(self, mesh: Upload, region: Mapping[str, Any], fmt: str | None,
-               seed: int | None, steps: int | None, weld: bool = False) -> Mesh:
-        call = repair_request(mesh, region, fmt, seed, steps, weld)
+               options: Mapping[str, Any], weld: bool = False) -> Mesh:
+        call = repair_request(mesh, region, fmt, options, weld)
         return mesh_from_response(self.send(call), fmt)
 
     def health(self) -> Health:
@@ -240,14 +249,14 @@ class AsyncHttpTransport:
         with translate(self.url):
             return check(await self.http.request(**call.kwargs()))
 
-    async def generate(self, source: Upload | Arrays, fmt: str | None, seed: int | None,
-                       steps: int | None, progress: Any = None) -> Mesh:
-        call = generate_request(source, fmt, seed, steps)
+    async def generate(self, source: Upload | Arrays, fmt: str | None,
+                       options: Mapping[str, Any], progress: Any = None) -> Mesh:
+        call = generate_request(source, fmt, options)
         return mesh_from_response(await self.send(call), fmt)
 
     async def repair(self, mesh: Upload, region: Mapping[str, Any], fmt: str | None,
-                     seed: int | None, steps: int | None, weld: bool = False) -> Mesh:
-        call = repair_request(mesh, region, fmt, seed, steps, weld)
+                     options: Mapping[str, Any], weld: bool = False) -> Mesh:
+        call = repair_request(mesh, region, fmt, options, weld)
         return mesh_from_response(await self.send(call), fmt)
 
     async def health(self) -> Health:

@@ -3,6 +3,8 @@
 ::
 
     spacemesh-client generate points.ply -o mesh.glb --url http://localhost:8000 --seed 7
+    spacemesh-client generate points.ply -o mesh.ply --start points --target-vertices 500 \
+        --samples 4
     spacemesh-client repair mesh.obj -o fixed.obj --faces 3,4,10-20
     spacemesh-client repair scan.glb -o fixed.glb --sphere 0,0,1,0.3 --weld
     spacemesh-client health
@@ -36,6 +38,7 @@ from spacemesh_client.errors import (
     SpaceMeshError,
 )
 from spacemesh_client.mesh import Mesh
+from spacemesh_client.options import GENERATE_OPTIONS, OPTION_NAMES, REPAIR_OPTION_NAMES
 from spacemesh_client.retry import RetryPolicy
 
 PROG = "spacemesh-client"
@@ -123,7 +126,9 @@ def _check_output(output: Path) -> None:
 def _summary(mesh: Mesh, output: Path, seconds: float) -> dict[str, Any]:
     summary = {"output": str(output), "format": mesh.format, "seed": mesh.seed,
                "steps": mesh.steps, "model": mesh.model, "seconds": round(seconds, 3),
-               **mesh.stats.to_dict()}
+               **mesh.stats.to_dict(), "options": mesh.options}
+    if mesh.sample_scores:
+        summary["sample_scores"] = [list(item) for item in mesh.sample_scores]
     if mesh.repair is not None:
         summary["repair"] = {k: ({str(d): c for d, c in v.items()} if isinstance(v, dict)
                                  else v) for k, v in mesh.repair.items()}
@@ -148,7 +153,20 @@ def _report(mesh: Mesh, output: Path, seconds: float, as_json: bool) -> None:
             repaired += f", {r['welded_vertices']} vertices welded"
     print(f"{output}: {s.vertices} vertices, {s.faces} faces ({degrees}), {shape}, "
           f"genus {s.genus}{repaired}; seed {mesh.seed}, {mesh.steps} steps, {mesh.model} "
-          f"({seconds:.2f} s)")
+          f"({seconds:.2f} s){_fit_line(mesh)}")
+
+
+def _fit_line(mesh: Mesh) -> str:
+    """``; fit: points->mesh 0.012, mesh->points 0.010 of the diagonal, coverage 91%``."""
+    fit = mesh.stats.fit
+    if not fit:
+        return ""
+    line = (f"; fit: points->mesh {fit.get('points_to_mesh_mean_rel', float('nan')):.4g}, "
+            f"mesh->points {fit.get('mesh_to_points_mean_rel', float('nan')):.4g} of the "
+            f"diagonal, coverage {100 * fit.get('coverage', float('nan')):.0f}%")
+    if len(mesh.sample_scores) > 1:
+        line += f", best of {len(mesh.sample_scores)} seeds"
+    return line
 
 
 def _save(mesh: Mesh, output: Path) -> None:
@@ -175,7 +193,8 @@ def cmd_generate(args: argparse.Namespace) -> None:
     fmt = _output_format(output, args.format)
     started = time.perf_counter()
     with _client(args) as client:
-        mesh = client.generate(source, format=fmt, seed=args.seed, steps=args.steps)
+        mesh = client.generate(source, format=fmt,
+                               **{o.name: getattr(args, o.name) for o in GENERATE_OPTIONS})
     _save(mesh, output)
     _report(mesh, output, time.perf_counter() - started, args.json)
 
@@ -190,8 +209,8 @@ def cmd_repair(args: argparse.Namespace) -> None:
     fmt = _output_format(output, args.format)
     started = time.perf_counter()
     with _client(args) as client:
-        mesh = client.repair(source, region, format=fmt, seed=args.seed, steps=args.steps,
-                             weld=args.weld)
+        mesh = client.repair(source, region, format=fmt, weld=args.weld,
+                             **{name: getattr(args, name) for name in REPAIR_OPTION_NAMES})
     _save(mesh, output)
     _report(mesh, output, time.perf_counter() - started, args.json)
 
@@ -238,6 +257,21 @@ def _attach_signed_values(argv: Sequence[str]) -> list[str]:
     return out
 
 
+def _add_option_flags(parser: argparse.ArgumentParser, names: Sequence[str]) -> None:
+    """A flag per generate option of ``names`` (``--start-time`` for ``start_time``;
+    unset: None, the server's default)."""
+    group = parser.add_argument_group("generate options")
+    for option in GENERATE_OPTIONS:
+        if option.name not in names:
+            continue
+        if option.kind is bool:
+            group.add_argument(option.flag, dest=option.name, action="store_const",
+                               const=True, default=None, help=option.help)
+        else:
+            group.add_argument(option.flag, dest=option.name, type=option.kind,
+                               help=option.help)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (every command takes the connection options)."""
     common = argparse.ArgumentParser(add_help=False)
@@ -255,8 +289,6 @@ def build_parser() -> argparse.ArgumentParser:
                          ", or any trimesh writes)")
     options.add_argument("--format", choices=sorted(MEDIA_TYPES),
                          help="format to ask the server for (default: the output's extension)")
-    options.add_argument("--seed", type=int, help="random seed (the same seed, the same mesh)")
-    options.add_argument("--steps", type=int, help="sampler steps (default: the model's)")
     options.add_argument("--json", action="store_true", help="print a JSON summary")
 
     parser = _Parser(prog=PROG, description="Client of the SpaceMesh service: "
@@ -267,11 +299,13 @@ def build_parser() -> argparse.ArgumentParser:
     gen = commands.add_parser("generate", parents=[options, common],
                               help="generate a mesh from a point cloud file")
     gen.add_argument("input", help="point cloud (PLY, XYZ, PTS, TXT, NPY, NPZ, OBJ, ...)")
+    _add_option_flags(gen, OPTION_NAMES)
     gen.set_defaults(run=cmd_generate)
 
     rep = commands.add_parser("repair", parents=[options, common],
                               help="regenerate a region of a mesh")
     rep.add_argument("mesh", help="mesh file (OBJ, PLY, OFF, STL, GLB, glTF)")
+    _add_option_flags(rep, REPAIR_OPTION_NAMES)
     region = rep.add_argument_group("region (exactly one)")
     region.add_argument("--faces", help="face indices, e.g. 3,4,10-20")
     region.add_argument("--vertices", help="vertex indices: every face using one of them")

@@ -31,6 +31,7 @@ from spacemesh_client._inputs import (
 )
 from spacemesh_client.errors import ConnectionFailed, SpaceMeshError
 from spacemesh_client.mesh import Mesh
+from spacemesh_client.options import chosen
 from spacemesh_client.retry import DEFAULT_RETRY, RetryPolicy
 
 #: Where a client connects unless told otherwise (``SPACEMESH_URL`` in the CLI).
@@ -127,7 +128,10 @@ class Client(_Options):
 
     def generate(self, points: PointsLike, *, normals: Any = None,
                  format: str | None = DEFAULT_FORMAT, seed: int | None = None,
-                 steps: int | None = None, filename: str | None = None,
+                 steps: int | None = None, sampler: str | None = None,
+                 start: str | None = None, start_time: float | None = None,
+                 target_vertices: int | None = None, samples: int | None = None,
+                 raw: bool | None = None, filename: str | None = None,
                  progress: ProgressFn | None = None) -> Mesh:
         """Point cloud in, oriented manifold polygon mesh out.
 
@@ -143,10 +147,27 @@ class Client(_Options):
             ``ply`` (default here: polygons and exact coordinates), ``glb``, ``gltf``,
             ``obj``, ``off`` or ``json``; None for the server's default (GLB).
         seed : int, optional
-            The same input, seed and steps give the same mesh; the server picks one
+            The same input, seed and options give the same mesh; the server picks one
             when None (and reports it as ``Mesh.seed``).
         steps : int, optional
             Sampler steps (the model's default when None).
+        sampler : {"ddim", "ddpm"}, optional
+            The model's default when None.
+        start : {"noise", "points"}, optional
+            Where the vertices start: ``noise`` (the paper's diffusion) or ``points``
+            (chosen on the input by farthest-point sampling, noised to ``start_time``
+            and denoised from there); the model's default when None.
+        start_time : float, optional
+            With ``start="points"`` only: the fraction of the diffusion (0..1) where it
+            begins; 0 uses the chosen points as they are.
+        target_vertices : int, optional
+            Vertices of the mesh (within 10%), 4..4096; needs ``start="points"``.
+        samples : int, optional
+            Generate seeds ``seed .. seed + samples - 1`` (1..16) and return the mesh
+            that fits the points best (``Mesh.seed`` is its seed, ``Mesh.sample_scores``
+            every seed's score).
+        raw : bool, optional
+            The networks' mesh without the geometry stage.
         filename : str, optional
             Name sent with bytes (its extension picks the format).
         progress : callable, optional
@@ -155,20 +176,27 @@ class Client(_Options):
         Returns
         -------
         Mesh
+            ``Mesh.stats.fit`` says how well it fits the points, ``Mesh.options`` which
+            options the server used.
 
         Raises
         ------
         SpaceMeshError
-            A subclass per problem type (:mod:`spacemesh_client.errors`).
+            A subclass per problem type (:mod:`spacemesh_client.errors`); an option out
+            of range raises :class:`~spacemesh_client.errors.InvalidOption` (422).
         """
         _no_progress_over_rest(progress, self.url)
         source = points_input(points, normals, filename)
+        options = chosen(seed=seed, steps=steps, sampler=sampler, start=start,
+                         start_time=start_time, target_vertices=target_vertices,
+                         samples=samples, raw=raw)
         return self._retrying(
-            lambda: self._transport.generate(source, format, seed, steps, progress))
+            lambda: self._transport.generate(source, format, options, progress))
 
     def repair(self, mesh: MeshLike, region: RegionLike, *, format: str | None = DEFAULT_FORMAT,
                seed: int | None = None, steps: int | None = None,
-               filename: str | None = None, weld: bool = False) -> Mesh:
+               sampler: str | None = None, filename: str | None = None,
+               weld: bool = False) -> Mesh:
         """Regenerate a region of a mesh; faces outside it stay unchanged.
 
         Parameters
@@ -182,7 +210,7 @@ class Client(_Options):
             ``{"sphere": {"center": [x, y, z], "radius": r}}``,
             ``{"box": {"min": [x, y, z], "max": [x, y, z]}}`` (mesh coordinates), or
             face indices; the same over REST and gRPC.
-        format, seed, steps, filename
+        format, seed, steps, sampler, filename
             As for :meth:`generate`.
         weld : bool
             Ask the server to merge vertices at exactly equal positions before the repair
@@ -208,8 +236,9 @@ class Client(_Options):
         """
         upload = mesh_input(mesh, filename)
         shape = region_input(region)
+        options = chosen(seed=seed, steps=steps, sampler=sampler)
         return self._retrying(
-            lambda: self._transport.repair(upload, shape, format, seed, steps, weld))
+            lambda: self._transport.repair(upload, shape, format, options, weld))
 
     def health(self) -> Health:
         """Liveness and readiness (not retried; a refused connection raises
@@ -299,23 +328,30 @@ class AsyncClient(_Options):
 
     async def generate(self, points: PointsLike, *, normals: Any = None,
                        format: str | None = DEFAULT_FORMAT, seed: int | None = None,
-                       steps: int | None = None, filename: str | None = None,
+                       steps: int | None = None, sampler: str | None = None,
+                       start: str | None = None, start_time: float | None = None,
+                       target_vertices: int | None = None, samples: int | None = None,
+                       raw: bool | None = None, filename: str | None = None,
                        progress: ProgressFn | None = None) -> Mesh:
         """See :meth:`Client.generate`."""
         _no_progress_over_rest(progress, self.url)
         source = points_input(points, normals, filename)
+        options = chosen(seed=seed, steps=steps, sampler=sampler, start=start,
+                         start_time=start_time, target_vertices=target_vertices,
+                         samples=samples, raw=raw)
         return await self._retrying(
-            lambda: self._transport.generate(source, format, seed, steps, progress))
+            lambda: self._transport.generate(source, format, options, progress))
 
     async def repair(self, mesh: MeshLike, region: RegionLike, *,
                      format: str | None = DEFAULT_FORMAT, seed: int | None = None,
-                     steps: int | None = None, filename: str | None = None,
-                     weld: bool = False) -> Mesh:
+                     steps: int | None = None, sampler: str | None = None,
+                     filename: str | None = None, weld: bool = False) -> Mesh:
         """See :meth:`Client.repair`."""
         upload = mesh_input(mesh, filename)
         shape = region_input(region)
+        options = chosen(seed=seed, steps=steps, sampler=sampler)
         return await self._retrying(
-            lambda: self._transport.repair(upload, shape, format, seed, steps, weld))
+            lambda: self._transport.repair(upload, shape, format, options, weld))
 
     async def health(self) -> Health:
         """See :meth:`Client.health`."""

@@ -10,8 +10,8 @@ The classes are grouped by what a caller can do about them::
 
     SpaceMeshError
     ├── InvalidRequest          fix the request (400, 404, 405, 413, 415, 422)
-    │   ├── MalformedInput, InvalidParameter, UnsupportedFormat, PayloadTooLarge,
-    │   │   TooManyPoints, TooFewPoints, NonFinite, DegenerateGeometry,
+    │   ├── MalformedInput, InvalidParameter, InvalidOption, UnsupportedFormat,
+    │   │   PayloadTooLarge, TooManyPoints, TooFewPoints, NonFinite, DegenerateGeometry,
     │   │   InvalidNormals, NormalsRequired, NotFound (ModelNotFound), MethodNotAllowed
     │   └── RegionError         a repair region the server cannot use
     │       └── EmptyRegion, WholeMeshRegion, InvalidRegion, DefectsOutsideRegion,
@@ -115,9 +115,16 @@ class MalformedInput(InvalidRequest):
 
 
 class InvalidParameter(InvalidRequest):
-    """A request parameter is invalid (400): ``format``, ``seed``, ``steps``..."""
+    """A request parameter is invalid (400): ``format``, ``weld``..."""
 
     slug = "invalid-parameter"
+
+
+class InvalidOption(InvalidRequest):
+    """A generate option is invalid (422): ``start``, ``samples``, ``target_vertices``...;
+    ``extra["option"]`` names it."""
+
+    slug = "invalid-option"
 
 
 class NotFound(InvalidRequest):
@@ -401,6 +408,7 @@ __all__ = [
     "EmptyRegion",
     "InternalError",
     "InvalidNormals",
+    "InvalidOption",
     "InvalidOutput",
     "InvalidParameter",
     "InvalidRegion",

@@ -29,6 +29,7 @@ from spacemesh_client.errors import (
     TYPE_BASE,
     ClientTimeout,
     ConnectionFailed,
+    InvalidOption,
     InvalidRegion,
     PayloadTooLarge,
     SpaceMeshError,
@@ -37,6 +38,7 @@ from spacemesh_client.errors import (
     parse_retry_after,
 )
 from spacemesh_client.mesh import Mesh, MeshStats, repair_summary
+from spacemesh_client.options import OPTION_NAMES, REPAIR_OPTION_NAMES
 
 #: URL schemes of this transport.
 SCHEMES = ("grpc", "grpcs")
@@ -76,10 +78,28 @@ def _health_status(data: bytes) -> int:
 
 
 # ---------------------------------------------------------------------- messages
-def generate_message(pb: Any, source: Upload | Arrays, fmt: str | None, seed: int | None,
-                     steps: int | None) -> Any:
-    """A ``GenerateRequest``."""
-    request = pb.GenerateRequest(format=fmt or "")
+def _set_options(request: Any, options: Mapping[str, Any]) -> Any:
+    """``request`` with each option set on the field of its name.
+
+    Raises
+    ------
+    InvalidOption
+        What the server would answer (422 ``invalid-option``) for a value the field
+        cannot hold (``raw="maybe"``, ``samples=2.5``); ranges are checked by the server.
+    """
+    for name, value in options.items():
+        try:
+            setattr(request, name, value)
+        except (TypeError, ValueError) as error:
+            raise InvalidOption(f"{name} cannot be {value!r} ({error})", status=422,
+                                extra={"option": name}) from None
+    return request
+
+
+def generate_message(pb: Any, source: Upload | Arrays, fmt: str | None,
+                     options: Mapping[str, Any]) -> Any:
+    """A ``GenerateRequest`` (each option in the field of its name)."""
+    request = _set_options(pb.GenerateRequest(format=fmt or ""), options)
     if isinstance(source, Upload):
         request.file.data = source.data
         request.file.filename = source.filename
@@ -87,10 +107,6 @@ def generate_message(pb: Any, source: Upload | Arrays, fmt: str | None, seed: in
         request.points.xyz.extend(source.points.reshape(-1).tolist())
         if source.normals is not None:
             request.points.normals.extend(source.normals.reshape(-1).tolist())
-    if seed is not None:
-        request.seed = seed
-    if steps is not None:
-        request.steps = steps
     return request
 
 
@@ -130,15 +146,25 @@ def _index(value: Any) -> int:
 
 
 def repair_message(pb: Any, mesh: Upload, region: Mapping[str, Any], fmt: str | None,
-                   seed: int | None, steps: int | None, weld: bool = False) -> Any:
+                   options: Mapping[str, Any], weld: bool = False) -> Any:
     """A ``RepairRequest`` (the region in any of its four forms)."""
-    request = pb.RepairRequest(mesh=mesh.data, filename=mesh.filename, format=fmt or "",
-                               region=region_message(pb, region), weld=bool(weld))
-    if seed is not None:
-        request.seed = seed
-    if steps is not None:
-        request.steps = steps
-    return request
+    return _set_options(pb.RepairRequest(mesh=mesh.data, filename=mesh.filename,
+                                         format=fmt or "", region=region_message(pb, region),
+                                         weld=bool(weld)), options)
+
+
+def _fields(message: Any) -> dict[str, Any]:
+    """A flat message's fields by name (maps as dicts)."""
+    return {f.name: (dict(value) if hasattr(value, "items") else value)
+            for f in message.DESCRIPTOR.fields for value in [getattr(message, f.name)]}
+
+
+def _reported_options(reply: Any) -> dict[str, Any]:
+    """The resolved options of a ``MeshReply`` (a repair's: seed, steps, sampler)."""
+    names = REPAIR_OPTION_NAMES if reply.HasField("repair") else OPTION_NAMES
+    fields = reply.DESCRIPTOR.fields_by_name
+    return {name: getattr(reply, name) for name in names
+            if not fields[name].has_presence or reply.HasField(name)}
 
 
 def mesh_from_reply(reply: Any) -> Mesh:
@@ -147,16 +173,14 @@ def mesh_from_reply(reply: Any) -> Mesh:
     stats = MeshStats(vertices=s.vertices, faces=s.faces, edges=s.edges,
                       face_degrees=dict(sorted(s.face_degrees.items())), manifold=s.manifold,
                       closed=s.closed, oriented=s.oriented, components=s.components,
-                      genus=s.genus)
-    repair = None
-    if reply.HasField("repair"):
-        repair = repair_summary({f.name: (dict(value) if hasattr(value, "items") else value)
-                                 for f in reply.repair.DESCRIPTOR.fields
-                                 for value in [getattr(reply.repair, f.name)]})
+                      genus=s.genus, fit=_fields(s.fit) if s.HasField("fit") else None)
+    repair = repair_summary(_fields(reply.repair)) if reply.HasField("repair") else None
     return Mesh(data=reply.mesh, format=reply.format, stats=stats, seed=reply.seed,
                 steps=reply.steps, sampler=reply.sampler,
                 model=f"{reply.model_name}/{reply.model_version}",
-                timings=dict(reply.timings), batch_size=reply.batch_size, repair=repair)
+                timings=dict(reply.timings), batch_size=reply.batch_size, repair=repair,
+                options=_reported_options(reply),
+                sample_scores=[(x.seed, x.score) for x in reply.sample_scores])
 
 
 def _extensions(text: str | None) -> dict[str, Any]:
@@ -234,9 +258,9 @@ class GrpcTransport(_Base):
             _HEALTH_CHECK, request_serializer=lambda _: b"",
             response_deserializer=_health_status)
 
-    def generate(self, source: Upload | Arrays, fmt: str | None, seed: int | None,
-                 steps: int | None, progress: ProgressFn | None = None) -> Mesh:
-        request = generate_message(self.pb, source, fmt, seed, steps)
+    def generate(self, source: Upload | Arrays, fmt: str | None, options: Mapping[str, Any],
+                 progress: ProgressFn | None = None) -> Mesh:
+        request = generate_message(self.pb, source, fmt, options)
         try:
             if progress is None:
                 return mesh_from_reply(self.stub.Generate(request, **self._call_kwargs()))
@@ -250,8 +274,8 @@ class GrpcTransport(_Base):
         raise ConnectionFailed(f"{self.target}: the stream ended without a mesh")
 
     def repair(self, mesh: Upload, region: Mapping[str, Any], fmt: str | None,
-               seed: int | None, steps: int | None, weld: bool = False) -> Mesh:
-        request = repair_message(self.pb, mesh, region, fmt, seed, steps, weld)
+               options: Mapping[str, Any], weld: bool = False) -> Mesh:
+        request = repair_message(self.pb, mesh, region, fmt, options, weld)
         try:
             return mesh_from_reply(self.stub.Repair(request, **self._call_kwargs()))
         except self.grpc.RpcError as error:
@@ -286,9 +310,10 @@ class AsyncGrpcTransport(_Base):
             _HEALTH_CHECK, request_serializer=lambda _: b"",
             response_deserializer=_health_status)
 
-    async def generate(self, source: Upload | Arrays, fmt: str | None, seed: int | None,
-                       steps: int | None, progress: ProgressFn | None = None) -> Mesh:
-        request = generate_message(self.pb, source, fmt, seed, steps)
+    async def generate(self, source: Upload | Arrays, fmt: str | None,
+                       options: Mapping[str, Any],
+                       progress: ProgressFn | None = None) -> Mesh:
+        request = generate_message(self.pb, source, fmt, options)
         try:
             if progress is None:
                 return mesh_from_reply(await self.stub.Generate(request, **self._call_kwargs()))
@@ -302,8 +327,8 @@ class AsyncGrpcTransport(_Base):
         raise ConnectionFailed(f"{self.target}: the stream ended without a mesh")
 
     async def repair(self, mesh: Upload, region: Mapping[str, Any], fmt: str | None,
-                     seed: int | None, steps: int | None, weld: bool = False) -> Mesh:
-        request = repair_message(self.pb, mesh, region, fmt, seed, steps, weld)
+                     options: Mapping[str, Any], weld: bool = False) -> Mesh:
+        request = repair_message(self.pb, mesh, region, fmt, options, weld)
         try:
             return mesh_from_reply(await self.stub.Repair(request, **self._call_kwargs()))
         except self.grpc.RpcError as error:

@@ -17,10 +17,44 @@ from spacemesh_client._formats import MEDIA_TYPES, WRITTEN, FormatError, read_me
 
 #: Prefix of the statistics headers of ``POST /generate``.
 HEADER_PREFIX = "x-spacemesh-"
+#: Prefix of the fit report's headers.
+FIT_PREFIX = HEADER_PREFIX + "fit-"
 
 
 def _bool(text: str) -> bool:
     return text.strip().lower() == "true"
+
+
+def _number(text: str) -> float | int:
+    """``"5"`` -> 5, ``"0.25"`` -> 0.25 (``nan`` and ``inf`` as floats)."""
+    text = text.strip()
+    return int(text) if text.lstrip("-").isdigit() else float(text)
+
+
+def fit_from_headers(headers: Mapping[str, str]) -> dict[str, float | int] | None:
+    """The fit report from the ``X-SpaceMesh-Fit-*`` headers (None without any):
+    ``X-SpaceMesh-Fit-Points-To-Mesh-Mean`` -> ``points_to_mesh_mean``."""
+    fit = {}
+    for key, value in headers.items():
+        key = key.lower()
+        if key.startswith(FIT_PREFIX):
+            try:
+                fit[key[len(FIT_PREFIX):].replace("-", "_")] = _number(value)
+            except ValueError:
+                continue
+    return fit or None
+
+
+def sample_scores_from_text(text: str) -> list[tuple[int, float]]:
+    """``5:0.0099,6:0.0098`` (``X-SpaceMesh-Sample-Scores``) -> [(5, 0.0099), (6, 0.0098)]."""
+    scores = []
+    for item in text.split(","):
+        seed, _, score = item.partition(":")
+        try:
+            scores.append((int(seed), float(score)))
+        except ValueError:
+            continue
+    return scores
 
 
 @dataclass(frozen=True)
@@ -36,6 +70,13 @@ class MeshStats:
     components : int
     genus : int
         Sum of the components' genera.
+    fit : dict or None
+        How well a generated mesh fits the uploaded points (None for a repair), by the
+        names of the service's fit report: ``points_to_mesh_mean``, ``points_to_mesh_p95``,
+        ``mesh_to_points_mean``, ``mesh_to_points_p95`` (input units), the same with
+        ``_rel`` (fractions of the bounding-box diagonal), ``coverage`` (share of points
+        within 1% of the diagonal from the mesh), ``components``,
+        ``self_intersections`` (share of faces), ``diagonal`` and ``n_points``.
     """
 
     vertices: int
@@ -47,6 +88,7 @@ class MeshStats:
     oriented: bool
     components: int
     genus: int
+    fit: dict[str, float | int] | None = None
 
     @classmethod
     def from_headers(cls, headers: Mapping[str, str]) -> MeshStats:
@@ -66,13 +108,17 @@ class MeshStats:
             edges=int(get("edges") or 0), face_degrees=degrees,
             manifold=_bool(get("manifold")), closed=_bool(get("closed")),
             oriented=_bool(get("oriented")), components=int(get("components") or 0),
-            genus=int(get("genus") or 0),
+            genus=int(get("genus") or 0), fit=fit_from_headers(h),
         )
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain data (face degrees keyed by strings, as in the JSON format)."""
-        return {**self.__dict__, "face_degrees": {str(k): v for k, v in
+        """Plain data (face degrees keyed by strings, as in the JSON format; no ``fit``
+        when there is none)."""
+        data = {**self.__dict__, "face_degrees": {str(k): v for k, v in
                                                   sorted(self.face_degrees.items())}}
+        if self.fit is None:
+            del data["fit"]
+        return data
 
 
 def repair_summary(data: Mapping[str, Any]) -> dict[str, Any]:
@@ -114,6 +160,14 @@ class Mesh:
         Seconds per server stage (``queue``, ``encoder``, ``sampler``...).
     batch_size : int
         How many requests shared this one's inference batch.
+    options : dict
+        The resolved generate options the server reports, by name (``seed``, ``steps``,
+        ``sampler``, ``start``, ``start_time``, ``samples``, ``raw``, and
+        ``target_vertices`` when it was asked for; a repair: ``seed``, ``steps``,
+        ``sampler``).
+    sample_scores : list of (int, float)
+        ``(seed, fit score)`` of every seed tried (``samples``; lower is better): the
+        mesh is the lowest score's, :attr:`seed`.
     repair : dict or None
         What a repair did (None for a generated mesh): ``requested_faces``,
         ``region_faces`` (after growth), ``grown_faces``, ``removed_vertices``,
@@ -135,6 +189,8 @@ class Mesh:
     timings: dict[str, float] = field(default_factory=dict, repr=False)
     batch_size: int = 0
     repair: dict[str, Any] | None = field(default=None, repr=False)
+    options: dict[str, Any] = field(default_factory=dict, repr=False)
+    sample_scores: list[tuple[int, float]] = field(default_factory=list, repr=False)
 
     @property
     def media_type(self) -> str:

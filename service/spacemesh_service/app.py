@@ -20,7 +20,7 @@ from collections.abc import AsyncIterator, Awaitable, Callable
 from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
-from fastapi import FastAPI, Query, Request
+from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.openapi.utils import get_openapi
 from fastapi.responses import JSONResponse, Response
@@ -33,8 +33,10 @@ from spacemesh_service.inputs import read_json, read_upload
 from spacemesh_service.metrics import CONTENT_TYPE as METRICS_CONTENT_TYPE
 from spacemesh_service.openapi import (
     DESCRIPTION,
+    GENERATE_PARAMETERS,
     GENERATE_REQUEST_BODY,
     GENERATE_RESPONSES,
+    REPAIR_PARAMETERS,
     REPAIR_REQUEST_BODY,
     REPAIR_RESPONSES,
     LiveModel,
@@ -44,7 +46,11 @@ from spacemesh_service.openapi import (
     add_schemas,
     problem_response,
 )
-from spacemesh_service.outputs import OUTPUT_FORMATS
+from spacemesh_service.options import (
+    GENERATE_ROUTE_OPTIONS,
+    REPAIR_ROUTE_OPTIONS,
+    RequestOption,
+)
 from spacemesh_service.problems import Problem
 from spacemesh_service.settings import Settings
 
@@ -55,9 +61,6 @@ try:
 except PackageNotFoundError:  # pragma: no cover - running from a source tree
     SERVICE_VERSION = "0.0.0"
 
-_OPTION_NAMES = ("format", "seed", "steps")
-#: A repair's options (in the query or its form): those of a generation, and ``weld``.
-_REPAIR_OPTION_NAMES = (*_OPTION_NAMES, "weld")
 
 
 # ---------------------------------------------------------------------- errors
@@ -152,19 +155,31 @@ def _limited(request: Request, limit: int) -> Request:
     return Request(request.scope, limited_receive)
 
 
+def query_options(request: Request, table: tuple[RequestOption, ...]) -> dict[str, Any]:
+    """The options of ``table`` found in the query string (values as sent)."""
+    return {o.name: request.query_params[o.name] for o in table
+            if o.name in request.query_params}
+
+
+def _form_options(form: Any, table: tuple[RequestOption, ...]) -> dict[str, Any]:
+    """The options of ``table`` found in a multipart form (text fields)."""
+    return {o.name: form.get(o.name) for o in table if isinstance(form.get(o.name), str)}
+
+
 async def _read_request(request: Request, limit: int) -> tuple[ParseFn, dict[str, Any]]:
     """A parser of the request's point cloud, and the options found in a form."""
     content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
     body_request = _limited(request, limit)
     if content_type == "multipart/form-data":
-        form = await body_request.form(max_files=1, max_fields=len(_OPTION_NAMES) + 4)
+        form = await body_request.form(max_files=1,
+                                       max_fields=len(GENERATE_ROUTE_OPTIONS) + 4)
         try:
             upload = form.get("file")
             if not isinstance(upload, UploadFile):
                 raise Problem(P.MALFORMED_INPUT, "the multipart body has no file field 'file'")
             data = await upload.read()
             filename = upload.filename
-            options = {k: form.get(k) for k in _OPTION_NAMES if isinstance(form.get(k), str)}
+            options = _form_options(form, GENERATE_ROUTE_OPTIONS)
         finally:
             await form.close()
         return (lambda: (*read_upload(data, filename), {})), options
@@ -192,7 +207,7 @@ async def _read_repair_form(request: Request, limit: int
                       "multipart/form-data with the mesh in 'file' and the region (JSON) "
                       "in 'region'")
     form = await _limited(request, limit).form(max_files=2,
-                                               max_fields=len(_REPAIR_OPTION_NAMES) + 4)
+                                               max_fields=len(REPAIR_ROUTE_OPTIONS) + 4)
     try:
         upload = form.get("file")
         if not isinstance(upload, UploadFile):
@@ -204,8 +219,7 @@ async def _read_repair_form(request: Request, limit: int
                           'region as JSON, e.g. {"faces": [0, 1]})')
         region = await field.read() if isinstance(field, UploadFile) else field
         mesh = MeshUpload(await upload.read(), upload.filename)
-        options = {k: form.get(k) for k in _REPAIR_OPTION_NAMES
-                   if isinstance(form.get(k), str)}
+        options = _form_options(form, REPAIR_ROUTE_OPTIONS)
     finally:
         await form.close()
     return mesh, region, options
@@ -247,25 +261,19 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
 
     @app.post("/generate", tags=["generate"], response_class=Response,
               summary="Generate a mesh from a point cloud",
-              openapi_extra={"requestBody": GENERATE_REQUEST_BODY},
+              openapi_extra={"requestBody": GENERATE_REQUEST_BODY,
+                             "parameters": GENERATE_PARAMETERS},
               responses=GENERATE_RESPONSES)
-    async def generate(
-        request: Request,
-        format: str | None = Query(None, description=f"One of {', '.join(OUTPUT_FORMATS)} "
-                                   "(default glb).", examples=["obj"]),
-        seed: int | None = Query(None, description="Random seed (picked when absent).",
-                                 examples=[7]),
-        steps: int | None = Query(None, description="Sampler steps (the model's default "
-                                  "when absent).", examples=[25]),
-    ) -> Response:
+    async def generate(request: Request) -> Response:
         """Point cloud in, oriented manifold polygon mesh out.
 
         The body is a multipart upload (field `file`) or JSON `{"points": ...}`. Options
-        in the body take precedence over the query string.
+        in the body take precedence over the query string. A generate option out of
+        range answers 422 `invalid-option` naming it (`option`).
         """
         with engine.admit():
             parse, form_options = await _read_request(request, settings.max_upload_bytes)
-            options = {"format": format, "seed": seed, "steps": steps, **form_options}
+            options = {**query_options(request, GENERATE_ROUTE_OPTIONS), **form_options}
             reply = await engine.generate(parse, options)
         headers = reply.headers()
         headers["Content-Disposition"] = (
@@ -274,21 +282,10 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
 
     @app.post("/repair", tags=["repair"], response_class=Response,
               summary="Re-generate a region of a mesh",
-              openapi_extra={"requestBody": REPAIR_REQUEST_BODY},
+              openapi_extra={"requestBody": REPAIR_REQUEST_BODY,
+                             "parameters": REPAIR_PARAMETERS},
               responses=REPAIR_RESPONSES)
-    async def repair(
-        request: Request,
-        format: str | None = Query(None, description=f"One of {', '.join(OUTPUT_FORMATS)} "
-                                   "(default glb).", examples=["obj"]),
-        seed: int | None = Query(None, description="Random seed (picked when absent).",
-                                 examples=[7]),
-        steps: int | None = Query(None, description="Sampler steps (the model's default "
-                                  "when absent).", examples=[25]),
-        weld: bool | None = Query(None, description="Merge vertices at exactly equal "
-                                  "positions before the repair (meshes split at UV seams or "
-                                  "hard edges, e.g. GLB); default false. The output is the "
-                                  "welded mesh repaired.", examples=[True]),
-    ) -> Response:
+    async def repair(request: Request) -> Response:
         """A mesh and a region in; the region's vertices and faces generated again, every
         other face unchanged.
 
@@ -296,18 +293,18 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
         the region as JSON in `region`: `{"faces": [...]}`, `{"vertices": [...]}`,
         `{"sphere": {"center": [x, y, z], "radius": r}}` or
         `{"box": {"min": [x, y, z], "max": [x, y, z]}}` (mesh coordinates, indices into
-        the file's faces and vertices). Options as for `/generate`, and `weld`, in the
-        query or the form (the form wins). With `weld=true`, vertices at exactly equal
-        positions are merged first (vertex indices of the region stay the file's); the
-        output is the welded mesh repaired and `X-SpaceMesh-Welded-Vertices` says how
-        many vertices were merged away. A region the server cannot use answers 422 with
-        its kind as the problem type, before the request is queued.
+        the file's faces and vertices). Options `format`, `seed`, `steps`, `sampler` as
+        for `/generate`, and `weld`, in the query or the form (the form wins). With
+        `weld=true`, vertices at exactly equal positions are merged first (vertex indices
+        of the region stay the file's); the output is the welded mesh repaired and
+        `X-SpaceMesh-Welded-Vertices` says how many vertices were merged away. A region
+        the server cannot use answers 422 with its kind as the problem type, before the
+        request is queued.
         """
         with engine.admit():
             upload, region, form_options = await _read_repair_form(
                 request, settings.max_upload_bytes)
-            options = {"format": format, "seed": seed, "steps": steps, "weld": weld,
-                       **form_options}
+            options = {**query_options(request, REPAIR_ROUTE_OPTIONS), **form_options}
             reply = await engine.repair(upload, region, options)
         headers = reply.headers()
         headers["Content-Disposition"] = (

@@ -1,8 +1,9 @@
 """Dynamic batching: concurrent requests share one onnxruntime batch.
 
 Requests wait in a bounded queue. One worker task takes the oldest, waits up to
-``max_delay_s`` for more requests with the same sampler settings (steps and method), up
-to ``max_batch_size``, and runs them as one :meth:`MeshGenerator.generate_batch` call in
+``max_delay_s`` for more requests with the same batch key (the resolved sampler settings:
+steps, sampler, start and start time), up to ``max_batch_size``, and runs them as one
+:meth:`MeshGenerator.generate_batch` call in
 a dedicated inference thread (so the event loop never runs inference, and one batch runs
 at a time). Each request keeps its own seed, so batching never changes a mesh.
 
@@ -22,7 +23,7 @@ import collections
 import contextlib
 import logging
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Hashable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
@@ -71,21 +72,28 @@ class Outcome:
     queue_seconds: float
 
 
+def sampler_key(request: GenerateRequest) -> Hashable:
+    """The default batch key: the sampler settings of the request's options."""
+    o = request.options
+    return (o.steps, o.sampler, o.start, o.start_time)
+
+
 @dataclass(eq=False)
 class _Job:
     request: GenerateRequest | None
     future: asyncio.Future
     progress: ProgressFn | None
     call: SoloCall | None = None
+    batch_key: Hashable = None
     enqueued: float = field(default_factory=time.perf_counter)
     queue_seconds: float = 0.0
     cancelled: bool = False
 
     @property
-    def key(self) -> tuple:
+    def key(self) -> Hashable:
         if self.request is None:  # a call: batches with nothing
             return ("call", id(self))
-        return (self.request.steps, self.request.method)
+        return self.batch_key
 
 
 class Batcher:
@@ -140,14 +148,17 @@ class Batcher:
         batches = self.depth / self.max_batch_size + 1
         return max(1, int(batches * self._batch_seconds + 0.999))
 
-    async def submit(self, request: GenerateRequest, *,
+    async def submit(self, request: GenerateRequest, *, key: Hashable = None,
                      progress: ProgressFn | None = None) -> Outcome:
         """Queue a request and wait for its result.
 
         Parameters
         ----------
         request : GenerateRequest
-            With explicit ``steps`` and ``method`` (they decide which requests batch).
+            Passed to the generator unchanged.
+        key : hashable, optional
+            Requests batch only with requests of the same key (the engine gives the
+            resolved sampler settings); default :func:`sampler_key`.
         progress : callable, optional
             ``progress(done, total)``, called on the event loop after each sampler step.
 
@@ -159,7 +170,8 @@ class Batcher:
         ------
         QueueFull, ShuttingDown
         """
-        return await self._enqueue(request, None, progress)
+        return await self._enqueue(request, None, progress,
+                                   sampler_key(request) if key is None else key)
 
     async def submit_call(self, call: SoloCall, *,
                           progress: ProgressFn | None = None) -> Outcome:
@@ -187,12 +199,12 @@ class Batcher:
         return await self._enqueue(None, call, progress)
 
     async def _enqueue(self, request: GenerateRequest | None, call: SoloCall | None,
-                       progress: ProgressFn | None) -> Outcome:
+                       progress: ProgressFn | None, key: Hashable = None) -> Outcome:
         if self._closing:
             raise ShuttingDown
         if len(self._pending) >= self.queue_size:
             raise QueueFull
-        job = _Job(request, asyncio.get_running_loop().create_future(), progress, call)
+        job = _Job(request, asyncio.get_running_loop().create_future(), progress, call, key)
         self._open.add(job)
         job.future.add_done_callback(lambda _: self._open.discard(job))
         self._pending.append(job)

@@ -22,7 +22,7 @@ import contextlib
 import logging
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -30,26 +30,36 @@ import numpy as np
 from spacemesh.mesh import PolygonMesh
 from spacemesh.repair import RegionError, RepairPlan, plan_repair, repair_mesh
 from spacemesh.repair.region import Region
+from spacemesh.runtime.options import GenerateOptions, OptionError
 from spacemesh.runtime.pipeline import GenerateRequest, MeshGenerator
 from spacemesh_service import problems as P
 from spacemesh_service.batcher import Batcher, ProgressFn, QueueFull, ShuttingDown
 from spacemesh_service.inputs import (
     INPUT_FORMATS,
     MESH_FORMATS,
-    Options,
-    parse_options,
     read_mesh_upload,
     read_region,
     validate_cloud,
 )
 from spacemesh_service.metrics import Metrics
+from spacemesh_service.options import (
+    GENERATE_ROUTE_OPTIONS,
+    REPAIR_ROUTE_OPTIONS,
+    RequestOptions,
+    option_problem,
+    reported_options,
+    resolve_request,
+)
 from spacemesh_service.outputs import (
     MEDIA_TYPES,
     EncodedMesh,
     encode_mesh,
+    finite_or_none,
     repair_headers,
     repair_summary,
+    sample_scores_header,
     stats_headers,
+    value_headers,
 )
 from spacemesh_service.problems import Problem
 from spacemesh_service.settings import Settings
@@ -62,30 +72,58 @@ ParseFn = Callable[[], tuple[np.ndarray, "np.ndarray | None", str, dict[str, Any
 
 @dataclass(frozen=True)
 class Reply:
-    """A generated, validated and encoded mesh and how it was made."""
+    """A generated, validated and encoded mesh and how it was made.
+
+    Attributes
+    ----------
+    mesh : EncodedMesh
+        Its ``stats.fit`` is the fit report of a generated mesh.
+    options : dict
+        The resolved options, by public name
+        (:func:`~spacemesh_service.options.reported_options`).
+    model_name, model_version : str
+    timings : dict of str to float
+    batch_size : int
+    sample_scores : list of (int, float)
+        ``(seed, fit score)`` of every seed tried (a generated mesh).
+    repair : dict, optional
+        What a repair did (:func:`~spacemesh_service.outputs.repair_summary`); None for
+        a generated mesh.
+    """
 
     mesh: EncodedMesh
-    seed: int
-    steps: int
-    sampler: str
+    options: dict[str, Any]
     model_name: str
     model_version: str
     timings: dict[str, float]
     batch_size: int
-    #: What a repair did (:func:`~spacemesh_service.outputs.repair_summary`); None for
-    #: a generated mesh.
+    sample_scores: list[tuple[int, float]] = field(default_factory=list)
     repair: dict[str, Any] | None = None
 
+    @property
+    def seed(self) -> int:
+        """The seed of the mesh (with ``samples > 1``, the winner's)."""
+        return int(self.options["seed"])
+
+    @property
+    def steps(self) -> int:
+        return int(self.options["steps"])
+
+    @property
+    def sampler(self) -> str:
+        return str(self.options["sampler"])
+
     def headers(self) -> dict[str, str]:
-        """Response headers: ``X-SpaceMesh-*`` statistics, seed, steps, and Server-Timing
+        """Response headers: ``X-SpaceMesh-*`` statistics and fit report, one per
+        resolved option (seed, steps, sampler...), sample scores, and Server-Timing
         (and the repair's statistics)."""
         headers = stats_headers(self.mesh.stats)
         if self.repair is not None:
             headers.update(repair_headers(self.repair))
+        headers.update(value_headers(self.options))
+        if self.sample_scores:
+            headers["X-SpaceMesh-Sample-Scores"] = sample_scores_header(self.sample_scores)
         headers.update({
-            "X-SpaceMesh-Seed": str(self.seed),
-            "X-SpaceMesh-Steps": str(self.steps),
-            "X-SpaceMesh-Sampler": self.sampler,
             "X-SpaceMesh-Model": f"{self.model_name}/{self.model_version}",
             "X-SpaceMesh-Batch-Size": str(self.batch_size),
             "Server-Timing": ", ".join(f"{k};dur={v * 1000:.1f}"
@@ -109,7 +147,7 @@ class _RepairJob:
     mesh: PolygonMesh
     region: Region
     plan: RepairPlan
-    options: Options
+    options: RequestOptions
 
 
 def fibonacci_sphere(count: int) -> np.ndarray:
@@ -186,9 +224,9 @@ class Engine:
         spec = self.generator.spec
         points = fibonacci_sphere(max(spec.n_points, self.settings.min_points))
         normals = points.copy() if spec.normals else None
-        steps = min(self.default_steps, spec.schedule.timesteps)
+        options = GenerateOptions(steps=min(self.default_steps, spec.schedule.timesteps))
         started = time.perf_counter()
-        self.generator.generate_batch([GenerateRequest(points, normals, 0, steps)])
+        self.generator.generate_batch([GenerateRequest(points, normals, options)])
         log.info("warm-up inference took %.2f s", time.perf_counter() - started)
 
     def begin_drain(self) -> None:
@@ -258,8 +296,9 @@ class Engine:
             "input_formats": {"upload": list(INPUT_FORMATS), "json": ["points", "normals"],
                               "repair": list(MESH_FORMATS)},
             "output_formats": dict(MEDIA_TYPES),
-            "sampler": {"method": spec.method, "default_steps": self.default_steps,
-                        "timesteps": spec.schedule.timesteps},
+            "sampler": {"sampler": spec.method, "default_steps": self.default_steps,
+                        "timesteps": spec.schedule.timesteps, "start": spec.start,
+                        "start_time": spec.start_time},
             "encoder": {"n_points": spec.n_points, "normals": spec.normals},
             "data": manifest.get("data", {}),
             "metrics": manifest.get("metrics", {}),
@@ -277,10 +316,12 @@ class Engine:
                 "the model is loading")
             raise Problem(P.NOT_READY, detail, retry_after=1)
 
-    def _decode(self, parse: ParseFn, options: dict[str, Any]) -> tuple[Any, Options]:
+    def _decode(self, parse: ParseFn, options: dict[str, Any]
+                ) -> tuple[Any, RequestOptions]:
         points, normals, source, body_options = parse()
         merged = {**{k: v for k, v in options.items() if v is not None}, **body_options}
-        opts = parse_options(merged, self.settings, max_model_steps=self.max_steps)
+        opts = resolve_request(merged, GENERATE_ROUTE_OPTIONS, self.generator.spec,
+                               self.settings)
         cloud = validate_cloud(points, normals, self.settings, source=source,
                                needs_normals=self.generator.spec.normals)
         return cloud, opts
@@ -294,8 +335,10 @@ class Engine:
         parse : callable
             Reads the request body (in a worker thread); may raise :class:`Problem`.
         options : dict
-            ``format``, ``seed``, ``steps`` from the query string or form; options in a
-            JSON body (returned by ``parse``) take precedence.
+            Values of :data:`~spacemesh_service.options.GENERATE_ROUTE_OPTIONS` from the
+            query string, form or gRPC message (None: not given); options in a JSON body
+            (returned by ``parse``) take precedence. Resolved once
+            (:func:`~spacemesh_service.options.resolve_request`).
         progress : callable, optional
             ``progress(done, total)`` after each sampler step (on the event loop).
 
@@ -335,29 +378,32 @@ class Engine:
         cloud, opts = await asyncio.to_thread(self._decode, parse, options)
         decode_s = time.perf_counter() - started
         self.metrics.observe_stage("decode_input", decode_s)
-        spec = self.generator.spec
-        request = GenerateRequest(cloud.points, cloud.normals, seed=opts.seed,
-                                  steps=opts.steps or self.default_steps, method=spec.method)
-        outcome = await self._queued(self.batcher.submit(request, progress=progress),
-                                     decode_s)
+        request = GenerateRequest(cloud.points, cloud.normals, opts.resolved)
+        outcome = await self._queued(
+            self.batcher.submit(request, key=opts.batch_key, progress=progress), decode_s)
         result = outcome.result
         self.metrics.observe_stage("queue", outcome.queue_seconds)
         self.metrics.observe_stage("extraction", result.timings.get("extraction", 0.0))
-        info = {"seed": result.seed, "steps": result.steps, "sampler": result.method,
-                "model": {"name": self.model_name, "version": self.model_version}}
+        options = reported_options(result.options)
+        scores = [(int(seed), float(score)) for seed, score in result.sample_scores]
+        info = {**options, "model": {"name": self.model_name, "version": self.model_version},
+                "sample_scores": [{"seed": seed, "score": finite_or_none(score)}
+                                  for seed, score in scores]}
+        fit = result.fit.to_dict() if result.fit is not None else None
         timings = {"decode_input": decode_s, "queue": outcome.queue_seconds}
         timings.update({k: v for k, v in result.timings.items() if k != "total"})
         t0 = time.perf_counter()
         try:
-            encoded = await asyncio.to_thread(encode_mesh, result.mesh, opts.format, info)
+            encoded = await asyncio.to_thread(encode_mesh, result.mesh, opts.format, info, fit)
         except Problem as problem:  # no-surface: say how, so it can be replayed
-            problem.extra.update(seed=result.seed, steps=result.steps, timings=timings)
+            problem.extra.update(options=options, seed=result.seed, steps=result.steps,
+                                 timings=timings)
             raise
         timings["encode_output"] = time.perf_counter() - t0
         timings["total"] = time.perf_counter() - started
         self.metrics.observe_stage("encode_output", timings["encode_output"])
-        return Reply(encoded, result.seed, result.steps, result.method, self.model_name,
-                     self.model_version, timings, outcome.batch_size)
+        return Reply(encoded, options, self.model_name, self.model_version, timings,
+                     outcome.batch_size, sample_scores=scores)
 
     async def _queued(self, work: Any, spent: float) -> Any:
         """Await the batcher (``submit`` or ``submit_call``) within what is left of the
@@ -380,14 +426,16 @@ class Engine:
                           retry_after=1) from None
         except RegionError as error:  # pragma: no cover - planned before queueing
             raise P.region_problem(error) from None
+        except OptionError as error:  # pragma: no cover - resolved before queueing
+            raise option_problem(error) from None
         except ValueError as error:  # the pipeline's own input checks
             raise Problem(P.INVALID_PARAMETER, str(error)) from None
 
     # ------------------------------------------------------------------ repair
     def _decode_repair(self, upload: MeshUpload, region: Any,
                        options: dict[str, Any]) -> _RepairJob:
-        opts = parse_options({k: v for k, v in options.items() if v is not None},
-                             self.settings, max_model_steps=self.max_steps)
+        opts = resolve_request(options, REPAIR_ROUTE_OPTIONS, self.generator.spec,
+                               self.settings)
         shape = read_region(region)
         mesh, _ = read_mesh_upload(upload.data, upload.filename)
         try:
@@ -412,7 +460,8 @@ class Engine:
         region : str, bytes or dict
             The region's JSON text (REST) or JSON form (gRPC).
         options : dict
-            ``format``, ``seed``, ``steps``, ``weld`` (None: not given). With ``weld``
+            Values of :data:`~spacemesh_service.options.REPAIR_ROUTE_OPTIONS`: ``format``,
+            ``seed``, ``steps``, ``sampler``, ``weld`` (None: not given). With ``weld``
             the mesh's vertices at equal positions are merged before the cut (the
             region's vertex indices are the file's), and the output is the welded mesh
             repaired.
@@ -441,12 +490,12 @@ class Engine:
             raise
         decode_s = time.perf_counter() - started
         self.metrics.observe_repair_stage("decode_input", decode_s - job.plan.seconds)
-        spec, opts = self.generator.spec, job.options
-        steps = opts.steps or self.default_steps
+        opts = job.options
+        chosen = opts.resolved
 
         def run(report: ProgressFn) -> Any:  # in the inference thread
-            return repair_mesh(job.mesh, job.region, self.generator, seed=opts.seed,
-                               steps=steps, method=spec.method, progress=report,
+            return repair_mesh(job.mesh, job.region, self.generator, seed=chosen.seed,
+                               steps=chosen.steps, method=chosen.sampler, progress=report,
                                plan=job.plan, weld=opts.weld)
 
         outcome = await self._queued(self.batcher.submit_call(run, progress=progress),
@@ -454,8 +503,8 @@ class Engine:
         result = outcome.result
         stats = result.stats
         summary = repair_summary(stats)
-        info = {"seed": stats.seed, "steps": stats.steps, "sampler": stats.method,
-                "model": {"name": self.model_name, "version": self.model_version},
+        options = {"seed": stats.seed, "steps": stats.steps, "sampler": stats.method}
+        info = {**options, "model": {"name": self.model_name, "version": self.model_version},
                 "repair": summary}
         timings = {"decode_input": decode_s - job.plan.seconds, "queue": outcome.queue_seconds}
         timings.update({k: v for k, v in stats.timings.items() if k != "total"})
@@ -470,5 +519,5 @@ class Engine:
                 m.observe_repair_stage(stage, timings[stage])
         m.repairs.labels(stats.fallback).inc()
         m.repair_region_faces.observe(stats.region_faces)
-        return Reply(encoded, stats.seed, stats.steps, stats.method, self.model_name,
-                     self.model_version, timings, outcome.batch_size, repair=summary)
+        return Reply(encoded, options, self.model_name, self.model_version, timings,
+                     outcome.batch_size, repair=summary)

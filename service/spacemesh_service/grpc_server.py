@@ -16,6 +16,7 @@ import contextlib
 import logging
 import time
 from collections.abc import AsyncIterator
+from dataclasses import asdict
 from typing import Any
 
 import grpc
@@ -25,6 +26,8 @@ from grpc_health.v1.health import aio as health_aio
 from spacemesh_service import problems as P
 from spacemesh_service.engine import Engine, MeshUpload, ParseFn, Reply
 from spacemesh_service.inputs import points_from_flat, read_upload
+from spacemesh_service.options import GENERATE_ROUTE_OPTIONS, REPAIR_ROUTE_OPTIONS, grpc_values
+from spacemesh_service.outputs import MeshStats
 from spacemesh_service.pb import spacemesh_pb2 as pb
 from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
 from spacemesh_service.problems import Problem
@@ -46,17 +49,27 @@ def repair_stats_to_pb(summary: dict[str, Any]) -> pb.RepairStats:
     return pb.RepairStats(**values)
 
 
+def stats_to_pb(stats: MeshStats) -> pb.MeshStats:
+    """The gRPC form of a mesh's statistics (its fit report: the same field names)."""
+    values = asdict(stats)
+    fit = values.pop("fit")
+    message = pb.MeshStats(**values)
+    if fit is not None:
+        message.fit.CopyFrom(pb.FitReport(**fit))
+    return message
+
+
 def reply_to_pb(reply: Reply) -> pb.MeshReply:
-    """The gRPC form of an engine reply."""
-    s = reply.mesh.stats
-    stats = pb.MeshStats(vertices=s.vertices, faces=s.faces, edges=s.edges,
-                         face_degrees=s.face_degrees, manifold=s.manifold, closed=s.closed,
-                         oriented=s.oriented, components=s.components, genus=s.genus)
+    """The gRPC form of an engine reply (the resolved options: the fields of the same
+    names)."""
     message = pb.MeshReply(
         mesh=reply.mesh.body, format=reply.mesh.format, media_type=reply.mesh.media_type,
-        stats=stats, seed=reply.seed, steps=reply.steps, sampler=reply.sampler,
-        model_name=reply.model_name, model_version=reply.model_version,
-        timings=reply.timings, batch_size=reply.batch_size,
+        stats=stats_to_pb(reply.mesh.stats), model_name=reply.model_name,
+        model_version=reply.model_version, timings=reply.timings,
+        batch_size=reply.batch_size,
+        **{k: v for k, v in reply.options.items() if v is not None},
+        sample_scores=[pb.SampleScore(seed=seed, score=score)
+                       for seed, score in reply.sample_scores],
     )
     if reply.repair is not None:
         message.repair.CopyFrom(repair_stats_to_pb(reply.repair))
@@ -109,20 +122,6 @@ def repair_input(request: pb.RepairRequest, max_bytes: int) -> tuple[MeshUpload,
     return MeshUpload(request.mesh, request.filename or None), region
 
 
-def request_options(request: Any) -> dict[str, Any]:
-    """``format``, ``seed``, ``steps`` of a request (unset fields: None)."""
-    return {
-        "format": request.format or None,
-        "seed": request.seed if request.HasField("seed") else None,
-        "steps": request.steps if request.HasField("steps") else None,
-    }
-
-
-def repair_options(request: pb.RepairRequest) -> dict[str, Any]:
-    """``format``, ``seed``, ``steps`` and ``weld`` of a RepairRequest."""
-    return {**request_options(request), "weld": request.weld}
-
-
 class SpaceMeshServicer(pb_grpc.SpaceMeshServicer):
     """``spacemesh.v1.SpaceMesh`` over an :class:`Engine`."""
 
@@ -143,7 +142,8 @@ class SpaceMeshServicer(pb_grpc.SpaceMeshServicer):
         try:
             with self.engine.admit():
                 parse = request_parser(request, self.engine.settings.max_upload_bytes)
-                reply = await self.engine.generate(parse, request_options(request))
+                reply = await self.engine.generate(
+                    parse, grpc_values(request, GENERATE_ROUTE_OPTIONS))
             return reply_to_pb(reply)
         except Problem as problem:
             code = problem.kind.grpc_code
@@ -164,7 +164,7 @@ class SpaceMeshServicer(pb_grpc.SpaceMeshServicer):
             with self.engine.admit():
                 parse = request_parser(request, self.engine.settings.max_upload_bytes)
                 task = asyncio.ensure_future(self.engine.generate(
-                    parse, request_options(request),
+                    parse, grpc_values(request, GENERATE_ROUTE_OPTIONS),
                     progress=lambda done, total: events.put_nowait((done, total))))
                 while not task.done() or not events.empty():
                     getter = asyncio.ensure_future(events.get())
@@ -195,7 +195,8 @@ class SpaceMeshServicer(pb_grpc.SpaceMeshServicer):
         try:
             with self.engine.admit():
                 upload, region = repair_input(request, self.engine.settings.max_upload_bytes)
-                reply = await self.engine.repair(upload, region, repair_options(request))
+                reply = await self.engine.repair(
+                    upload, region, grpc_values(request, REPAIR_ROUTE_OPTIONS))
             return reply_to_pb(reply)
         except Problem as problem:
             code = problem.kind.grpc_code

@@ -6,7 +6,7 @@ same inputs. Every rejection is a :class:`~spacemesh_service.problems.Problem`:
 - unreadable file or JSON: 400 ``malformed-input``; unknown format: 415;
 - too many points: 413; too few, NaN/Inf, or degenerate geometry (all points identical,
   collinear or coplanar, from the singular values of the centred points): 422;
-- bad ``format``/``seed``/``steps``/``weld``: 400 ``invalid-parameter``.
+- request options are read and checked by :mod:`spacemesh_service.options`.
 
 Repair requests (:func:`read_mesh_upload`, :func:`read_region`): an unreadable mesh
 file, a file without faces, or a region that is not JSON: 400 ``malformed-input``;
@@ -17,7 +17,6 @@ NaN/Inf vertices: 422 ``non-finite``; a region that is JSON but not a region: 42
 from __future__ import annotations
 
 import json
-import secrets
 from dataclasses import dataclass
 from pathlib import PurePath
 from typing import Any
@@ -30,24 +29,17 @@ from spacemesh.io.points import SUPPORTED_POINTS_READ, load_points
 from spacemesh.mesh import PolygonMesh
 from spacemesh.repair.region import Region, RegionError, parse_region
 from spacemesh_service import problems as P
-from spacemesh_service.outputs import OUTPUT_FORMATS
+from spacemesh_service.options import GENERATE_ROUTE_OPTIONS
 from spacemesh_service.problems import Problem
 from spacemesh_service.settings import Settings
 
 #: Relative size of the smallest singular value (of the centred points, over the largest)
 #: below which a cloud counts as flat (and likewise for the middle one: a line).
 DEGENERACY_TOLERANCE = 1e-6
-#: Largest seed (seeds are int64 in the gRPC contract, and non-negative for numpy).
-MAX_SEED = 2**63 - 1
-#: Seeds picked by the server when a request gives none lie in ``[0, 2**31)``.
-RANDOM_SEED_BITS = 31
 #: Point-cloud upload formats (also reported by the model metadata).
 INPUT_FORMATS: tuple[str, ...] = SUPPORTED_POINTS_READ
 #: Mesh upload formats of a repair (also reported by the model metadata).
 MESH_FORMATS: tuple[str, ...] = SUPPORTED_MESH_READ
-#: Spellings of a boolean option (case-insensitive; those FastAPI reads in a query).
-TRUE_WORDS = ("true", "1", "yes", "on", "t", "y")
-FALSE_WORDS = ("false", "0", "no", "off", "f", "n")
 
 
 @dataclass(frozen=True)
@@ -65,93 +57,6 @@ class PointCloud:
     points: np.ndarray
     normals: np.ndarray | None
     source: str
-
-
-@dataclass(frozen=True)
-class Options:
-    """Validated request options.
-
-    Attributes
-    ----------
-    format : str
-        One of :data:`~spacemesh_service.outputs.OUTPUT_FORMATS`.
-    seed : int
-        The request's, or one picked at random.
-    steps : int or None
-        Sampler steps (None: the model's default).
-    weld : bool
-        Repair only: merge vertices at equal positions first (default False).
-    """
-
-    format: str
-    seed: int
-    steps: int | None
-    weld: bool = False
-
-
-def _int_option(name: str, value: Any, low: int, high: int) -> int | None:
-    if value is None or value == "":
-        return None
-    if isinstance(value, bool):
-        raise Problem(P.INVALID_PARAMETER, f"{name} must be an integer, not {value!r}",
-                      parameter=name)
-    try:
-        number = int(value) if not isinstance(value, float) or value.is_integer() else None
-    except (TypeError, ValueError):
-        number = None
-    if number is None:
-        raise Problem(P.INVALID_PARAMETER, f"{name} must be an integer, not {value!r}",
-                      parameter=name)
-    if not low <= number <= high:
-        raise Problem(P.INVALID_PARAMETER, f"{name} must be in {low}..{high}, not {number}",
-                      parameter=name)
-    return number
-
-
-def _bool_option(name: str, value: Any) -> bool:
-    """A boolean option: a bool, or one of :data:`TRUE_WORDS` / :data:`FALSE_WORDS`
-    (None or empty: False)."""
-    if value is None or isinstance(value, bool):
-        return bool(value)
-    word = str(value).strip().lower()
-    if word in ("", *FALSE_WORDS):
-        return False
-    if word in TRUE_WORDS:
-        return True
-    raise Problem(P.INVALID_PARAMETER, f"{name} must be true or false, not {value!r}",
-                  parameter=name)
-
-
-def parse_options(
-    raw: dict[str, Any], settings: Settings, *, max_model_steps: int
-) -> Options:
-    """Validate ``format``, ``seed``, ``steps`` and ``weld`` (strings or numbers).
-
-    Parameters
-    ----------
-    raw : dict
-        Option values as sent (missing or None: not given).
-    settings : Settings
-    max_model_steps : int
-        The model's timesteps (steps are capped by it and by ``settings.max_steps``).
-
-    Returns
-    -------
-    Options
-    """
-    fmt = raw.get("format")
-    fmt = "glb" if fmt is None or fmt == "" else str(fmt).strip().lower().lstrip(".")
-    if fmt not in OUTPUT_FORMATS:
-        raise Problem(P.INVALID_PARAMETER,
-                      f"format must be one of {', '.join(OUTPUT_FORMATS)}, not {fmt!r}",
-                      parameter="format")
-    seed = _int_option("seed", raw.get("seed"), 0, MAX_SEED)
-    if seed is None:
-        seed = secrets.randbits(RANDOM_SEED_BITS)
-    steps = _int_option("steps", raw.get("steps"), 1, min(settings.max_steps, max_model_steps))
-    if steps is None and settings.default_steps is not None:
-        steps = min(settings.default_steps, max_model_steps)
-    return Options(fmt, seed, steps, _bool_option("weld", raw.get("weld")))
 
 
 # ---------------------------------------------------------------------- reading
@@ -306,7 +211,8 @@ def read_json(body: bytes) -> tuple[np.ndarray, np.ndarray | None, dict[str, Any
     points : (P, 3) float64
     normals : (P, 3) float64 or None
     options : dict
-        ``format``, ``seed`` and ``steps`` when the body has them.
+        The options of :data:`~spacemesh_service.options.GENERATE_ROUTE_OPTIONS` the
+        body has.
     """
     try:
         data = json.loads(body)
@@ -314,12 +220,13 @@ def read_json(body: bytes) -> tuple[np.ndarray, np.ndarray | None, dict[str, Any
         raise Problem(P.MALFORMED_INPUT, f"the body is not valid JSON ({error})") from None
     if not isinstance(data, dict) or "points" not in data:
         raise Problem(P.MALFORMED_INPUT, "the JSON body must be an object with 'points'")
-    unknown = set(data) - {"points", "normals", "format", "seed", "steps"}
+    names = {o.name for o in GENERATE_ROUTE_OPTIONS}
+    unknown = set(data) - {"points", "normals"} - names
     if unknown:
         raise Problem(P.INVALID_PARAMETER, f"unknown JSON fields: {', '.join(sorted(unknown))}")
     points = _number_array(data["points"], "points")
     normals = None if data.get("normals") is None else _number_array(data["normals"], "normals")
-    options = {k: data[k] for k in ("format", "seed", "steps") if k in data}
+    options = {k: data[k] for k in names if k in data}
     return points, normals, options
 
 

@@ -1,25 +1,35 @@
 """The OpenAPI description of the REST API: schemas and examples (served at ``/docs``).
 
-``POST /generate`` and ``POST /repair`` read their bodies by hand (a multipart upload or
-JSON), so their request bodies, responses and headers are described here rather than
-inferred by FastAPI.
+``POST /generate`` and ``POST /repair`` read their bodies and options by hand (a
+multipart upload or JSON), so their parameters, request bodies, responses and headers are
+described here rather than inferred by FastAPI. Every option (query parameter, form and
+JSON field, reported header) comes from the table of :mod:`spacemesh_service.options`.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, create_model
 
+from spacemesh.geometry.report import FitReport
 from spacemesh_service import problems as P
-from spacemesh_service.outputs import HEADER_PREFIX, MEDIA_TYPES, OUTPUT_FORMATS
+from spacemesh_service.options import (
+    GENERATE_OPTIONS,
+    GENERATE_ROUTE_OPTIONS,
+    REPAIR_ROUTE_OPTIONS,
+    RequestOption,
+)
+from spacemesh_service.outputs import HEADER_PREFIX, MEDIA_TYPES, header_name
 
 DESCRIPTION = """\
 Point cloud in, oriented manifold polygon mesh out (SpaceMesh).
 
 * `POST /generate`: upload a point cloud (multipart field `file`: PLY, XYZ/PTS/TXT/CSV,
   NPY/NPZ, or the vertices of an OBJ/OFF/STL/GLB) or send JSON `{"points": [[x, y, z], ...]}`.
-  Options `format`, `seed`, `steps` as query parameters or form/JSON fields.
+  Options `format`, `seed`, `steps`, `sampler`, `start`, `start_time`,
+  `target_vertices`, `samples`, `raw` as query parameters or form/JSON fields; every
+  response reports how well the mesh fits the points (`X-SpaceMesh-Fit-*`).
 * `POST /repair`: upload a mesh (multipart field `file`: OBJ, OFF, PLY, STL, GLB, glTF) and
   a region as JSON (field `region`: `{"faces": [...]}`, `{"vertices": [...]}`,
   `{"sphere": {"center": [x, y, z], "radius": r}}` or `{"box": {"min": [...], "max": [...]}}`);
@@ -31,17 +41,29 @@ Point cloud in, oriented manifold polygon mesh out (SpaceMesh).
 _TETRA = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
 
 
-class PointsRequest(BaseModel):
-    """JSON body of ``POST /generate``."""
+def _option_fields(table: tuple[RequestOption, ...]) -> dict[str, Any]:
+    """pydantic fields (all optional) of the options of ``table``."""
+    return {o.name: (o.kind | None, Field(None, description=o.description)) for o in table}
 
+
+class _PointsBody(BaseModel):
     points: list[list[float]] = Field(
         description="Point positions, one [x, y, z] per point, any frame and scale.",
         examples=[_TETRA])
     normals: list[list[float]] | None = Field(
         None, description="Optional normals, one per point (used when the model reads them).")
-    format: str | None = Field(None, description=f"One of {', '.join(OUTPUT_FORMATS)}.")
-    seed: int | None = Field(None, ge=0, description="Random seed (picked when absent).")
-    steps: int | None = Field(None, ge=1, description="Sampler steps (model default).")
+
+
+#: JSON body of ``POST /generate``: points, normals and the route's options.
+PointsRequest = create_model("PointsRequest", __base__=_PointsBody,
+                             **_option_fields(GENERATE_ROUTE_OPTIONS))
+PointsRequest.__doc__ = "JSON body of ``POST /generate``."
+
+#: :class:`~spacemesh.geometry.report.FitReport` as JSON.
+FitReportModel = create_model(
+    "FitReportModel", **{f: (float | int | None, ...) for f in FitReport.__dataclass_fields__})
+FitReportModel.__doc__ = ("How well the mesh fits the uploaded points "
+                          "(`spacemesh.geometry.report.FitReport`).")
 
 
 class MeshStatsModel(BaseModel):
@@ -54,6 +76,13 @@ class MeshStatsModel(BaseModel):
     oriented: bool
     components: int
     genus: int
+    fit: FitReportModel | None = Field(None, description="The fit report (generated "
+                                       "meshes).")  # type: ignore[valid-type]
+
+
+class SampleScoreModel(BaseModel):
+    seed: int
+    score: float | None = Field(description="Fit score (lower is better).")
 
 
 class ModelRef(BaseModel):
@@ -61,19 +90,21 @@ class ModelRef(BaseModel):
     version: str
 
 
-class MeshJSON(BaseModel):
-    """The ``json`` output format."""
-
+class _MeshBody(BaseModel):
     vertices: list[list[float]]
     faces: list[list[int]] = Field(description="Polygons, counter-clockwise seen from outside.")
     stats: MeshStatsModel
-    seed: int
-    steps: int
-    sampler: str
     model: ModelRef
+    sample_scores: list[SampleScoreModel] | None = Field(
+        None, description="Every seed tried and its fit score (`POST /generate`).")
     repair: dict[str, Any] | None = Field(
         None, description="What the repair did (`POST /repair` only): the `X-SpaceMesh-Repair` "
         "header's object.")
+
+
+#: The ``json`` output format: the mesh, its statistics and the resolved options.
+MeshJSON = create_model("MeshJSON", __base__=_MeshBody, **_option_fields(GENERATE_OPTIONS))
+MeshJSON.__doc__ = "The ``json`` output format."
 
 
 class ProblemModel(BaseModel):
@@ -111,7 +142,8 @@ _MESH_EXAMPLE = {
     "stats": {"vertices": 4, "faces": 4, "edges": 6, "face_degrees": {"3": 4},
               "manifold": True, "closed": True, "oriented": True, "components": 1,
               "genus": 0},
-    "seed": 7, "steps": 50, "sampler": "ddim",
+    "seed": 7, "steps": 50, "sampler": "ddim", "start": "points", "start_time": 0.0,
+    "samples": 1, "raw": False, "sample_scores": [{"seed": 7, "score": 0.012}],
     "model": {"name": "spacemesh-small", "version": "1"},
 }
 
@@ -125,11 +157,17 @@ _HEADERS = {
     "Oriented": ("boolean", "Neighbouring faces agree on orientation."),
     "Components": ("integer", "Connected components."),
     "Genus": ("integer", "Sum of the components' genera."),
-    "Seed": ("integer", "The seed used (the request's, or a random one)."),
-    "Steps": ("integer", "Sampler steps used."),
-    "Sampler": ("string", "Sampler (ddim or ddpm)."),
     "Model": ("string", "Model name/version."),
     "Batch-Size": ("integer", "Requests that shared this request's onnxruntime batch."),
+    "Sample-Scores": ("string", "`seed:score` of every seed tried (`samples`), e.g. "
+                      "`5:0.0099,6:0.0098`; the mesh is the lowest score's."),
+    # the resolved options
+    **{header_name(o.name): (o.schema()["type"], "Resolved: " + o.description)
+       for o in GENERATE_OPTIONS},
+    # the fit report
+    **{"Fit-" + header_name(name): ("number", f"Fit report: `{name}` "
+                                    "(`spacemesh.geometry.report.FitReport`).")
+       for name in FitReport.__dataclass_fields__},
 }
 
 
@@ -172,9 +210,10 @@ GENERATE_RESPONSES: dict[int | str, dict[str, Any]] = {
                               "schema": {"type": "string"}},
         },
     },
-    400: problem_response("Unreadable input or bad option", {
+    400: problem_response("Unreadable input or bad format", {
         "malformed": (P.MALFORMED_INPUT, "PLY: the header ends before 'end_header'"),
-        "option": (P.INVALID_PARAMETER, "steps must be in 1..1024, not 0"),
+        "format": (P.INVALID_PARAMETER, "format must be one of glb, gltf, obj, ply, off, "
+                                        "json, not 'stl'"),
     }),
     413: problem_response("Too many points or bytes", {
         "points": (P.TOO_MANY_POINTS, "250000 points; this server takes at most 200000"),
@@ -183,7 +222,9 @@ GENERATE_RESPONSES: dict[int | str, dict[str, Any]] = {
     415: problem_response("Unsupported format", {
         "format": (P.UNSUPPORTED_FORMAT, "cannot read '.docx' files; supported: ..."),
     }),
-    422: problem_response("Unusable geometry", {
+    422: problem_response("A generate option out of range, or unusable geometry", {
+        "option": (P.INVALID_OPTION, "target_vertices must be in 4..4096, not 5000"),
+        "start_time": (P.INVALID_OPTION, "start_time applies to start=points only"),
         "few": (P.TOO_FEW_POINTS, "3 points; this server needs at least 16"),
         "nan": (P.NON_FINITE, "point 12 has a NaN or infinite coordinate"),
         "flat": (P.DEGENERATE_GEOMETRY, "the points are coplanar; a surface needs a 3D "
@@ -232,7 +273,6 @@ REPAIR_RESPONSES: dict[int | str, dict[str, Any]] = {
         "region": (P.MALFORMED_INPUT, "the region is not valid JSON (Expecting value: line "
                                       "1 column 1 (char 0))"),
         "missing": (P.MALFORMED_INPUT, "the multipart body has no field 'region'"),
-        "option": (P.INVALID_PARAMETER, "steps must be in 1..1024, not 0"),
         "weld": (P.INVALID_PARAMETER, "weld must be true or false, not 'maybe'"),
     }, instance="/repair"),
     413: problem_response("Body too large", {
@@ -242,7 +282,9 @@ REPAIR_RESPONSES: dict[int | str, dict[str, Any]] = {
         "format": (P.UNSUPPORTED_FORMAT, "cannot read '.docx' files as a mesh; supported: "
                                          "..."),
     }, instance="/repair"),
-    422: problem_response("A region the server cannot use (the kind is the type)", {
+    422: problem_response("A region the server cannot use (the kind is the type), or an "
+                          "option out of range", {
+        "option": (P.INVALID_OPTION, "steps must be in 1..1024, not 0"),
         "invalid": (P.INVALID_REGION, "the sphere's radius must be a positive finite number"),
         "empty": (P.EMPTY_REGION, "the region selects no face of the mesh"),
         "whole": (P.WHOLE_MESH_REGION, "the region covers the whole mesh; repair needs faces "
@@ -263,7 +305,13 @@ REPAIR_RESPONSES: dict[int | str, dict[str, Any]] = {
     504: GENERATE_RESPONSES[504],
 }
 
-_FORMAT_ENUM = {"type": "string", "enum": list(OUTPUT_FORMATS), "default": "glb"}
+#: The query parameters of each route.
+GENERATE_PARAMETERS = [o.parameter() for o in GENERATE_ROUTE_OPTIONS]
+REPAIR_PARAMETERS = [o.parameter() for o in REPAIR_ROUTE_OPTIONS]
+
+
+def _form_properties(table: tuple[RequestOption, ...]) -> dict[str, Any]:
+    return {o.name: o.schema() for o in table}
 
 GENERATE_REQUEST_BODY: dict[str, Any] = {
     "required": True,
@@ -274,9 +322,7 @@ GENERATE_REQUEST_BODY: dict[str, Any] = {
                 "properties": {
                     "file": {"type": "string", "format": "binary",
                              "description": "The point cloud file."},
-                    "format": _FORMAT_ENUM,
-                    "seed": {"type": "integer", "minimum": 0},
-                    "steps": {"type": "integer", "minimum": 1},
+                    **_form_properties(GENERATE_ROUTE_OPTIONS),
                 },
             },
             "example": {"file": "(cloud.ply)", "format": "obj", "seed": 7},
@@ -288,6 +334,9 @@ GENERATE_REQUEST_BODY: dict[str, Any] = {
                            "value": {"points": _TETRA * 8, "format": "obj", "seed": 7}},
                 "normals": {"summary": "With normals",
                             "value": {"points": _TETRA, "normals": _TETRA, "steps": 25}},
+                "options": {"summary": "A vertex budget, best of 4 seeds",
+                            "value": {"points": _TETRA * 8, "start": "points",
+                                      "target_vertices": 100, "samples": 4}},
             },
         },
     },
@@ -309,13 +358,7 @@ REPAIR_REQUEST_BODY: dict[str, Any] = {
                     "file": {"type": "string", "format": "binary",
                              "description": "The mesh file (OBJ, OFF, PLY, STL, GLB, glTF)."},
                     "region": _REGION_SCHEMA,
-                    "format": _FORMAT_ENUM,
-                    "seed": {"type": "integer", "minimum": 0},
-                    "steps": {"type": "integer", "minimum": 1},
-                    "weld": {"type": "boolean", "default": False,
-                             "description": "Merge vertices at exactly equal positions "
-                                            "first (the output is the welded mesh "
-                                            "repaired)."},
+                    **_form_properties(REPAIR_ROUTE_OPTIONS),
                 },
             },
             "examples": {

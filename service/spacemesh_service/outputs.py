@@ -2,14 +2,20 @@
 
 Formats: GLB and glTF (triangulated), OBJ, PLY and OFF (polygons kept) through
 :func:`spacemesh.io.export_mesh`, and ``json`` (vertices, polygon faces, statistics).
-The bytes depend only on the mesh, the seed, the steps and the model, so REST and gRPC
+The bytes depend only on the mesh, the options and the model, so REST and gRPC
 answer byte-identical meshes for the same input and seed.
+
+The fit report of a generated mesh (:class:`spacemesh.geometry.report.FitReport`) is
+``MeshStats.fit``, :meth:`FitReport.to_dict` as it is: the ``stats.fit`` object of the
+JSON format, ``MeshStats.fit`` of gRPC (the same field names) and one
+``X-SpaceMesh-Fit-<Name>`` header per field (:func:`value_headers`).
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass
+import math
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 from spacemesh.io import export_mesh
@@ -46,11 +52,17 @@ class MeshStats:
     oriented: bool
     components: int
     genus: int
+    #: :meth:`FitReport.to_dict` of a generated mesh (None for a repair).
+    fit: dict[str, float | int] | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready (face degrees keyed by strings)."""
+        """JSON-ready (face degrees keyed by strings, non-finite fit values None)."""
         data = asdict(self)
         data["face_degrees"] = {str(k): v for k, v in self.face_degrees.items()}
+        if self.fit is None:
+            del data["fit"]
+        else:
+            data["fit"] = {k: finite_or_none(v) for k, v in self.fit.items()}
         return data
 
 
@@ -122,7 +134,13 @@ def mesh_json(mesh: PolygonMesh, stats: MeshStats, info: dict[str, Any]) -> byte
     return json.dumps(body, separators=(",", ":")).encode("utf-8")
 
 
-def encode_mesh(mesh: PolygonMesh, fmt: str, info: dict[str, Any]) -> EncodedMesh:
+def finite_or_none(value: Any) -> Any:
+    """``value``, or None for a NaN or infinite float (JSON has no such numbers)."""
+    return None if isinstance(value, float) and not math.isfinite(value) else value
+
+
+def encode_mesh(mesh: PolygonMesh, fmt: str, info: dict[str, Any],
+                fit: dict[str, float | int] | None = None) -> EncodedMesh:
     """Validate and serialise a mesh.
 
     Parameters
@@ -131,14 +149,17 @@ def encode_mesh(mesh: PolygonMesh, fmt: str, info: dict[str, Any]) -> EncodedMes
     fmt : str
         One of :data:`OUTPUT_FORMATS`.
     info : dict
-        ``seed``, ``steps``, ``sampler`` and ``model`` (added to the JSON body), and
-        ``repair`` for a repair.
+        The reported options (``seed``, ``steps``, ``sampler``...), ``model``, and
+        ``sample_scores`` or ``repair`` (added to the JSON body).
+    fit : dict, optional
+        The fit report (:meth:`FitReport.to_dict`), as :attr:`MeshStats.fit`.
 
     Returns
     -------
     EncodedMesh
     """
     mesh, stats = validate_mesh(mesh)
+    stats = replace(stats, fit=fit)
     body = mesh_json(mesh, stats, info) if fmt == "json" else export_mesh(mesh, fmt)
     return EncodedMesh(body, fmt, MEDIA_TYPES[fmt], stats)
 
@@ -166,13 +187,29 @@ def repair_headers(summary: dict[str, Any]) -> dict[str, str]:
     return headers
 
 
+def header_name(name: str) -> str:
+    """``start_time`` -> ``Start-Time`` (the part of an ``X-SpaceMesh-*`` header)."""
+    return "-".join(part.capitalize() for part in name.split("_"))
+
+
+def value_headers(values: dict[str, Any], prefix: str = "") -> dict[str, str]:
+    """``X-SpaceMesh-<prefix><Name>`` headers of named values (booleans as
+    ``true``/``false``; None values left out)."""
+    return {HEADER_PREFIX + prefix + header_name(k): str(v).lower() if isinstance(v, bool)
+            else str(v) for k, v in values.items() if v is not None}
+
+
 def stats_headers(stats: MeshStats) -> dict[str, str]:
-    """``X-SpaceMesh-*`` headers of a mesh's statistics."""
-    degrees = ",".join(f"{k}:{v}" for k, v in sorted(stats.face_degrees.items()))
-    values = {
-        "Vertices": stats.vertices, "Faces": stats.faces, "Edges": stats.edges,
-        "Face-Degrees": degrees, "Manifold": stats.manifold, "Closed": stats.closed,
-        "Oriented": stats.oriented, "Components": stats.components, "Genus": stats.genus,
-    }
-    return {HEADER_PREFIX + k: str(v).lower() if isinstance(v, bool) else str(v)
-            for k, v in values.items()}
+    """``X-SpaceMesh-*`` headers of a mesh's statistics (``X-SpaceMesh-Fit-*`` of its fit
+    report)."""
+    values = {k: v for k, v in asdict(stats).items() if k != "fit"}
+    values["face_degrees"] = ",".join(f"{k}:{v}" for k, v in sorted(stats.face_degrees.items()))
+    headers = value_headers(values)
+    headers.update(value_headers(stats.fit or {}, prefix="Fit-"))
+    return headers
+
+
+def sample_scores_header(scores: list[tuple[int, float]]) -> str:
+    """``X-SpaceMesh-Sample-Scores``: ``seed:score`` of every seed tried, e.g.
+    ``5:0.0099,6:0.0098`` (scores written exactly, as the fit headers are)."""
+    return ",".join(f"{seed}:{float(score)!r}" for seed, score in scores)

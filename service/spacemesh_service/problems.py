@@ -58,6 +58,8 @@ MALFORMED_INPUT = _kind("malformed-input", "The input could not be read", 400,
                         _C.INVALID_ARGUMENT)
 INVALID_PARAMETER = _kind("invalid-parameter", "A request parameter is invalid", 400,
                           _C.INVALID_ARGUMENT)
+INVALID_OPTION = _kind("invalid-option", "A generate option is invalid", 422,
+                       _C.INVALID_ARGUMENT)
 NOT_FOUND = _kind("not-found", "No such resource", 404, _C.NOT_FOUND)
 MODEL_NOT_FOUND = _kind("model-not-found", "No such model or version", 404, _C.NOT_FOUND)
 METHOD_NOT_ALLOWED = _kind("method-not-allowed", "Method not allowed", 405, _C.UNIMPLEMENTED)
@@ -104,7 +106,8 @@ TIMEOUT = _kind("timeout", "The request took too long", 504, _C.DEADLINE_EXCEEDE
 #: Every kind, by slug (documented in docs/SERVICE.md and the OpenAPI spec).
 KINDS: dict[str, ProblemKind] = {
     k.slug: k for k in (
-        MALFORMED_INPUT, INVALID_PARAMETER, NOT_FOUND, MODEL_NOT_FOUND, METHOD_NOT_ALLOWED,
+        MALFORMED_INPUT, INVALID_PARAMETER, INVALID_OPTION, NOT_FOUND, MODEL_NOT_FOUND,
+        METHOD_NOT_ALLOWED,
         PAYLOAD_TOO_LARGE, TOO_MANY_POINTS, UNSUPPORTED_FORMAT, TOO_FEW_POINTS, NON_FINITE,
         DEGENERATE_GEOMETRY, INVALID_NORMALS, NORMALS_REQUIRED, NO_SURFACE, INVALID_REGION,
         EMPTY_REGION, WHOLE_MESH_REGION, DEFECTS_OUTSIDE_REGION, REGION_TOO_LARGE, INTERNAL,

@@ -98,7 +98,8 @@ class GenerateOptions:
         Returns
         -------
         GenerateOptions
-            No field is None except ``target_vertices``.
+            No field is None except ``target_vertices`` and, with ``start=noise``,
+            ``start_time``; resolving it again gives it back unchanged.
 
         Raises
         ------
@@ -120,12 +121,16 @@ class GenerateOptions:
             raise OptionError("start_time", "start_time applies to start=points only")
         start_time = spec.start_time if self.start_time is None else self.start_time
         if start == "points":
-            start_time = float(start_time)
+            try:
+                start_time = float(start_time)
+            except (TypeError, ValueError):
+                raise OptionError("start_time", f"start_time must be a number, not "
+                                                f"{self.start_time!r}") from None
             if not 0.0 <= start_time <= 1.0:  # NaN fails too
                 raise OptionError("start_time",
                                   f"start_time must be in [0, 1], not {self.start_time}")
         else:
-            start_time = 1.0
+            start_time = None  # the whole diffusion
         if self.target_vertices is not None:
             _integer("target_vertices", self.target_vertices, MIN_TARGET_VERTICES,
                      MAX_TARGET_VERTICES)

@@ -494,8 +494,8 @@ class MeshGenerator:
     # ------------------------------------------------------------------ stages
     @staticmethod
     def _sampler_key(options: GenerateOptions) -> tuple[int, str, str, float]:
-        return (int(options.steps), str(options.sampler), str(options.start),
-                float(options.start_time))
+        start_time = 1.0 if options.start_time is None else float(options.start_time)
+        return int(options.steps), str(options.sampler), str(options.start), start_time
 
     def _denoiser_steps(self, key: tuple[int, str, str, float]) -> int:
         from spacemesh.runtime.sampler import start_steps

@@ -23,21 +23,71 @@ class Points(_message.Message):
     def __init__(self, xyz: _Optional[_Iterable[float]] = ..., normals: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class GenerateRequest(_message.Message):
-    __slots__ = ("file", "points", "format", "seed", "steps")
+    __slots__ = ("file", "points", "format", "seed", "steps", "sampler", "start", "start_time", "target_vertices", "samples", "raw")
     FILE_FIELD_NUMBER: _ClassVar[int]
     POINTS_FIELD_NUMBER: _ClassVar[int]
     FORMAT_FIELD_NUMBER: _ClassVar[int]
     SEED_FIELD_NUMBER: _ClassVar[int]
     STEPS_FIELD_NUMBER: _ClassVar[int]
+    SAMPLER_FIELD_NUMBER: _ClassVar[int]
+    START_FIELD_NUMBER: _ClassVar[int]
+    START_TIME_FIELD_NUMBER: _ClassVar[int]
+    TARGET_VERTICES_FIELD_NUMBER: _ClassVar[int]
+    SAMPLES_FIELD_NUMBER: _ClassVar[int]
+    RAW_FIELD_NUMBER: _ClassVar[int]
     file: PointCloudFile
     points: Points
     format: str
     seed: int
     steps: int
-    def __init__(self, file: _Optional[_Union[PointCloudFile, _Mapping]] = ..., points: _Optional[_Union[Points, _Mapping]] = ..., format: _Optional[str] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ...) -> None: ...
+    sampler: str
+    start: str
+    start_time: float
+    target_vertices: int
+    samples: int
+    raw: bool
+    def __init__(self, file: _Optional[_Union[PointCloudFile, _Mapping]] = ..., points: _Optional[_Union[Points, _Mapping]] = ..., format: _Optional[str] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., start: _Optional[str] = ..., start_time: _Optional[float] = ..., target_vertices: _Optional[int] = ..., samples: _Optional[int] = ..., raw: _Optional[bool] = ...) -> None: ...
+
+class FitReport(_message.Message):
+    __slots__ = ("points_to_mesh_mean", "points_to_mesh_p95", "mesh_to_points_mean", "mesh_to_points_p95", "points_to_mesh_mean_rel", "points_to_mesh_p95_rel", "mesh_to_points_mean_rel", "mesh_to_points_p95_rel", "coverage", "components", "self_intersections", "diagonal", "n_points")
+    POINTS_TO_MESH_MEAN_FIELD_NUMBER: _ClassVar[int]
+    POINTS_TO_MESH_P95_FIELD_NUMBER: _ClassVar[int]
+    MESH_TO_POINTS_MEAN_FIELD_NUMBER: _ClassVar[int]
+    MESH_TO_POINTS_P95_FIELD_NUMBER: _ClassVar[int]
+    POINTS_TO_MESH_MEAN_REL_FIELD_NUMBER: _ClassVar[int]
+    POINTS_TO_MESH_P95_REL_FIELD_NUMBER: _ClassVar[int]
+    MESH_TO_POINTS_MEAN_REL_FIELD_NUMBER: _ClassVar[int]
+    MESH_TO_POINTS_P95_REL_FIELD_NUMBER: _ClassVar[int]
+    COVERAGE_FIELD_NUMBER: _ClassVar[int]
+    COMPONENTS_FIELD_NUMBER: _ClassVar[int]
+    SELF_INTERSECTIONS_FIELD_NUMBER: _ClassVar[int]
+    DIAGONAL_FIELD_NUMBER: _ClassVar[int]
+    N_POINTS_FIELD_NUMBER: _ClassVar[int]
+    points_to_mesh_mean: float
+    points_to_mesh_p95: float
+    mesh_to_points_mean: float
+    mesh_to_points_p95: float
+    points_to_mesh_mean_rel: float
+    points_to_mesh_p95_rel: float
+    mesh_to_points_mean_rel: float
+    mesh_to_points_p95_rel: float
+    coverage: float
+    components: int
+    self_intersections: float
+    diagonal: float
+    n_points: int
+    def __init__(self, points_to_mesh_mean: _Optional[float] = ..., points_to_mesh_p95: _Optional[float] = ..., mesh_to_points_mean: _Optional[float] = ..., mesh_to_points_p95: _Optional[float] = ..., points_to_mesh_mean_rel: _Optional[float] = ..., points_to_mesh_p95_rel: _Optional[float] = ..., mesh_to_points_mean_rel: _Optional[float] = ..., mesh_to_points_p95_rel: _Optional[float] = ..., coverage: _Optional[float] = ..., components: _Optional[int] = ..., self_intersections: _Optional[float] = ..., diagonal: _Optional[float] = ..., n_points: _Optional[int] = ...) -> None: ...
+
+class SampleScore(_message.Message):
+    __slots__ = ("seed", "score")
+    SEED_FIELD_NUMBER: _ClassVar[int]
+    SCORE_FIELD_NUMBER: _ClassVar[int]
+    seed: int
+    score: float
+    def __init__(self, seed: _Optional[int] = ..., score: _Optional[float] = ...) -> None: ...
 
 class MeshStats(_message.Message):
-    __slots__ = ("vertices", "faces", "edges", "face_degrees", "manifold", "closed", "oriented", "components", "genus")
+    __slots__ = ("vertices", "faces", "edges", "face_degrees", "manifold", "closed", "oriented", "components", "genus", "fit")
     class FaceDegreesEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -54,6 +104,7 @@ class MeshStats(_message.Message):
     ORIENTED_FIELD_NUMBER: _ClassVar[int]
     COMPONENTS_FIELD_NUMBER: _ClassVar[int]
     GENUS_FIELD_NUMBER: _ClassVar[int]
+    FIT_FIELD_NUMBER: _ClassVar[int]
     vertices: int
     faces: int
     edges: int
@@ -63,10 +114,11 @@ class MeshStats(_message.Message):
     oriented: bool
     components: int
     genus: int
-    def __init__(self, vertices: _Optional[int] = ..., faces: _Optional[int] = ..., edges: _Optional[int] = ..., face_degrees: _Optional[_Mapping[int, int]] = ..., manifold: _Optional[bool] = ..., closed: _Optional[bool] = ..., oriented: _Optional[bool] = ..., components: _Optional[int] = ..., genus: _Optional[int] = ...) -> None: ...
+    fit: FitReport
+    def __init__(self, vertices: _Optional[int] = ..., faces: _Optional[int] = ..., edges: _Optional[int] = ..., face_degrees: _Optional[_Mapping[int, int]] = ..., manifold: _Optional[bool] = ..., closed: _Optional[bool] = ..., oriented: _Optional[bool] = ..., components: _Optional[int] = ..., genus: _Optional[int] = ..., fit: _Optional[_Union[FitReport, _Mapping]] = ...) -> None: ...
 
 class MeshReply(_message.Message):
-    __slots__ = ("mesh", "format", "media_type", "stats", "seed", "steps", "sampler", "model_name", "model_version", "timings", "batch_size", "repair")
+    __slots__ = ("mesh", "format", "media_type", "stats", "seed", "steps", "sampler", "model_name", "model_version", "timings", "batch_size", "repair", "start", "start_time", "target_vertices", "samples", "raw", "sample_scores")
     class TimingsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -86,6 +138,12 @@ class MeshReply(_message.Message):
     TIMINGS_FIELD_NUMBER: _ClassVar[int]
     BATCH_SIZE_FIELD_NUMBER: _ClassVar[int]
     REPAIR_FIELD_NUMBER: _ClassVar[int]
+    START_FIELD_NUMBER: _ClassVar[int]
+    START_TIME_FIELD_NUMBER: _ClassVar[int]
+    TARGET_VERTICES_FIELD_NUMBER: _ClassVar[int]
+    SAMPLES_FIELD_NUMBER: _ClassVar[int]
+    RAW_FIELD_NUMBER: _ClassVar[int]
+    SAMPLE_SCORES_FIELD_NUMBER: _ClassVar[int]
     mesh: bytes
     format: str
     media_type: str
@@ -98,7 +156,13 @@ class MeshReply(_message.Message):
     timings: _containers.ScalarMap[str, float]
     batch_size: int
     repair: RepairStats
-    def __init__(self, mesh: _Optional[bytes] = ..., format: _Optional[str] = ..., media_type: _Optional[str] = ..., stats: _Optional[_Union[MeshStats, _Mapping]] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., model_name: _Optional[str] = ..., model_version: _Optional[str] = ..., timings: _Optional[_Mapping[str, float]] = ..., batch_size: _Optional[int] = ..., repair: _Optional[_Union[RepairStats, _Mapping]] = ...) -> None: ...
+    start: str
+    start_time: float
+    target_vertices: int
+    samples: int
+    raw: bool
+    sample_scores: _containers.RepeatedCompositeFieldContainer[SampleScore]
+    def __init__(self, mesh: _Optional[bytes] = ..., format: _Optional[str] = ..., media_type: _Optional[str] = ..., stats: _Optional[_Union[MeshStats, _Mapping]] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., model_name: _Optional[str] = ..., model_version: _Optional[str] = ..., timings: _Optional[_Mapping[str, float]] = ..., batch_size: _Optional[int] = ..., repair: _Optional[_Union[RepairStats, _Mapping]] = ..., start: _Optional[str] = ..., start_time: _Optional[float] = ..., target_vertices: _Optional[int] = ..., samples: _Optional[int] = ..., raw: _Optional[bool] = ..., sample_scores: _Optional[_Iterable[_Union[SampleScore, _Mapping]]] = ...) -> None: ...
 
 class RepairStats(_message.Message):
     __slots__ = ("requested_faces", "region_faces", "grown_faces", "removed_vertices", "boundary_vertices", "loops", "new_vertices", "new_faces", "new_face_degrees", "patch_faces", "patch_rings", "known_vertices", "tokens", "candidates", "fallback", "fill", "inpaint", "flipped_orientation", "welded_vertices")
@@ -180,7 +244,7 @@ class GenerateEvent(_message.Message):
     def __init__(self, progress: _Optional[_Union[Progress, _Mapping]] = ..., mesh: _Optional[_Union[MeshReply, _Mapping]] = ...) -> None: ...
 
 class RepairRequest(_message.Message):
-    __slots__ = ("mesh", "filename", "faces", "format", "seed", "steps", "region", "weld")
+    __slots__ = ("mesh", "filename", "faces", "format", "seed", "steps", "region", "weld", "sampler")
     MESH_FIELD_NUMBER: _ClassVar[int]
     FILENAME_FIELD_NUMBER: _ClassVar[int]
     FACES_FIELD_NUMBER: _ClassVar[int]
@@ -189,6 +253,7 @@ class RepairRequest(_message.Message):
     STEPS_FIELD_NUMBER: _ClassVar[int]
     REGION_FIELD_NUMBER: _ClassVar[int]
     WELD_FIELD_NUMBER: _ClassVar[int]
+    SAMPLER_FIELD_NUMBER: _ClassVar[int]
     mesh: bytes
     filename: str
     faces: _containers.RepeatedScalarFieldContainer[int]
@@ -197,7 +262,8 @@ class RepairRequest(_message.Message):
     steps: int
     region: Region
     weld: bool
-    def __init__(self, mesh: _Optional[bytes] = ..., filename: _Optional[str] = ..., faces: _Optional[_Iterable[int]] = ..., format: _Optional[str] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., region: _Optional[_Union[Region, _Mapping]] = ..., weld: _Optional[bool] = ...) -> None: ...
+    sampler: str
+    def __init__(self, mesh: _Optional[bytes] = ..., filename: _Optional[str] = ..., faces: _Optional[_Iterable[int]] = ..., format: _Optional[str] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., region: _Optional[_Union[Region, _Mapping]] = ..., weld: _Optional[bool] = ..., sampler: _Optional[str] = ...) -> None: ...
 
 class Region(_message.Message):
     __slots__ = ("faces", "vertices", "sphere", "box")

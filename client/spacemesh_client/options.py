@@ -1,0 +1,94 @@
+"""The generate options the SDK sends, by the names the service and the model use.
+
+The SDK depends on no other SpaceMesh package, so it mirrors the names of
+``spacemesh.runtime.options.OPTION_FIELDS`` here (tests/client checks that they are
+equal, and that :meth:`Client.generate` takes exactly these keywords). From this table
+come the REST query parameters (:func:`query_params`), the gRPC fields (the same names),
+the ``spacemesh-client generate`` flags, and the reading of the resolved options a
+response reports (``X-SpaceMesh-<Name>`` headers, ``MeshReply`` fields).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True)
+class Option:
+    """One generate option.
+
+    Attributes
+    ----------
+    name : str
+        Keyword argument, query parameter, gRPC field and JSON key.
+    kind : type
+        ``int``, ``float``, ``bool`` or ``str``.
+    help : str
+        One line for ``--help``.
+    """
+
+    name: str
+    kind: type
+    help: str
+
+    @property
+    def flag(self) -> str:
+        """The command-line flag: ``start_time`` -> ``--start-time``."""
+        return "--" + self.name.replace("_", "-")
+
+    @property
+    def header(self) -> str:
+        """The name of the response header that reports it (lower case)."""
+        return "x-spacemesh-" + self.name.replace("_", "-")
+
+    def from_text(self, text: str) -> Any:
+        """A reported value (a header) as :attr:`kind`; None when it cannot be read."""
+        try:
+            if self.kind is bool:
+                return text.strip().lower() == "true"
+            return self.kind(text)
+        except ValueError:
+            return None
+
+
+#: Every generate option, in the service's order.
+GENERATE_OPTIONS: tuple[Option, ...] = (
+    Option("seed", int, "random seed: the same seed and options give the same mesh "
+           "(default: the server picks one and reports it)"),
+    Option("steps", int, "sampler steps (default: the model's)"),
+    Option("sampler", str, "ddim or ddpm (default: the model's)"),
+    Option("start", str, "where the vertices start: noise (the paper) or points (chosen on "
+           "the input) (default: the model's)"),
+    Option("start_time", float, "with --start points: fraction of the diffusion to denoise "
+           "from, 0..1 (0: the chosen points as they are)"),
+    Option("target_vertices", int, "vertices of the mesh (within 10%%), 4..4096; needs "
+           "--start points"),
+    Option("samples", int, "try this many seeds (1..16) and keep the mesh that fits best"),
+    Option("raw", bool, "the networks' mesh without the geometry stage"),
+)
+#: Names of :data:`GENERATE_OPTIONS`.
+OPTION_NAMES: tuple[str, ...] = tuple(o.name for o in GENERATE_OPTIONS)
+#: The generate options a repair takes too.
+REPAIR_OPTION_NAMES = ("seed", "steps", "sampler")
+
+
+def chosen(**values: Any) -> dict[str, Any]:
+    """The options given (not None), by name."""
+    unknown = set(values) - set(OPTION_NAMES)
+    if unknown:
+        raise TypeError(f"unknown generate options: {', '.join(sorted(unknown))}")
+    return {k: v for k, v in values.items() if v is not None}
+
+
+def query_params(options: Mapping[str, Any]) -> dict[str, Any]:
+    """Options as REST query parameters (booleans as ``true``/``false``)."""
+    return {k: (str(v).lower() if isinstance(v, bool) else v) for k, v in options.items()}
+
+
+def options_from_headers(headers: Mapping[str, str]) -> dict[str, Any]:
+    """The resolved options a REST response reports (those it has headers for)."""
+    h = {k.lower(): v for k, v in headers.items()}
+    values = {o.name: o.from_text(h[o.header]) for o in GENERATE_OPTIONS if o.header in h}
+    return {k: v for k, v in values.items() if v is not None}

@@ -1,0 +1,341 @@
+"""The request options of both servers, in one table, resolved in one place.
+
+The generate options are :class:`spacemesh.runtime.options.GenerateOptions`: their names
+(:data:`~spacemesh.runtime.options.OPTION_FIELDS`), types (its annotations) and
+descriptions (its numpydoc ``Attributes``) make :data:`GENERATE_OPTIONS`. With the two
+service options, ``format`` (every route) and ``weld`` (``/repair``), they give the
+options of each route (:data:`GENERATE_ROUTE_OPTIONS`, :data:`REPAIR_ROUTE_OPTIONS`),
+from which come
+
+- the REST query parameters, form fields and JSON body fields a route reads, and their
+  OpenAPI description (:meth:`RequestOption.parameter`, :meth:`RequestOption.schema`);
+- the gRPC fields read (:func:`grpc_values`; the proto fields have the same names);
+- the ``X-SpaceMesh-*`` headers and reply fields of the resolved options
+  (:func:`reported_options`, :func:`spacemesh_service.outputs.value_headers`).
+
+:func:`resolve_request` turns the values a request sent into a :class:`RequestOptions`:
+the service's policy (a random seed when none is given, ``settings.default_steps``), then
+:meth:`GenerateOptions.resolve` once, then ``settings.max_steps``. A bad generate option
+is a 422 ``invalid-option`` naming it; a bad ``format`` or ``weld`` a 400
+``invalid-parameter``. Generate-only options (``start``, ``start_time``,
+``target_vertices``, ``samples``, ``raw``) are not options of ``/repair``.
+"""
+
+from __future__ import annotations
+
+import re
+import secrets
+import types
+import typing
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from typing import Any
+
+from spacemesh.runtime.options import (
+    MAX_SAMPLES,
+    MAX_SEED,
+    MAX_TARGET_VERTICES,
+    MIN_TARGET_VERTICES,
+    OPTION_FIELDS,
+    START_MODES,
+    GenerateOptions,
+    OptionError,
+)
+from spacemesh.runtime.pipeline import ModelSpec
+from spacemesh.runtime.schedule import METHODS
+from spacemesh_service import problems as P
+from spacemesh_service.outputs import OUTPUT_FORMATS
+from spacemesh_service.problems import Problem
+from spacemesh_service.settings import Settings
+
+#: Seeds picked by the server when a request gives none lie in ``[0, 2**31)``.
+RANDOM_SEED_BITS = 31
+#: Spellings of a boolean option (case-insensitive; those FastAPI reads in a query).
+TRUE_WORDS = ("true", "1", "yes", "on", "t", "y")
+FALSE_WORDS = ("false", "0", "no", "off", "f", "n")
+#: Generate options that ``/repair`` does not take.
+GENERATE_ONLY = ("start", "start_time", "target_vertices", "samples", "raw")
+
+#: What the service adds to an option's description (instead of "Default: the model's.").
+_NOTES = {"seed": "Picked at random (and reported) when absent.",
+          "target_vertices": "Needs `start=points`."}
+#: Values an option may take, where they are a fixed set.
+_CHOICES: dict[str, tuple[str, ...]] = {"sampler": METHODS, "start": START_MODES,
+                                        "format": OUTPUT_FORMATS}
+#: Inclusive ranges of the numeric options (None: no bound here; the model's).
+_RANGES: dict[str, tuple[float | None, float | None]] = {
+    "seed": (0, MAX_SEED), "steps": (1, None), "start_time": (0.0, 1.0),
+    "target_vertices": (MIN_TARGET_VERTICES, MAX_TARGET_VERTICES), "samples": (1, MAX_SAMPLES),
+}
+_JSON_TYPES = {bool: "boolean", int: "integer", float: "number", str: "string"}
+_ROLE = re.compile(r":[a-z]+:`~?([^`]+)`")
+
+
+@dataclass(frozen=True)
+class RequestOption:
+    """One option of a route.
+
+    Attributes
+    ----------
+    name : str
+        The public name (query parameter, form and JSON field, gRPC field).
+    kind : type
+        ``int``, ``float``, ``bool`` or ``str``.
+    description : str
+    """
+
+    name: str
+    kind: type
+    description: str
+
+    @property
+    def choices(self) -> tuple[str, ...]:
+        """The values it may take, when they are a fixed set."""
+        return _CHOICES.get(self.name, ())
+
+    def parse(self, value: Any) -> Any:
+        """A value as sent (query or form text, JSON value, gRPC field) as :attr:`kind`.
+
+        Only the type is converted here; ranges and choices are checked by
+        :func:`resolve_request`.
+
+        Parameters
+        ----------
+        value : Any
+            None or ``""``: not given.
+
+        Returns
+        -------
+        Any
+            None when not given.
+
+        Raises
+        ------
+        OptionError
+            A value that is not of the option's type.
+        """
+        if value is None or value == "":
+            return None
+        if self.kind is bool:
+            return _boolean(self.name, value)
+        if self.kind is float:
+            if isinstance(value, bool):
+                raise OptionError(self.name, f"{self.name} must be a number, not {value!r}")
+            try:
+                return float(value)
+            except (TypeError, ValueError):
+                raise OptionError(self.name, f"{self.name} must be a number, not "
+                                             f"{value!r}") from None
+        if self.kind is int and isinstance(value, str):
+            try:  # exact for any size (GenerateOptions.resolve refuses the rest)
+                return int(value.strip())
+            except ValueError:
+                return value
+        if self.kind is str:
+            return str(value)
+        return value
+
+    def schema(self) -> dict[str, Any]:
+        """Its JSON schema (OpenAPI)."""
+        schema: dict[str, Any] = {"type": _JSON_TYPES[self.kind], "description": self.description}
+        if self.choices:
+            schema["enum"] = list(self.choices)
+        low, high = _RANGES.get(self.name, (None, None))
+        if low is not None:
+            schema["minimum"] = low
+        if high is not None:
+            schema["maximum"] = high
+        return schema
+
+    def parameter(self) -> dict[str, Any]:
+        """Its OpenAPI query parameter."""
+        return {"name": self.name, "in": "query", "required": False,
+                "description": self.description, "schema": self.schema()}
+
+
+def _boolean(name: str, value: Any) -> bool:
+    """A bool, or one of :data:`TRUE_WORDS` / :data:`FALSE_WORDS`."""
+    if isinstance(value, bool):
+        return value
+    word = str(value).strip().lower()
+    if word in FALSE_WORDS:
+        return False
+    if word in TRUE_WORDS:
+        return True
+    raise OptionError(name, f"{name} must be true or false, not {value!r}")
+
+
+def attribute_docs(cls: type) -> dict[str, str]:
+    """The descriptions of a class's numpydoc ``Attributes`` section, by name (roles and
+    double backticks made plain)."""
+    lines = (cls.__doc__ or "").splitlines()
+    docs: dict[str, list[str]] = {}
+    current: str | None = None
+    inside, indent = False, 0
+    for line in lines:
+        text = line.strip()
+        if text == "Attributes":
+            inside, indent = True, len(line) - len(line.lstrip())
+            continue
+        if not inside or set(text) == {"-"}:
+            continue
+        depth = len(line) - len(line.lstrip())
+        if text and depth == indent and " : " not in text:
+            break  # the next section
+        if text and depth == indent:
+            current = text.split(" : ")[0]
+            docs[current] = []
+        elif text and current is not None:
+            docs[current].append(text)
+    return {name: _ROLE.sub(r"\1", " ".join(words)).replace("``", "`")
+            for name, words in docs.items()}
+
+
+def _kind(annotation: Any) -> type:
+    """``int | None`` -> ``int``."""
+    if isinstance(annotation, types.UnionType) or typing.get_origin(annotation) is typing.Union:
+        return next(a for a in typing.get_args(annotation) if a is not type(None))
+    return annotation
+
+
+def _generate_options() -> tuple[RequestOption, ...]:
+    hints = typing.get_type_hints(GenerateOptions)
+    docs = attribute_docs(GenerateOptions)
+    table = []
+    for field in fields(GenerateOptions):
+        text = docs.get(field.name, "")
+        choices = _CHOICES.get(field.name)
+        if choices:
+            text = f"One of {', '.join(choices)}. {text}".strip()
+        if field.name in _NOTES:
+            text += " " + _NOTES[field.name]
+        elif field.default is None:
+            text += " Default: the model's."
+        table.append(RequestOption(field.name, _kind(hints[field.name]), text.strip()))
+    return tuple(table)
+
+
+#: The generate options, in :data:`~spacemesh.runtime.options.OPTION_FIELDS` order.
+GENERATE_OPTIONS: tuple[RequestOption, ...] = _generate_options()
+#: The output format (every route).
+FORMAT = RequestOption("format", str, f"One of {', '.join(OUTPUT_FORMATS)} (default glb).")
+#: Repair only: merge vertices at equal positions first.
+WELD = RequestOption("weld", bool, "Merge vertices at exactly equal positions before the "
+                     "repair (meshes split at UV seams or hard edges, e.g. GLB); default "
+                     "false. The output is the welded mesh repaired.")
+#: The options of ``POST /generate`` and gRPC ``Generate``.
+GENERATE_ROUTE_OPTIONS: tuple[RequestOption, ...] = (FORMAT, *GENERATE_OPTIONS)
+#: The options of ``POST /repair`` and gRPC ``Repair``.
+REPAIR_ROUTE_OPTIONS: tuple[RequestOption, ...] = (
+    FORMAT, *(o for o in GENERATE_OPTIONS if o.name not in GENERATE_ONLY), WELD)
+
+
+@dataclass(frozen=True)
+class RequestOptions:
+    """A request's options, checked.
+
+    Attributes
+    ----------
+    format : str
+        One of :data:`~spacemesh_service.outputs.OUTPUT_FORMATS`.
+    sent : GenerateOptions
+        What the request asked for, with the service's policy applied (its seed, or one
+        picked at random; ``settings.default_steps`` when it names no steps): what the
+        generator is given.
+    resolved : GenerateOptions
+        ``sent`` resolved against the model (every default filled in).
+    weld : bool
+        Repair only.
+    """
+
+    format: str
+    sent: GenerateOptions
+    resolved: GenerateOptions
+    weld: bool = False
+
+    @property
+    def batch_key(self) -> tuple[int, str, str, float]:
+        """What requests must share to run in one batch: the sampler settings."""
+        r = self.resolved
+        return (int(r.steps or 0), str(r.sampler), str(r.start), float(r.start_time or 0.0))
+
+
+def option_problem(error: OptionError) -> Problem:
+    """The problem of a bad option: 422 ``invalid-option`` for a generate option (its
+    ``option`` member names it), 400 ``invalid-parameter`` for ``format`` and ``weld``
+    (``parameter``)."""
+    if error.option in OPTION_FIELDS:
+        return Problem(P.INVALID_OPTION, str(error), option=error.option)
+    return Problem(P.INVALID_PARAMETER, str(error), parameter=error.option)
+
+
+def _output_format(value: Any) -> str:
+    fmt = "glb" if value is None else str(value).strip().lower().lstrip(".")
+    if fmt not in OUTPUT_FORMATS:
+        raise OptionError("format", f"format must be one of {', '.join(OUTPUT_FORMATS)}, "
+                                    f"not {fmt!r}")
+    return fmt
+
+
+def resolve_request(values: Mapping[str, Any], table: tuple[RequestOption, ...],
+                    spec: ModelSpec, settings: Settings) -> RequestOptions:
+    """Check a request's options and resolve them against the model, once.
+
+    Parameters
+    ----------
+    values : mapping
+        Option values as sent, by name (missing, None or ``""``: not given); names not
+        in ``table`` are ignored.
+    table : tuple of RequestOption
+        The route's options (:data:`GENERATE_ROUTE_OPTIONS` or
+        :data:`REPAIR_ROUTE_OPTIONS`).
+    spec : ModelSpec
+    settings : Settings
+        ``default_steps`` and ``max_steps`` apply.
+
+    Returns
+    -------
+    RequestOptions
+
+    Raises
+    ------
+    Problem
+        :func:`option_problem` of the first bad option.
+    """
+    try:
+        given = {o.name: o.parse(values.get(o.name)) for o in table}
+        fmt = _output_format(given.pop("format", None))
+        weld = bool(given.pop("weld", None))
+        chosen = {k: v for k, v in given.items() if v is not None}
+        if chosen.get("seed") is None:
+            chosen["seed"] = secrets.randbits(RANDOM_SEED_BITS)
+        if chosen.get("steps") is None and settings.default_steps is not None:
+            chosen["steps"] = min(settings.default_steps, spec.schedule.timesteps)
+        sent = GenerateOptions(**chosen)
+        resolved = sent.resolve(spec)
+        most = min(settings.max_steps, spec.schedule.timesteps)
+        if resolved.steps is not None and resolved.steps > most:
+            raise OptionError("steps", f"steps must be in 1..{most}, not {resolved.steps}")
+    except OptionError as error:
+        raise option_problem(error) from None
+    return RequestOptions(fmt, sent, resolved, weld)
+
+
+def grpc_values(request: Any, table: tuple[RequestOption, ...]) -> dict[str, Any]:
+    """The options of a gRPC request message, by name (unset fields: None).
+
+    Every option of ``table`` is a field of the message with the same name; ``optional``
+    ones are None when unset.
+    """
+    by_name = request.DESCRIPTOR.fields_by_name
+    return {o.name: (getattr(request, o.name)
+                     if not by_name[o.name].has_presence or request.HasField(o.name) else None)
+            for o in table}
+
+
+def reported_options(options: GenerateOptions, names: tuple[str, ...] = OPTION_FIELDS
+                     ) -> dict[str, Any]:
+    """The resolved options a reply reports, by name (``target_vertices`` None when not
+    asked for: the JSON format has it as null; headers and gRPC leave it out)."""
+    values = options.to_dict()
+    return {k: values[k] for k in names}
