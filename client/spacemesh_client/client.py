@@ -161,7 +161,7 @@ class Client(_Options):
             With ``start="points"`` only: the fraction of the diffusion (0..1) where it
             begins; 0 uses the chosen points as they are.
         target_vertices : int, optional
-            Vertices of the mesh (within 10%), 4..4096; needs ``start="points"``.
+            Vertices of the mesh (within 10%), 4..10,000; needs ``start="points"``.
         samples : int, optional
             Generate seeds ``seed .. seed + samples - 1`` (1..16) and return the mesh
             that fits the points best (``Mesh.seed`` is its seed, ``Mesh.sample_scores``

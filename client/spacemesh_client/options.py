@@ -63,7 +63,7 @@ GENERATE_OPTIONS: tuple[Option, ...] = (
            "the input) (default: the model's)"),
     Option("start_time", float, "with --start points: fraction of the diffusion to denoise "
            "from, 0..1 (0: the chosen points as they are)"),
-    Option("target_vertices", int, "vertices of the mesh (within 10%%), 4..4096; needs "
+    Option("target_vertices", int, "vertices of the mesh (within 10%%), 4..10,000; needs "
            "--start points"),
     Option("samples", int, "try this many seeds (1..16) and keep the mesh that fits best"),
     Option("raw", bool, "the networks' mesh without the geometry stage"),

@@ -223,7 +223,7 @@ GENERATE_RESPONSES: dict[int | str, dict[str, Any]] = {
         "format": (P.UNSUPPORTED_FORMAT, "cannot read '.docx' files; supported: ..."),
     }),
     422: problem_response("A generate option out of range, or unusable geometry", {
-        "option": (P.INVALID_OPTION, "target_vertices must be in 4..4096, not 5000"),
+        "option": (P.INVALID_OPTION, "target_vertices must be in 4..10000, not 20000"),
         "start_time": (P.INVALID_OPTION, "start_time applies to start=points only"),
         "few": (P.TOO_FEW_POINTS, "3 points; this server needs at least 16"),
         "nan": (P.NON_FINITE, "point 12 has a NaN or infinite coordinate"),

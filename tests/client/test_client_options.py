@@ -93,7 +93,7 @@ def test_the_fit_report_is_the_same_over_both_transports(rest_url, grpc_url, cas
     ({"start": "noise", "start_time": 0.5}, "start_time"),
     ({"start": "points", "start_time": 2}, "start_time"),
     ({"start": "points", "target_vertices": 3}, "target_vertices"),
-    ({"start": "points", "target_vertices": 5000}, "target_vertices"),
+    ({"start": "points", "target_vertices": 20000}, "target_vertices"),
     ({"samples": 0}, "samples"),
     ({"samples": 17}, "samples"),
     ({"raw": "maybe"}, "raw"),

@@ -76,8 +76,8 @@ def test_generate_options_and_fit_report(toy_model, tmp_path):
     (["--start", "noise", "--start-time", "0.5"], "--start-time: start_time applies to"),
     (["--start", "points", "--start-time", "2"], "--start-time: start_time must be in [0, 1]"),
     (["--start", "points", "--target-vertices", "3"], "--target-vertices: target_vertices "
-                                                      "must be in 4..4096, not 3"),
-    (["--start", "points", "--target-vertices", "5000"], "not 5000"),
+                                                      "must be in 4..10000, not 3"),
+    (["--start", "points", "--target-vertices", "20000"], "not 20000"),
     (["--samples", "0"], "--samples: samples must be in 1..16, not 0"),
     (["--samples", "17"], "--samples: samples must be in 1..16, not 17"),
     (["--sampler", "euler"], "--sampler: sampler must be one of"),

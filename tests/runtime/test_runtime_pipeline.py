@@ -96,7 +96,7 @@ def test_bad_requests_are_refused(generator, cloud):
            ("start_time", {"start": "points", "start_time": 1.5}),
            ("start_time", {"start": "points", "start_time": float("nan")}),
            ("target_vertices", {"target_vertices": 3}),
-           ("target_vertices", {"target_vertices": 5000}),
+           ("target_vertices", {"target_vertices": 20000}),
            ("target_vertices", {"start": "noise", "target_vertices": 100}),
            ("samples", {"samples": 0}), ("samples", {"samples": 17}),
            ("seed", {"seed": -1}), ("raw", {"raw": "yes"}), ("steps", {"steps": 2.5})]

@@ -51,7 +51,7 @@ def generate(
     ] = None,
     target_vertices: Annotated[
         int | None, typer.Option("--target-vertices", help="Vertices of the mesh (within "
-                                 "10%), 4..4096; needs --start points.")
+                                 "10%), 4..10,000; needs --start points.")
     ] = None,
     samples: Annotated[
         int, typer.Option("--samples", help="Try this many seeds (1..16) from --seed on and "
