@@ -71,7 +71,8 @@ def evaluate(
     no_model: Annotated[bool, typer.Option("--no-model", help="Run the baselines only.")] = False,
     modes: Annotated[
         str, typer.Option("--modes", help="Our pipeline's modes, comma-separated: default, "
-                                          "raw, paper, samples4, gt.")
+                                          "raw, paper, samples4, gt, and the ablations "
+                                          "no_fit, no_flips, no_sharp.")
     ] = "default",
     noise: Annotated[
         float, typer.Option("--noise", min=0.0, help="Gaussian noise on the input points "

@@ -21,11 +21,12 @@ with ``threads=1``, and onnxruntime gets the same count (the CLI passes it).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -57,14 +58,19 @@ THREAD_VARIABLES = (
 #: Baselines the runner knows, in table order (``psr_star_gt``: PSR decimated to the
 #: ground truth's vertex count).
 BASELINES = ("psr", "psr_star", "psr_star_gt", "bpa")
-#: Modes of our pipeline the runner knows: the method name of each row and the
-#: generate options it runs with (``gt``: ``target_vertices`` = the ground truth's count).
-MODES = {
-    "default": ("ours", {}),
-    "raw": ("ours_raw", {"raw": True}),
-    "paper": ("ours_paper", {"raw": True, "start": "noise"}),
-    "samples4": ("ours_s4", {"samples": 4}),
-    "gt": ("ours_gt", {}),
+#: Modes of our pipeline the runner knows: the method name of each row, the generate
+#: options it runs with (``gt``: ``target_vertices`` = the ground truth's count) and, for
+#: the ablations, what it changes in the geometry stage
+#: (:class:`spacemesh.geometry.GeometryOptions` fields; ``fit``: FitOptions fields).
+MODES: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
+    "default": ("ours", {}, {}),
+    "raw": ("ours_raw", {"raw": True}, {}),
+    "paper": ("ours_paper", {"raw": True, "start": "noise"}, {}),
+    "samples4": ("ours_s4", {"samples": 4}, {}),
+    "gt": ("ours_gt", {}, {}),
+    "no_fit": ("ours_no_fit", {}, {"fit": {"iterations": 0}}),
+    "no_flips": ("ours_no_flips", {}, {"flips": False}),
+    "no_sharp": ("ours_no_sharp", {}, {"fit": {"plane_weight": 0.0}}),
 }
 #: Conditioning points sampled on a mesh file (as in the datasets).
 N_POINTS = 2048
@@ -238,6 +244,25 @@ def _generate(
     return generator.generate(points, normals, **options).mesh
 
 
+@contextlib.contextmanager
+def _geometry_changed(generator: Any, changes: dict[str, Any]) -> Iterator[None]:
+    """The generator's geometry stage with ``changes`` for the duration (ablations)."""
+    if not changes:
+        yield
+        return
+    from dataclasses import replace
+
+    spec = generator.spec
+    geometry = spec.geometry
+    fit = replace(geometry.fit, **changes.get("fit", {}))
+    others = {k: v for k, v in changes.items() if k != "fit"}
+    generator.spec = replace(spec, geometry=replace(geometry, fit=fit, **others))
+    try:
+        yield
+    finally:
+        generator.spec = spec
+
+
 def parse_modes(text: str) -> list[str]:
     """``"default,raw"`` -> a checked list of :data:`MODES` names."""
     names = [m.strip() for m in text.split(",") if m.strip()]
@@ -401,14 +426,14 @@ def run_evaluation(
         if generator is not None:
             wants_normals = bool(getattr(getattr(generator, "spec", None), "normals", False))
             for mode in parse_modes(",".join(modes)):
-                method, extra = MODES[mode]
+                method, extra, geometry = MODES[mode]
                 bar.set_postfix_str(method)
                 extra = dict(extra, seed=seed, steps=steps)
                 if mode == "gt":
                     extra["target_vertices"] = gt.n_vertices
-                meshes[method] = _timed(
-                    _generate, generator, points, normals if wants_normals else None, **extra
-                )
+                with _geometry_changed(generator, geometry):
+                    meshes[method] = _timed(_generate, generator, points,
+                                            normals if wants_normals else None, **extra)
         if any(b in baselines for b in ("psr", "psr_star", "psr_star_gt")):
             bar.set_postfix_str("psr")
             psr = _timed(screened_poisson, points, normals, threads=threads)

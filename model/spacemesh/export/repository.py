@@ -52,6 +52,7 @@ import numpy as np
 import torch
 
 from spacemesh.export.onnx_export import GRAPH_FILES, OPSET, export_onnx
+from spacemesh.geometry.policy import decode_changes, decode_section
 from spacemesh.geometry.stage import geometry_section
 from spacemesh.nn.base_model import BaseModel, OnnxEncoder
 from spacemesh.nn.model import SpaceMeshModel
@@ -64,7 +65,6 @@ from spacemesh.runtime.backend import (
     volume_names,
 )
 from spacemesh.runtime.options import POINTS_START
-from spacemesh.runtime.pipeline import decode_changes
 from spacemesh.runtime.repository import (
     FORMAT,
     FORMAT_VERSION,
@@ -352,59 +352,6 @@ def heldout_metrics(
         "pipeline": {**pipe, "sampler": generator.spec.method,
                      "steps": steps or generator.spec.steps},
     }
-
-
-#: The relative gain a point-fit flip of the decode needs: chosen on the val split of
-#: the ``qem`` set of seed 5, never on the held-out set (100 shapes, version 5's
-#: graphs, decoded edge F1 0.962 / 0.964 / 0.964 / 0.962 for 0.1 / 0.3 / 0.5 / 0.7;
-#: ``experiments/decode_fit_sweep.py``).
-FIT_GAIN = 0.5
-
-
-def decode_section(data_card: dict[str, Any]) -> dict[str, Any]:
-    """The manifest's ``decode`` section for a model trained on ``data_card``'s data.
-
-    A model trained on triangle meshes (:data:`spacemesh.data.styles.TRIANGLE_STYLES`)
-    has its long faces cut into triangles (``max_sides`` 3, see
-    :mod:`spacemesh.splitting`), then its removed vertices put back and its diagonals
-    flipped to the ones it rates closer (``reinsert``, ``flip``, see
-    :mod:`spacemesh.refinement`); one trained on ``qem`` meshes of generator 1.1.0 or
-    later, whose flat quads have the Delaunay diagonal, gets that rule too
-    (``flat_delaunay_degrees``, the generator's :data:`~spacemesh.data.styles.
-    FLAT_FLIP_DEGREES`). Triangle models also flip toward the conditioning points
-    (``fit_gain`` :data:`FIT_GAIN`, see :func:`spacemesh.refinement.flip_diagonals`).
-    Any other keeps its polygons as matched.
-
-    Parameters
-    ----------
-    data_card : dict
-        The run's data card (``style`` and ``generator_version`` are read).
-
-    Returns
-    -------
-    dict
-        ``max_sides`` (int or None), ``reinsert``, ``flip`` (bool),
-        ``flat_delaunay_degrees``, ``fit_gain`` (float or None) and ``why``.
-    """
-    from spacemesh.data.styles import FLAT_FLIP_DEGREES, TRIANGLE_STYLES
-
-    style = data_card.get("style")
-    if style not in TRIANGLE_STYLES:
-        return {"max_sides": None, "reinsert": False, "flip": False,
-                "flat_delaunay_degrees": None, "fit_gain": None,
-                "why": f"trained on style {style}: polygons are kept"}
-    version = tuple(int(v) for v in str(data_card.get("generator_version", "0")).split("."))
-    flat = FLAT_FLIP_DEGREES if style == "qem" and version >= (1, 1, 0) else None
-    why = (f"trained on triangle meshes (style {style}): faces longer than triangles are "
-           "cut along their strongest missing diagonals, removed vertices go back into "
-           "the triangles rated closest, and diagonals flip to the ones whose triangles "
-           f"pass closer to the points (by more than {FIT_GAIN:g} of the squared "
-           "distance), or else to the ones rated closer")
-    if flat is not None:
-        why += (f"; quads folded by less than {flat:g} degree are Delaunay, as in the "
-                f"training meshes (generator {data_card['generator_version']})")
-    return {"max_sides": 3, "reinsert": True, "flip": True, "flat_delaunay_degrees": flat,
-            "fit_gain": FIT_GAIN, "why": why}
 
 
 #: Vertex spacings tried by :func:`calibrate_vertex_spacing` ([-1, 1] frame).

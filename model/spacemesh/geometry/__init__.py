@@ -1,5 +1,10 @@
 """Post-decode geometry: everything that happens to the mesh after the networks.
 
+* :mod:`~spacemesh.geometry.crossing`: the weaker of two crossing quad diagonals dropped;
+* :mod:`~spacemesh.geometry.splitting`: long faces cut along their strongest diagonals;
+* :mod:`~spacemesh.geometry.refinement`: removed vertices put back, diagonals flipped;
+* :mod:`~spacemesh.geometry.surface_fit`: closest points, nearest triangles, quad errors;
+* :mod:`~spacemesh.geometry.policy`: which model gets which of those (manifest ``decode``);
 * :mod:`~spacemesh.geometry.sampling`: vertices chosen on the input (farthest points);
 * :mod:`~spacemesh.geometry.fitting`: the vertex fit (one energy, one sparse solve);
 * :mod:`~spacemesh.geometry.stage`: the stage itself (splits, fit, flips, guard);
@@ -11,7 +16,7 @@ numpy and scipy only: the service uses all of it without torch, trimesh or pymes
 
 from spacemesh.geometry.fitting import FitOptions, fit_vertices
 from spacemesh.geometry.report import FitReport, fit_report
-from spacemesh.geometry.sampling import farthest_point_sampling
+from spacemesh.geometry.sampling import farthest_point_sampling, feature_weights
 from spacemesh.geometry.stage import GeometryOptions, GeometryResult, refine_geometry
 
 __all__ = [
@@ -20,6 +25,7 @@ __all__ = [
     "GeometryOptions",
     "GeometryResult",
     "farthest_point_sampling",
+    "feature_weights",
     "fit_report",
     "fit_vertices",
     "refine_geometry",

@@ -40,7 +40,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
-from spacemesh.surface_fit import closest_points_on_triangles, nearest_triangles
+from spacemesh.geometry.surface_fit import closest_points_on_triangles, nearest_triangles
 from spacemesh.typed import FloatArray, IntArray
 
 #: Neighbours of the plane fit of :func:`estimate_point_normals`.
@@ -78,7 +78,7 @@ class FitOptions:
     data_weight: float = 1.0
     face_weight: float = 1.0
     plane_weight: float = 1.0
-    plane_neighbours: int = 24
+    plane_neighbours: int = 8
     plane_reach: float = 0.5
     spring_weight: float = 1e-3
     damping: float = 1e-3

@@ -26,8 +26,8 @@ from scipy.spatial import cKDTree
 
 from spacemesh.data.validate import triangles_of
 from spacemesh.geometry.intersections import self_intersecting_faces
+from spacemesh.geometry.surface_fit import nearest_triangles
 from spacemesh.mesh import PolygonMesh
-from spacemesh.surface_fit import nearest_triangles
 from spacemesh.typed import FloatArray
 
 #: Input points measured at most (a fixed subset of larger clouds).

@@ -28,8 +28,8 @@ from spacemesh.data.validate import triangles_of
 from spacemesh.encode import connectivity_from_faces
 from spacemesh.geometry.fitting import FitOptions, fit_vertices
 from spacemesh.geometry.intersections import intersecting_triangles, self_intersecting_faces
+from spacemesh.geometry.refinement import flip_diagonals
 from spacemesh.mesh import PolygonMesh
-from spacemesh.refinement import flip_diagonals
 from spacemesh.typed import FloatArray, IntArray
 
 #: Rounds of the intersection guard's halfway backtracking.

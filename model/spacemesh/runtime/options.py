@@ -28,9 +28,11 @@ MIN_TARGET_VERTICES = 4
 #: Most vertices a mesh may be asked for.
 MAX_TARGET_VERTICES = 10_000
 #: The vertex start a release records in ``manifest["sampler"]``: farthest-point
-#: samples of the input, not denoised (the shipped denoiser moves good vertices away
-#: from the surface; docs/RESULTS.md), 200 of them unless the request sets a target.
-POINTS_START = {"start": "points", "start_time": 0.0, "vertices": 200}
+#: samples of the input, with points on sharp features counted twice as far
+#: (``feature_boost``), not denoised (the shipped denoiser moves good vertices away
+#: from the surface: docs/RESULTS.md has the start-time sweep), 200 of them unless the
+#: request sets a target.
+POINTS_START = {"start": "points", "start_time": 0.0, "vertices": 200, "feature_boost": 1.0}
 #: Largest seed (int64 in the gRPC contract; seeds + samples stay below it).
 MAX_SEED = 2**63 - 1 - MAX_SAMPLES
 

@@ -33,9 +33,11 @@ from spacemesh.geometry import (
     FitReport,
     GeometryOptions,
     farthest_point_sampling,
+    feature_weights,
     fit_report,
     refine_geometry,
 )
+from spacemesh.geometry.policy import decode_changes
 from spacemesh.mesh import PolygonMesh
 from spacemesh.runtime.backend import Backend
 from spacemesh.runtime.options import GenerateOptions
@@ -57,17 +59,6 @@ DEFAULT_VERTICES = 200
 
 #: Input points the geometry stage fits to at most (a fixed subset of larger clouds).
 MAX_FIT_POINTS = 4096
-
-
-#: The manifest ``decode`` keys that are :class:`~spacemesh.decode.DecodeOptions` fields.
-DECODE_KEYS = ("max_sides", "reinsert", "flip", "flat_delaunay_degrees", "fit_gain")
-
-
-def decode_changes(section: dict[str, Any]) -> dict[str, Any]:
-    """:class:`~spacemesh.decode.DecodeOptions` fields from a manifest's ``decode``
-    section (:data:`DECODE_KEYS`; a repository written before a key existed keeps that
-    field's default)."""
-    return {key: section[key] for key in DECODE_KEYS if key in section}
 
 
 @dataclass(frozen=True)
@@ -107,6 +98,10 @@ class ModelSpec:
     vertices : int
         Vertices ``start=points`` chooses without ``target_vertices``
         (``manifest["sampler"]["vertices"]``).
+    feature_boost : float
+        Farthest-point sampling treats points on sharp features as this much farther
+        away (1 + boost; :func:`spacemesh.geometry.sampling.feature_weights`), so
+        creases and corners get denser vertices (``manifest["sampler"]["feature_boost"]``).
     geometry : GeometryOptions
         The geometry stage (``manifest["geometry"]`` overrides the defaults).
     """
@@ -122,6 +117,7 @@ class ModelSpec:
     start: str = "noise"
     start_time: float = 0.0
     vertices: int = DEFAULT_VERTICES
+    feature_boost: float = 0.0
     geometry: GeometryOptions = field(default_factory=GeometryOptions)
 
     @classmethod
@@ -176,6 +172,7 @@ class ModelSpec:
             decode=decode, start=str(sampler.get("start", "noise")),
             start_time=float(sampler.get("start_time", 0.0)),
             vertices=int(sampler.get("vertices", DEFAULT_VERTICES)),
+            feature_boost=float(sampler.get("feature_boost", 0.0)),
             geometry=GeometryOptions.from_section(manifest.get("geometry", {})),
         )
 
@@ -533,7 +530,9 @@ class MeshGenerator:
             wanted = self.vertex_count(request.options)
             if not request.options.raw:
                 wanted = min(wanted, self.spec.max_vertices)  # the stage splits the rest
-            pick = farthest_point_sampling(unit, wanted, seed=request.options.seed)
+            weights = feature_weights(unit, self.spec.feature_boost)
+            pick = farthest_point_sampling(unit, wanted, seed=request.options.seed,
+                                           weights=weights)
             chosen.append(unit[pick])
         n = max([self.spec.max_vertices, *(len(c) for c in chosen)])
         tokens = np.zeros((len(requests), n, 4), dtype=np.float32)

@@ -1,6 +1,6 @@
 """How well triangles fit a point cloud: closest points, nearest triangles, quad errors.
 
-The decode's refinement (:mod:`spacemesh.refinement`) uses these to choose, for two
+The decode's refinement (:mod:`spacemesh.geometry.refinement`) uses these to choose, for two
 triangles sharing an edge, the diagonal whose surface passes closer to the conditioning
 points: a data-dependent triangulation (Dyn, Levin and Rippa, 1990). Numpy and scipy
 only, so the service (no trimesh) runs it.
