@@ -122,7 +122,7 @@ def test_intersections_match_the_pymeshlab_confirmed_metric():
     from spacemesh.metrics.quality import self_intersecting_faces as metric
 
     a, b = icosphere(2), icosphere(2)
-    both = _mesh(np.concatenate([a.vertices, b.vertices + [0.8, 0.1, 0.0]]),
+    both = _mesh(np.concatenate([a.vertices, b.vertices + np.array([0.8, 0.1, 0.0])]),
                  np.concatenate([_triangles(a), _triangles(b) + a.n_vertices]))
     folded = a.with_vertices(a.vertices.copy())
     folded.vertices[0] *= -0.2  # a vertex pushed through the opposite side

@@ -1,5 +1,5 @@
 """The decoded mesh refined: removed vertices put back, diagonals flipped
-(:mod:`spacemesh.refinement`, ``DecodeOptions.reinsert``, ``flip``,
+(:mod:`spacemesh.geometry.refinement`, ``DecodeOptions.reinsert``, ``flip``,
 ``flat_delaunay_degrees``)."""
 
 from __future__ import annotations
@@ -8,14 +8,14 @@ from dataclasses import replace
 
 import numpy as np
 
-from spacemesh import refinement
 from spacemesh.connectivity import Connectivity
 from spacemesh.decode import DecodeOptions, decode
 from spacemesh.encode import encode_connectivity
 from spacemesh.examples import icosphere
 from spacemesh.fit import edge_f1_score, next_accuracy
+from spacemesh.geometry import refinement
+from spacemesh.geometry.refinement import flip_diagonals, reinsert_vertices
 from spacemesh.mesh import PolygonMesh
-from spacemesh.refinement import flip_diagonals, reinsert_vertices
 from spacemesh.spacetime import distance_operands
 from spacemesh.topology import check_topology, edge_keys
 

@@ -10,8 +10,8 @@ import pytest
 from spacemesh.decode import DecodeOptions, decode
 from spacemesh.encode import encode_connectivity
 from spacemesh.examples import cube_quads, prism
+from spacemesh.geometry.splitting import split_long_faces
 from spacemesh.spacetime import distance_operands, pairwise_distance
-from spacemesh.splitting import split_long_faces
 from spacemesh.topology import check_topology
 
 

@@ -1,4 +1,4 @@
-"""How triangles fit a point cloud (:mod:`spacemesh.surface_fit`): closest points,
+"""How triangles fit a point cloud (:mod:`spacemesh.geometry.surface_fit`): closest points,
 nearest triangles and the quad errors the decode's fit flips read."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pytest
 
 from spacemesh.data.sampling import sample_surface
 from spacemesh.examples import icosphere
-from spacemesh.surface_fit import (
+from spacemesh.geometry.surface_fit import (
     QuadFit,
     closest_points_on_triangles,
     nearest_triangles,

@@ -73,7 +73,7 @@ def test_vertex_spacing_is_calibrated_on_the_val_split(toy_model, tmp_path):
 
 
 def test_the_decode_section_follows_the_training_style(toy_model):
-    from spacemesh.export.repository import decode_section
+    from spacemesh.geometry.policy import decode_section
     from spacemesh.runtime.pipeline import ModelSpec
 
     manifest = json.loads((toy_model.repository / "manifest.json").read_text())
@@ -90,8 +90,7 @@ def test_the_decode_section_follows_the_training_style(toy_model):
 
 def test_the_decode_section_of_qem_models_refines_and_flips_flat_quads():
     from spacemesh.data.styles import FLAT_FLIP_DEGREES
-    from spacemesh.export.repository import FIT_GAIN, decode_section
-    from spacemesh.runtime.pipeline import decode_changes
+    from spacemesh.geometry.policy import FIT_GAIN, decode_changes, decode_section
 
     new = decode_section({"style": "qem", "generator_version": "1.1.0"})
     assert new["reinsert"] and new["flip"]
@@ -109,6 +108,26 @@ def test_the_decode_section_of_qem_models_refines_and_flips_flat_quads():
     options = decode_changes(new)
     assert options == {"max_sides": 3, "reinsert": True, "flip": True,
                        "flat_delaunay_degrees": FLAT_FLIP_DEGREES, "fit_gain": FIT_GAIN}
+
+
+@pytest.mark.parametrize("version", [1, 6, 7])
+def test_shipped_versions_decode_as_their_manifests_say(version):
+    from pathlib import Path
+
+    from spacemesh.geometry.policy import DECODE_KEYS, decode_section
+    from spacemesh.runtime.pipeline import ModelSpec
+
+    path = Path(__file__).resolve().parents[2] / "models/spacemesh-small" / str(version)
+    manifest = json.loads((path / "manifest.json").read_text())
+    decode = ModelSpec.from_manifest(manifest).decode
+    section = manifest.get("decode")
+    if section is None:  # version 1 predates the section: every field keeps its default
+        assert all(getattr(decode, key) in (None, False) for key in DECODE_KEYS)
+        return
+    assert {key: getattr(decode, key) for key in DECODE_KEYS} == {
+        key: section[key] for key in DECODE_KEYS}
+    # the policy, now in spacemesh.geometry, still writes what these versions shipped
+    assert decode_section(manifest["data"]) == section
 
 
 def test_a_model_version_is_repackaged_with_todays_decode(toy_model, tmp_path):
