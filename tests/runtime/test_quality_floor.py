@@ -5,13 +5,16 @@ points sampled on each with a fixed seed, the shipped model's default pipeline (
 scored in the ground truth's [-1, 1] frame with 4,000 samples per mesh.
 
 The floors were set from the values measured on 2026-12-02 with spacemesh-small/7
-(``python tests/runtime/test_quality_floor.py`` prints them):
+(``python tests/runtime/test_quality_floor.py`` prints them): CD ceilings are 1.5 times
+the measured CD, F1 floors the measured F1 minus 0.1.
 
-=========  ==========  ======  ==============  ========
-shape      CD (1e-3)   F1      CD ceiling      F1 floor
-=========  ==========  ======  ==============  ========
-box        see MEASURED below, ceilings 1.5 x the measured CD, floors measured F1 - 0.1
-=========  ==========  ======  ==============  ========
+=========  =========  =====  ==============  ========  ============================
+shape      CD (1e-3)  F1     CD ceiling      F1 floor  paper pipeline (CD, F1)
+=========  =========  =====  ==============  ========  ============================
+box        1.384      0.453  2.08            0.353     5.81, 0.057
+cylinder   1.979      0.326  2.97            0.226     16.1, 0.039
+torus      1.471      0.399  2.21            0.299     11.1, 0.087
+=========  =========  =====  ==============  ========  ============================
 
 and each floor is shown to fail on a broken pipeline: the paper's raw pipeline from
 noise (today's undertrained denoiser) and the default mesh shrunk by 0.8.
@@ -33,7 +36,7 @@ from spacemesh.runtime.repository import default_model_dir
 from spacemesh.topology import check_topology
 
 #: Measured (CD, F1) of the default pipeline per shape (see the module docstring).
-MEASURED = {"box": (0.0, 0.0), "cylinder": (0.0, 0.0), "torus": (0.0, 0.0)}
+MEASURED = {"box": (1.384e-3, 0.453), "cylinder": (1.979e-3, 0.326), "torus": (1.471e-3, 0.399)}
 #: CD ceilings: the measured CD times this.
 CD_MARGIN = 1.5
 #: F1 floors: the measured F1 minus this.
