@@ -110,7 +110,7 @@ def test_the_decode_section_of_qem_models_refines_and_flips_flat_quads():
                        "flat_delaunay_degrees": FLAT_FLIP_DEGREES, "fit_gain": FIT_GAIN}
 
 
-@pytest.mark.parametrize("version", [1, 6, 7])
+@pytest.mark.parametrize("version", [1, 7])
 def test_shipped_versions_decode_as_their_manifests_say(version):
     from pathlib import Path
 
