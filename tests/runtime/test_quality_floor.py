@@ -41,7 +41,7 @@ MEASURED = {"box": (1.384e-3, 0.453), "cylinder": (1.979e-3, 0.326), "torus": (1
 CD_MARGIN = 1.5
 #: F1 floors: the measured F1 minus this.
 F1_MARGIN = 0.1
-METRICS = MetricOptions(samples=4000, confirm_intersections=False)
+METRICS = MetricOptions(samples=4000)
 
 
 def _shapes():

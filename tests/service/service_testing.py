@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,14 +81,48 @@ class Case:
     empty_seed: int | None
 
 
-class GatedGenerator:
-    """A generator whose batches wait for :attr:`gate`; records what each batch did."""
+class WrappedGenerator:
+    """A real generator seen through a wrapper (subclasses change ``generate_batch``)."""
 
     def __init__(self, inner) -> None:
         self.inner = inner
         self.spec = inner.spec
         self.name = inner.name
         self.repository = inner.repository
+
+    def generate_batch(self, requests, *, progress=None):
+        return self.inner.generate_batch(requests, progress=progress)
+
+
+class SlowGenerator(WrappedGenerator):
+    """The real generator, ``step_seconds`` slower per sampler step (the step report is
+    where the batcher stops work nobody waits for)."""
+
+    def __init__(self, inner, step_seconds: float) -> None:
+        super().__init__(inner)
+        self.step_seconds = step_seconds
+
+    def generate_batch(self, requests, *, progress=None):
+        def slow(done: int, total: int) -> None:
+            time.sleep(self.step_seconds)
+            if progress is not None:
+                progress(done, total)
+
+        return self.inner.generate_batch(requests, progress=slow)
+
+
+class FailingGenerator(WrappedGenerator):
+    """A generator whose batches raise an unexpected error (a bug, not a bad input)."""
+
+    def generate_batch(self, requests, *, progress=None):
+        raise RuntimeError("a bug in the generator")
+
+
+class GatedGenerator(WrappedGenerator):
+    """A generator whose batches wait for :attr:`gate`; records what each batch did."""
+
+    def __init__(self, inner) -> None:
+        super().__init__(inner)
         self.gate = threading.Event()
         self.entered = threading.Event()
         self.batches: list[int] = []

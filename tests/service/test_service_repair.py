@@ -7,6 +7,7 @@ import json
 import re
 
 import grpc
+import numpy as np
 import pytest
 from service_testing import (
     REPAIR_STEPS,
@@ -19,6 +20,7 @@ from service_testing import (
 
 from spacemesh.examples import icosphere
 from spacemesh.io import load_mesh
+from spacemesh.mesh import PolygonMesh
 from spacemesh_service.pb import spacemesh_pb2 as pb
 from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
 from tests.repair.repair_testing import flat_shaded
@@ -221,6 +223,33 @@ def test_region_errors_are_422_with_their_kind(http, stub):
         "center": [0, 0], "radius": 1}})), rpc.INVALID_ARGUMENT, "invalid-region")
     assert_rpc_problem(lambda: stub.Repair(repair_pb(mesh, {"faces": [1]}, faces=[1])),
                        rpc.INVALID_ARGUMENT, "invalid-region")
+
+
+def test_regions_with_nothing_to_sample_or_huge_indices_are_422(http, stub):
+    """Once 500s: a region of a two-vertex face (an IndexError while sampling), a region
+    of zero-area faces cut off from the rest (numpy's "high <= 0" as invalid-parameter),
+    and a face index of 1e300 (reported as -9223372036854775808)."""
+    sphere = icosphere(1)
+    n = sphere.n_faces
+    two = PolygonMesh.from_faces(sphere.vertices, [*sphere.faces, np.array([0, 1])])
+    flat = [[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]]  # a tetrahedron of four equal points
+    dust = PolygonMesh.from_faces(np.vstack([sphere.vertices, np.full((4, 3), 3.0)]),
+                                  [*sphere.faces, *(np.array(f) + 42 for f in flat)])
+    cases = ((two, {"faces": [n]}, "face 80 has 2 vertices"),
+             (dust, {"faces": [n, n + 1, n + 2, n + 3]}, "no area"))
+    for mesh, region, words in cases:
+        body = assert_problem(post_repair(http, mesh, region), 422, "invalid-region")
+        assert words in body["detail"] and "no boundary" in body["detail"]
+        with pytest.raises(grpc.RpcError) as info:
+            stub.Repair(repair_pb(mesh, region))
+        assert info.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+        assert info.value.details() == body["detail"]
+    body = assert_problem(post_repair(http, sphere, '{"faces": [1e300]}'), 422,
+                          "invalid-region")
+    assert body["detail"] == "region faces: index 1e+300 is out of range"
+    body = assert_problem(post_repair(http, sphere, '{"vertices": [18446744073709551615]}'),
+                          422, "invalid-region")
+    assert "18446744073709551615 is out of range" in body["detail"]
 
 
 def test_defects_outside_the_region_are_422_and_listed(http, stub):

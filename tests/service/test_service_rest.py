@@ -152,6 +152,11 @@ def test_malformed_input_is_400(http):
     assert_problem(http.post("/generate", json={"points": [[0, 0]]}), 400, "malformed-input")
     assert_problem(http.post("/generate", data={"seed": "1"}, files={"other": ("a", b"1")}),
                    400, "malformed-input")
+    deep = b'{"points": ' + b"[" * 100_000 + b"]" * 100_000 + b"}"  # a RecursionError
+    body = assert_problem(http.post("/generate", content=deep,
+                                    headers={"content-type": "application/json"}),
+                          400, "malformed-input")
+    assert "nested too deeply" in body["detail"]
 
 
 def test_invalid_format_is_400_and_invalid_options_422(http, case):
@@ -226,8 +231,11 @@ def test_no_surface_is_422(http, case):
 
 def test_other_errors_are_problems_too(http):
     assert_problem(http.get("/nowhere"), 404, "not-found")
-    assert_problem(http.get("/generate"), 405, "method-not-allowed")
-    assert_problem(http.get("/repair"), 405, "method-not-allowed")
+    for route in ("/generate", "/repair"):
+        response = http.get(route)
+        assert_problem(response, 405, "method-not-allowed")
+        assert response.headers["allow"] == "POST"
+    assert http.post("/metrics").headers["allow"] == "GET"
     assert_problem(http.post("/repair"), 415, "unsupported-format")  # no multipart body
 
 

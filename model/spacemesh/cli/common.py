@@ -31,6 +31,28 @@ def fail(message: str, code: int = 2) -> NoReturn:
     raise typer.Exit(code)
 
 
+def require_extra(extra: str, purpose: str, *modules: str) -> None:
+    """Exit with one line naming the install command when a module of an extra is missing.
+
+    Parameters
+    ----------
+    extra : str
+        The package extra that installs the modules (``geometry``, ``train``).
+    purpose : str
+        What needs them (``"synthesising shapes"``), for the message.
+    *modules : str
+        The modules to import.
+    """
+    import importlib
+
+    for name in modules:
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            fail(f"{purpose} needs the {extra} extra ({name} is missing): "
+                 f"pip install 'spacemesh[{extra}]'")
+
+
 def user_errors(*error_types: type[BaseException]) -> Callable[[Callable[P, R]], Callable[P, R]]:
     """Decorate a command so that the given errors become one-line messages (exit 2)."""
     caught = (UserError, *error_types)

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from spacemesh.cli.common import UserError, app, user_errors
+from spacemesh.cli.common import UserError, app, require_extra, user_errors
 
 data_app = typer.Typer(
     name="data",
@@ -18,6 +18,11 @@ data_app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 app.add_typer(data_app, name="data")
+
+
+#: Modules of the geometry extra that ``data synth`` builds and re-meshes shapes with
+#: (each failed attempt would otherwise count as a rejected shape).
+SYNTH_MODULES = ("manifold3d", "pymeshlab")
 
 
 def parse_vertex_range(text: str) -> tuple[int, int]:
@@ -70,6 +75,7 @@ def synth(
     ] = True,
 ) -> None:
     """Generate a synthetic CSG dataset in one tessellation style."""
+    require_extra("geometry", "synthesising shapes", *SYNTH_MODULES)
     from spacemesh.data.styles import STYLES
     from spacemesh.data.synth import SynthConfig, synthesize
 

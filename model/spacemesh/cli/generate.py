@@ -2,8 +2,12 @@
 
 The generate options are :class:`spacemesh.runtime.options.GenerateOptions`, one flag
 each (``--start-time`` for ``start_time``); the generator resolves them once, and an
-option out of range is one line on stderr and exit code 2. The summary reports the
-resolved options, the fit report (:meth:`FitReport.to_dict`) and every seed's score.
+option out of range is one line on stderr and exit code 2. The point cloud is checked
+as the service checks it (:func:`spacemesh.runtime.cloud.validate_cloud`, with the
+service's default limits): too few or too many points, NaN or infinite values, or
+identical, collinear or coplanar points are one line on stderr and exit code 2. The
+summary reports the resolved options, the fit report (:meth:`FitReport.to_dict`) and
+every seed's score.
 """
 
 from __future__ import annotations
@@ -75,6 +79,7 @@ def generate(
     from spacemesh.io.errors import MeshFormatError
     from spacemesh.io.points import load_points
     from spacemesh.runtime import MeshGenerator, ModelRepositoryError
+    from spacemesh.runtime.cloud import CloudError, validate_cloud
     from spacemesh.runtime.options import GenerateOptions, OptionError
 
     if output.suffix.lower() not in MESH_SUFFIXES:
@@ -91,6 +96,11 @@ def generate(
         generator = MeshGenerator.from_repository(model, intra_op_threads=threads)
     except ModelRepositoryError as error:
         fail(str(error))
+    try:
+        points, normals = validate_cloud(points, normals,
+                                         needs_normals=generator.spec.normals)
+    except CloudError as error:
+        fail(f"{points_path}: {error} ({error.kind})")
     bar = tqdm(desc="diffusion", unit="step", disable=not progress or as_json, leave=False)
 
     def report(done: int, total: int) -> None:

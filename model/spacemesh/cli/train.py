@@ -11,15 +11,11 @@ from typing import Annotated
 
 import typer
 
-from spacemesh.cli.common import app, fail
+from spacemesh.cli.common import app, fail, require_extra
 
 
 def _require_torch() -> None:
-    try:
-        import torch  # noqa: F401
-    except ModuleNotFoundError:
-        fail("training needs the training extra (torch is missing): "
-             "pip install 'spacemesh[train]'")
+    require_extra("train", "training", "torch")
 
 
 @app.command()

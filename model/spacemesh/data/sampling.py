@@ -28,8 +28,15 @@ def sample_surface(
     normals : (count, 3) float32
         Unit normal of the polygon face each point lies on (Newell's normal, so a
         slightly non-planar polygon gives one normal to all its points).
+
+    Raises
+    ------
+    ValueError
+        The mesh has no triangle to sample on (no face of three or more vertices).
     """
     tri, source = triangles_of(mesh)
+    if not len(tri):
+        raise ValueError("the mesh has no face of three or more vertices to sample points on")
     v = mesh.vertices
     a, b, c = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]  # (T, 3) each
     area = np.linalg.norm(np.cross(b - a, c - a), axis=1)  # (T,) twice the area

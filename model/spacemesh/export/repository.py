@@ -358,6 +358,34 @@ def heldout_metrics(
 SPACING_GRID = (1e-4, 0.025, 0.05, 0.075, 0.1, 0.125, 0.15, 0.2, 0.25, 0.3)
 
 
+def require_calibration_shapes(data: str | Path, found: int | None = None,
+                               max_vertices: int | None = None) -> None:
+    """Refuse a calibration dataset whose ``val`` split has no shape to calibrate on.
+
+    Parameters
+    ----------
+    data : path
+        The dataset folder.
+    found : int, optional
+        Shapes of the split that fit the model (default: count the split).
+    max_vertices : int, optional
+        The model's vertex tokens, for the message when ``found`` is given.
+
+    Raises
+    ------
+    ValueError
+        One sentence naming the dataset.
+    """
+    from spacemesh.data.shards import open_dataset
+
+    if found is None and len(open_dataset(data, "val")) == 0:
+        raise ValueError(f"{data}: the val split has no shapes to calibrate on; use a "
+                         "dataset with a val split")
+    if found == 0:
+        raise ValueError(f"{data}: no shape of the val split has at most {max_vertices} "
+                         "vertices (the model's limit) to calibrate on")
+
+
 def calibrate_vertex_spacing(
     version_dir: str | Path, data: str | Path, *, shapes: int = 48, threads: int = 0,
     grid: tuple[float, ...] = SPACING_GRID, progress: bool = False,
@@ -397,6 +425,7 @@ def calibrate_vertex_spacing(
     generator = MeshGenerator.from_repository(version_dir, intra_op_threads=threads)
     spec = generator.spec
     records = first_records(data, "val", max_vertices=spec.max_vertices, limit=shapes)
+    require_calibration_shapes(data, len(records), spec.max_vertices)
     rows = []
     for spacing in tqdm(grid, desc="vertex spacing", disable=not progress):
         generator.spec = replace(spec, vertex_spacing=float(spacing))
@@ -485,7 +514,15 @@ def export_run(
     -------
     Path
         The version folder.
+
+    Raises
+    ------
+    ValueError
+        ``calibrate_data`` has no val shape that fits the model
+        (:func:`require_calibration_shapes`).
     """
+    if calibrate_data is not None:
+        require_calibration_shapes(calibrate_data)
     model, state = load_trained_model(run)
     base = state["base"]
     extra = state["extra"]
@@ -519,6 +556,7 @@ def export_run(
 
         samples = load_samples(calibrate_data, "val", config.max_vertices,
                                limit=connectivity_shapes)
+        require_calibration_shapes(calibrate_data, len(samples), config.max_vertices)
         learned = float(model.connectivity.tau.detach())
         embeddings = predicted_embeddings(model, samples)  # at the learned tau
         options = replace(model.decode_options, **decode_changes(decode))
@@ -598,12 +636,14 @@ def repackage_repository(
     Raises
     ------
     ValueError
-        The source is not a model version folder, a graph's checksum does not match, or
-        the target is the source.
+        The source is not a model version folder, a graph's checksum does not match,
+        the target is the source, or ``calibrate_data`` has no val shape.
     """
     source = Path(source)
     if not (source / MANIFEST).is_file():
         raise ValueError(f"{source}: not a model version folder (no {MANIFEST})")
+    if calibrate_data is not None:
+        require_calibration_shapes(calibrate_data)
     manifest = verified_manifest(source)
     name = name or str(manifest["name"])
     directory = Path(root) / name / str(version)

@@ -69,15 +69,12 @@ class MetricOptions:
         F-score thresholds in the [-1, 1] frame.
     in_degrees : float
         IN angle threshold.
-    confirm_intersections : bool
-        Confirm pymeshlab's self-intersection candidates pair by pair.
-    """
+"""
 
     samples: int = N_SAMPLES
     f1_threshold: float = F1_THRESHOLD
     ef1_threshold: float = EF1_THRESHOLD
     in_degrees: float = IN_DEGREES
-    confirm_intersections: bool = True
 
 
 @dataclass(frozen=True)
@@ -185,7 +182,7 @@ def score_mesh(
         row.update(cd=np.nan, f1=np.nan, ecd=np.nan, ef1=np.nan, **{"in": np.nan})
     lengths, angles = edge_lengths(mesh), corner_angles(mesh)
     row.update(
-        self_intersections=self_intersection_fraction(mesh, confirm=options.confirm_intersections),
+        self_intersections=self_intersection_fraction(mesh),
         edge_length_w1=distribution_distance(lengths, reference.edge_lengths),
         corner_angle_w1=distribution_distance(angles, reference.corner_angles),
         mean_edge_length=float(lengths.mean()) if len(lengths) else np.nan,

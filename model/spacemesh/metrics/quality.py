@@ -3,11 +3,11 @@
 - :func:`topology_flags`: manifold, watertight, oriented and valid, from
   :func:`spacemesh.topology.check_topology` (connectivity only).
 - :func:`self_intersection_fraction`: the fraction of polygon faces that intersect
-  another face. Candidates come from pymeshlab's
-  ``compute_selection_by_self_intersections_per_face`` on the triangulation; each
-  candidate pair is then confirmed with :func:`spacemesh.data.validate.triangles_intersect`
-  (VCG's test reports separated coplanar triangles as intersecting), skipping the
-  triangles of one polygon; a polygon face counts when one of its triangles intersects.
+  another face, by :mod:`spacemesh.geometry.intersections` (bounding-sphere candidates,
+  each pair confirmed by an exact triangle test; triangles of one polygon are not
+  compared; a polygon face counts when one of its triangles intersects). Unlike
+  pymeshlab's per-face filter, which the metric used before 2026-12, it also finds
+  coplanar triangles that overlap (a fold within a flat region).
 - :func:`edge_lengths` and :func:`corner_angles`: the element-shape distributions, and
   :func:`distribution_distance`, the 1-D Wasserstein (earth mover's) distance between a
   prediction's distribution and the ground truth's, in the distribution's own units.
@@ -21,11 +21,6 @@ from spacemesh.data.validate import triangles_intersect, triangles_of
 from spacemesh.mesh import PolygonMesh
 from spacemesh.topology import check_topology
 from spacemesh.typed import BoolArray, FloatArray, IntArray
-
-#: Relative shrink of triangles that share corners before the intersection test, so that
-#: touching at the shared corner or edge does not count (as in :mod:`spacemesh.data.validate`).
-SHRINK = 1e-6
-
 
 def topology_flags(mesh: PolygonMesh) -> dict[str, bool | int]:
     """Connectivity validity of a mesh.
@@ -53,71 +48,29 @@ def topology_flags(mesh: PolygonMesh) -> dict[str, bool | int]:
     }
 
 
-def _candidate_triangles(vertices: FloatArray, tri: IntArray) -> IntArray:
-    """Triangles that pymeshlab's self-intersection filter selects (a superset)."""
-    import pymeshlab
-
-    meshset = pymeshlab.MeshSet()
-    meshset.add_mesh(pymeshlab.Mesh(vertex_matrix=vertices, face_matrix=tri.astype(np.int32)))
-    meshset.compute_selection_by_self_intersections_per_face()
-    return np.flatnonzero(meshset.current_mesh().face_selection_array())
-
-
-def _shrink(points: FloatArray) -> FloatArray:
-    centre = points.mean(axis=0)
-    return centre + (points - centre) * (1.0 - SHRINK)
-
-
-def self_intersecting_faces(mesh: PolygonMesh, *, confirm: bool = True) -> BoolArray:
-    """Which polygon faces intersect another face of the mesh.
+def self_intersecting_faces(mesh: PolygonMesh) -> BoolArray:
+    """Which polygon faces intersect another face: the one definition the geometry
+    stage's guard and the fit report use
+    (:func:`spacemesh.geometry.intersections.self_intersecting_faces`).
 
     Parameters
     ----------
     mesh : PolygonMesh
-    confirm : bool
-        Confirm pymeshlab's candidates pair by pair (see the module doc).
 
     Returns
     -------
     (F,) bool
     """
-    hit = np.zeros(mesh.n_faces, dtype=bool)
-    if mesh.n_faces < 2:
-        return hit
-    tri, source = triangles_of(mesh)  # (T, 3), (T,)
-    candidates = _candidate_triangles(mesh.vertices, tri)
-    if not confirm:
-        hit[source[candidates]] = True
-        return hit
-    if candidates.size < 2:
-        return hit
-    extent = float(np.ptp(mesh.vertices, axis=0).max()) / 2 or 1.0
-    eps = 1e-9 * extent
-    pts = mesh.vertices[tri[candidates]]  # (C, 3, 3)
-    lo, hi = pts.min(axis=1) - eps, pts.max(axis=1) + eps  # (C, 3) each
-    confirmed = np.zeros(len(candidates), dtype=bool)
-    for i in range(len(candidates) - 1):
-        overlap = np.all((lo[i + 1 :] <= hi[i]) & (hi[i + 1 :] >= lo[i]), axis=1)
-        for j in np.flatnonzero(overlap) + i + 1:
-            if confirmed[i] and confirmed[j]:
-                continue
-            fa, fb = candidates[i], candidates[j]
-            if source[fa] == source[fb]:
-                continue
-            ta, tb = pts[i], pts[j]
-            if np.intersect1d(tri[fa], tri[fb]).size:
-                ta, tb = _shrink(ta), _shrink(tb)
-            if triangles_intersect(ta, tb, eps):
-                confirmed[i] = confirmed[j] = True
-    hit[source[candidates[confirmed]]] = True
-    return hit
+    from spacemesh.geometry.intersections import self_intersecting_faces as faces
+
+    return faces(mesh)
 
 
-def self_intersection_fraction(mesh: PolygonMesh, *, confirm: bool = True) -> float:
+def self_intersection_fraction(mesh: PolygonMesh) -> float:
     """The fraction (in [0, 1]) of faces that intersect another face (0 for no faces)."""
     if mesh.n_faces == 0:
         return 0.0
-    return float(self_intersecting_faces(mesh, confirm=confirm).mean())
+    return float(self_intersecting_faces(mesh).mean())
 
 
 def edge_lengths(mesh: PolygonMesh) -> FloatArray:

@@ -30,7 +30,7 @@ import numpy as np
 from spacemesh.data.sampling import sample_surface
 from spacemesh.mesh import PolygonMesh
 from spacemesh.repair.cut import Cut
-from spacemesh.repair.region import REGION_TOO_LARGE, RegionError
+from spacemesh.repair.region import INVALID_REGION, REGION_TOO_LARGE, RegionError
 from spacemesh.runtime.pipeline import normalize_points
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
@@ -178,7 +178,8 @@ def plan_patch(cut: Cut, n_tokens: int, *, max_rings: int = MAX_RINGS,
     ------
     RegionError
         ``region-too-large`` when the boundary alone leaves fewer than
-        :data:`MIN_FREE` free tokens.
+        :data:`MIN_FREE` free tokens; ``invalid-region`` when there is nothing to
+        sample (:func:`check_samplable`).
     """
     mesh = cut.mesh
     hole = hole_surface(cut) if hole is None else hole
@@ -217,10 +218,44 @@ def plan_patch(cut: Cut, n_tokens: int, *, max_rings: int = MAX_RINGS,
         frontier = np.zeros(mesh.n_vertices, dtype=bool)
         frontier[known] = True
     faces = np.union1d(region_faces, ring_faces)
+    check_samplable(cut, faces, hole)
     extent = np.concatenate([mesh.vertices[sub_mesh(mesh, faces).face_indices],
                              hole.vertices[hole.face_indices]])
     _, centre, scale = normalize_points(extent)
     return Patch(faces, known, rings, int(n_tokens), expected, centre, scale)
+
+
+def check_samplable(cut: Cut, faces: IntArray, hole: PolygonMesh) -> None:
+    """Refuse a patch that :func:`sample_patch` has nothing to sample on.
+
+    The conditioning points are sampled on the patch's faces and the hole points on the
+    hole (or, for a hole without area, at its boundary vertices): a patch of faces with
+    fewer than three vertices, or a hole with neither area nor boundary (a region of
+    such faces cut off from the rest of the mesh), leaves nothing.
+
+    Parameters
+    ----------
+    cut : Cut
+    faces : (K,) int64
+        The patch's faces.
+    hole : PolygonMesh
+        :func:`hole_surface` of ``cut``.
+
+    Raises
+    ------
+    RegionError
+        ``invalid-region``, naming a region face with fewer than three vertices when
+        there is one.
+    """
+    mesh = cut.mesh
+    if (mesh.face_sizes[faces] >= 3).any() and (len(cut.boundary) or _area(hole) > 0):
+        return
+    small = np.flatnonzero(cut.region & (mesh.face_sizes < 3))
+    why = (f"face {int(small[0])} has {int(mesh.face_sizes[small[0]])} vertices"
+           if small.size else "its faces have no area")
+    raise RegionError(INVALID_REGION, f"the region has no surface to re-generate ({why}) "
+                      "and no boundary with the rest of the mesh; mark the faces around it "
+                      "as well")
 
 
 @dataclass(frozen=True)

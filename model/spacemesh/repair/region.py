@@ -80,6 +80,10 @@ def _indices(values: Any, what: str) -> IntArray:
         array = np.asarray(values)
     except (TypeError, ValueError) as error:
         raise _invalid(f"{what} must be a list of integers") from error
+    if array.dtype == object and array.ndim == 1 and all(
+            isinstance(v, int) and not isinstance(v, bool) for v in array.tolist()):
+        # integers beyond int64 (numpy keeps them as Python objects)
+        _refuse_huge(array.tolist(), what)
     if array.dtype == object or array.dtype.kind == "b":
         raise _invalid(f"{what} must be a list of integers")
     array = array.reshape(-1)
@@ -90,7 +94,17 @@ def _indices(values: Any, what: str) -> IntArray:
             raise _invalid(f"{what} must be a list of integers")
     elif array.dtype.kind not in "iu":
         raise _invalid(f"{what} must be a list of integers")
+    _refuse_huge(array.tolist(), what)
     return array.astype(np.int64)
+
+
+def _refuse_huge(values: list[Any], what: str) -> None:
+    """Raise ``invalid-region`` naming the first index, as sent, that int64 cannot hold
+    (so that it is never wrapped around into another index)."""
+    limit = int(np.iinfo(np.int64).max)
+    for value in values:
+        if not -limit <= value <= limit:
+            raise _invalid(f"{what}: index {value!r} is out of range")
 
 
 def check_range(indices: IntArray, count: int, noun: str, plural: str) -> None:
