@@ -13,12 +13,13 @@ Without one it makes its own and starts it in the app's lifespan, so
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import logging
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable
 from importlib.metadata import PackageNotFoundError, version
-from typing import Any
+from typing import Any, TypeVar
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
@@ -95,7 +96,12 @@ def _install_error_handlers(app: FastAPI) -> None:
         problem = Problem(kind, str(error.detail))
         response = problem_response_of(problem, request)
         response.status_code = error.status_code
+        response.headers.update(error.headers or {})  # Allow, on a 405
         return response
+
+    @app.exception_handler(ClientDisconnected)
+    async def _gone(request: Request, error: ClientDisconnected) -> Response:
+        return Response(status_code=CLIENT_CLOSED_REQUEST)  # nobody reads it: for metrics
 
     @app.exception_handler(Exception)
     async def _internal(request: Request, error: Exception) -> JSONResponse:
@@ -130,6 +136,62 @@ class RequestMetrics:
             path = getattr(route, "path", None) or "unmatched"
             self.engine.metrics.observe_request("http", path, str(status),
                                                 time.perf_counter() - started)
+
+
+# ---------------------------------------------------------------------- disconnects
+#: Status recorded for a request whose client went away before its answer (nginx's
+#: "client closed request"); the response is never sent.
+CLIENT_CLOSED_REQUEST = 499
+
+T = TypeVar("T")
+
+
+class ClientDisconnected(Exception):
+    """The client closed the connection before its answer was ready."""
+
+
+async def _disconnected(receive: Callable[[], Awaitable[dict[str, Any]]]) -> None:
+    """Return when the client closes the connection (the body must have been read)."""
+    while (await receive())["type"] != "http.disconnect":
+        pass
+
+
+async def unless_disconnected(request: Request, work: Awaitable[T]) -> T:
+    """Await ``work``, cancelling it when the client disconnects first.
+
+    Cancelling it cancels the request in the engine as gRPC cancels a call: it leaves the
+    queue, or its batch stops at the next sampler step when nobody else waits for it.
+
+    Parameters
+    ----------
+    request : Request
+        Its body already read.
+    work : awaitable
+        The engine's ``generate`` or ``repair``.
+
+    Returns
+    -------
+    What ``work`` returns.
+
+    Raises
+    ------
+    ClientDisconnected
+        The client went away first (answered as :data:`CLIENT_CLOSED_REQUEST`).
+    """
+    task = asyncio.ensure_future(work)
+    watch = asyncio.ensure_future(_disconnected(request.receive))
+    try:
+        await asyncio.wait({task, watch}, return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        watch.cancel()
+        if not task.done():
+            task.cancel()
+    if task.cancelled() or not task.done():
+        with contextlib.suppress(asyncio.CancelledError, Problem):
+            await task
+        log.info("client went away; cancelled its %s request", request.url.path)
+        raise ClientDisconnected
+    return task.result()
 
 
 # ---------------------------------------------------------------------- bodies
@@ -274,7 +336,7 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
         with engine.admit():
             parse, form_options = await _read_request(request, settings.max_upload_bytes)
             options = {**query_options(request, GENERATE_ROUTE_OPTIONS), **form_options}
-            reply = await engine.generate(parse, options)
+            reply = await unless_disconnected(request, engine.generate(parse, options))
         headers = reply.headers()
         headers["Content-Disposition"] = (
             f'inline; filename="spacemesh-{reply.seed}.{reply.mesh.format}"')
@@ -305,7 +367,7 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
             upload, region, form_options = await _read_repair_form(
                 request, settings.max_upload_bytes)
             options = {**query_options(request, REPAIR_ROUTE_OPTIONS), **form_options}
-            reply = await engine.repair(upload, region, options)
+            reply = await unless_disconnected(request, engine.repair(upload, region, options))
         headers = reply.headers()
         headers["Content-Disposition"] = (
             f'inline; filename="spacemesh-repair-{reply.seed}.{reply.mesh.format}"')

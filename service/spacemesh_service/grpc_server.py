@@ -128,40 +128,49 @@ class SpaceMeshServicer(pb_grpc.SpaceMeshServicer):
     def __init__(self, engine: Engine) -> None:
         self.engine = engine
 
-    async def _fail(self, context: grpc.aio.ServicerContext, problem: Problem) -> None:
-        await context.abort(problem.kind.grpc_code, problem.detail,
-                            trailing_metadata=problem.grpc_metadata())
+    @contextlib.asynccontextmanager
+    async def _call(self, method: str, context: grpc.aio.ServicerContext
+                    ) -> AsyncIterator[None]:
+        """Run one call: admit it, end it with its problem's status and metadata, and
+        count it by its final status code.
 
-    def _observe(self, method: str, code: grpc.StatusCode, started: float) -> None:
-        self.engine.metrics.observe_request("grpc", f"/{SERVICE_NAME}/{method}", code.name,
-                                            time.perf_counter() - started)
-
-    async def Generate(self, request: pb.GenerateRequest,
-                       context: grpc.aio.ServicerContext) -> pb.MeshReply:
+        A :class:`Problem` ends the call with its kind's code; any other exception is
+        logged and ends it as INTERNAL with the ``internal-error`` problem (as REST
+        answers 500); a cancelled call counts as CANCELLED.
+        """
         started, code = time.perf_counter(), grpc.StatusCode.OK
         try:
             with self.engine.admit():
-                parse = request_parser(request, self.engine.settings.max_upload_bytes)
-                reply = await self.engine.generate(
-                    parse, grpc_values(request, GENERATE_ROUTE_OPTIONS))
-            return reply_to_pb(reply)
-        except Problem as problem:
-            code = problem.kind.grpc_code
-            await self._fail(context, problem)
-            raise  # pragma: no cover - abort raises
+                yield
         except asyncio.CancelledError:
             code = grpc.StatusCode.CANCELLED
             raise
+        except Exception as error:
+            if isinstance(error, Problem):
+                problem = error
+            else:
+                log.exception("unhandled error in %s", method)
+                problem = Problem(P.INTERNAL, "an unexpected error occurred")
+            code = problem.kind.grpc_code
+            await context.abort(code, problem.detail, trailing_metadata=problem.grpc_metadata())
         finally:
-            self._observe("Generate", code, started)
+            self.engine.metrics.observe_request("grpc", f"/{SERVICE_NAME}/{method}", code.name,
+                                                time.perf_counter() - started)
+
+    async def Generate(self, request: pb.GenerateRequest,
+                       context: grpc.aio.ServicerContext) -> pb.MeshReply:
+        async with self._call("Generate", context):
+            parse = request_parser(request, self.engine.settings.max_upload_bytes)
+            reply = await self.engine.generate(parse, grpc_values(request,
+                                                                  GENERATE_ROUTE_OPTIONS))
+            return reply_to_pb(reply)
 
     async def GenerateStream(self, request: pb.GenerateRequest,
                              context: grpc.aio.ServicerContext) -> AsyncIterator[pb.GenerateEvent]:
-        started, code = time.perf_counter(), grpc.StatusCode.OK
         events: asyncio.Queue[tuple[int, int]] = asyncio.Queue()
         task: asyncio.Task | None = None
-        try:
-            with self.engine.admit():
+        async with self._call("GenerateStream", context):
+            try:
                 parse = request_parser(request, self.engine.settings.max_upload_bytes)
                 task = asyncio.ensure_future(self.engine.generate(
                     parse, grpc_values(request, GENERATE_ROUTE_OPTIONS),
@@ -176,37 +185,19 @@ class SpaceMeshServicer(pb_grpc.SpaceMeshServicer):
                         getter.cancel()
                 reply = task.result()  # raises the request's Problem
                 yield pb.GenerateEvent(mesh=reply_to_pb(reply))
-        except Problem as problem:
-            code = problem.kind.grpc_code
-            await self._fail(context, problem)
-        except asyncio.CancelledError:
-            code = grpc.StatusCode.CANCELLED
-            raise
-        finally:
-            if task is not None and not task.done():
-                task.cancel()
-                with contextlib.suppress(asyncio.CancelledError, Problem):
-                    await task
-            self._observe("GenerateStream", code, started)
+            finally:
+                if task is not None and not task.done():
+                    task.cancel()
+                    with contextlib.suppress(asyncio.CancelledError, Problem):
+                        await task
 
     async def Repair(self, request: pb.RepairRequest,
                      context: grpc.aio.ServicerContext) -> pb.MeshReply:
-        started, code = time.perf_counter(), grpc.StatusCode.OK
-        try:
-            with self.engine.admit():
-                upload, region = repair_input(request, self.engine.settings.max_upload_bytes)
-                reply = await self.engine.repair(
-                    upload, region, grpc_values(request, REPAIR_ROUTE_OPTIONS))
+        async with self._call("Repair", context):
+            upload, region = repair_input(request, self.engine.settings.max_upload_bytes)
+            reply = await self.engine.repair(upload, region,
+                                             grpc_values(request, REPAIR_ROUTE_OPTIONS))
             return reply_to_pb(reply)
-        except Problem as problem:
-            code = problem.kind.grpc_code
-            await self._fail(context, problem)
-            raise  # pragma: no cover - abort raises
-        except asyncio.CancelledError:
-            code = grpc.StatusCode.CANCELLED
-            raise
-        finally:
-            self._observe("Repair", code, started)
 
 
 class GrpcServer:

@@ -5,7 +5,8 @@ same inputs. Every rejection is a :class:`~spacemesh_service.problems.Problem`:
 
 - unreadable file or JSON: 400 ``malformed-input``; unknown format: 415;
 - too many points: 413; too few, NaN/Inf, or degenerate geometry (all points identical,
-  collinear or coplanar, from the singular values of the centred points): 422;
+  collinear or coplanar, from the singular values of the centred points): 422, by
+  :func:`spacemesh.runtime.cloud.validate_cloud`, which ``spacemesh generate`` calls too;
 - request options are read and checked by :mod:`spacemesh_service.options`.
 
 Repair requests (:func:`read_mesh_upload`, :func:`read_region`): an unreadable mesh
@@ -28,14 +29,13 @@ from spacemesh.io.errors import MeshFormatError, NonFiniteError, UnsupportedForm
 from spacemesh.io.points import SUPPORTED_POINTS_READ, load_points
 from spacemesh.mesh import PolygonMesh
 from spacemesh.repair.region import Region, RegionError, parse_region
+from spacemesh.runtime.cloud import CloudError
+from spacemesh.runtime.cloud import validate_cloud as check_cloud
 from spacemesh_service import problems as P
 from spacemesh_service.options import GENERATE_ROUTE_OPTIONS
 from spacemesh_service.problems import Problem
 from spacemesh_service.settings import Settings
 
-#: Relative size of the smallest singular value (of the centred points, over the largest)
-#: below which a cloud counts as flat (and likewise for the middle one: a line).
-DEGENERACY_TOLERANCE = 1e-6
 #: Point-cloud upload formats (also reported by the model metadata).
 INPUT_FORMATS: tuple[str, ...] = SUPPORTED_POINTS_READ
 #: Mesh upload formats of a repair (also reported by the model metadata).
@@ -218,6 +218,8 @@ def read_json(body: bytes) -> tuple[np.ndarray, np.ndarray | None, dict[str, Any
         data = json.loads(body)
     except (ValueError, UnicodeDecodeError) as error:
         raise Problem(P.MALFORMED_INPUT, f"the body is not valid JSON ({error})") from None
+    except RecursionError:
+        raise Problem(P.MALFORMED_INPUT, "the JSON body is nested too deeply") from None
     if not isinstance(data, dict) or "points" not in data:
         raise Problem(P.MALFORMED_INPUT, "the JSON body must be an object with 'points'")
     names = {o.name for o in GENERATE_ROUTE_OPTIONS}
@@ -242,33 +244,14 @@ def points_from_flat(xyz: Any, normals: Any) -> tuple[np.ndarray, np.ndarray | N
 
 
 # ---------------------------------------------------------------------- validation
-def check_degenerate(points: np.ndarray) -> None:
-    """Raise 422 ``degenerate-geometry`` for identical, collinear or coplanar points.
-
-    Parameters
-    ----------
-    points : (P, 3) float64
-        Finite points.
-    """
-    centred = points - points.mean(axis=0)
-    s = np.linalg.svd(centred, compute_uv=False)  # (3,) descending
-    if not s[0] > 0:
-        shape = "all points are identical"
-    elif s[1] <= DEGENERACY_TOLERANCE * s[0]:
-        shape = "the points are collinear"
-    elif len(s) < 3 or s[2] <= DEGENERACY_TOLERANCE * s[0]:
-        shape = "the points are coplanar"
-    else:
-        return
-    raise Problem(P.DEGENERATE_GEOMETRY, f"{shape}; a surface needs a 3D point cloud",
-                  singular_values=[float(v) for v in s])
-
-
 def validate_cloud(
     points: np.ndarray, normals: np.ndarray | None, settings: Settings, *,
     source: str, needs_normals: bool = False,
 ) -> PointCloud:
     """Apply the limits and geometry checks to parsed points.
+
+    The checks are :func:`spacemesh.runtime.cloud.validate_cloud`, the ones
+    ``spacemesh generate`` makes, with this server's ``min_points`` and ``max_points``.
 
     Parameters
     ----------
@@ -282,26 +265,16 @@ def validate_cloud(
     Returns
     -------
     PointCloud
+
+    Raises
+    ------
+    Problem
+        The :class:`~spacemesh.runtime.cloud.CloudError`'s kind (413 or 422).
     """
-    count = len(points)
-    if count > settings.max_points:
-        raise Problem(P.TOO_MANY_POINTS,
-                      f"{count} points; this server takes at most {settings.max_points}",
-                      limit=settings.max_points, points=count)
-    if count < settings.min_points:
-        raise Problem(P.TOO_FEW_POINTS,
-                      f"{count} points; this server needs at least {settings.min_points}",
-                      limit=settings.min_points, points=count)
-    if not np.isfinite(points).all():
-        bad = int(np.flatnonzero(~np.isfinite(points).all(axis=1))[0])
-        raise Problem(P.NON_FINITE, f"point {bad} has a NaN or infinite coordinate")
-    if normals is not None:
-        if normals.shape != points.shape:
-            raise Problem(P.INVALID_NORMALS,
-                          f"{len(normals)} normals for {count} points; give one per point")
-        if not np.isfinite(normals).all():
-            raise Problem(P.NON_FINITE, "the normals have NaN or infinite values")
-    if needs_normals and normals is None:
-        raise Problem(P.NORMALS_REQUIRED, "this model reads normals; send one per point")
-    check_degenerate(points)
-    return PointCloud(np.ascontiguousarray(points), normals, source)
+    try:
+        points, normals = check_cloud(points, normals, min_points=settings.min_points,
+                                      max_points=settings.max_points,
+                                      needs_normals=needs_normals)
+    except CloudError as error:
+        raise P.cloud_problem(error) from None
+    return PointCloud(points, normals, source)

@@ -117,6 +117,10 @@ KINDS: dict[str, ProblemKind] = {
 #: The kinds a repair region can be refused with (422).
 REGION_KINDS: tuple[ProblemKind, ...] = (INVALID_REGION, EMPTY_REGION, WHOLE_MESH_REGION,
                                          DEFECTS_OUTSIDE_REGION, REGION_TOO_LARGE)
+#: The kinds a point cloud can be refused with (413, 422): the kinds of
+#: :data:`spacemesh.runtime.cloud.ERROR_KINDS`.
+CLOUD_KINDS: tuple[ProblemKind, ...] = (DEGENERATE_GEOMETRY, TOO_MANY_POINTS, TOO_FEW_POINTS,
+                                        NON_FINITE, INVALID_NORMALS, NORMALS_REQUIRED)
 
 
 class Problem(Exception):
@@ -187,16 +191,41 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def region_problem(error: Any) -> Problem:
-    """The problem of a :class:`spacemesh.repair.RegionError`.
+def typed_problem(error: Any, kinds: tuple[ProblemKind, ...]) -> Problem:
+    """The problem of a model-package error that carries a stable ``kind``.
 
-    Its ``kind`` is the problem's slug (one of :data:`REGION_KINDS`), its message the
-    ``detail`` and its ``details`` (``defects``, ``boundary_vertices``...) the extension
-    members.
+    Its ``kind`` is the problem's slug (one of ``kinds``; the first of them otherwise),
+    its message the ``detail`` and its ``details`` the extension members.
+
+    Parameters
+    ----------
+    error : Exception
+        A :class:`spacemesh.repair.RegionError` or a
+        :class:`spacemesh.runtime.cloud.CloudError`.
+    kinds : tuple of ProblemKind
+        The kinds it may map to.
+
+    Returns
+    -------
+    Problem
     """
     kind = KINDS.get(getattr(error, "kind", ""))
-    if kind not in REGION_KINDS:  # pragma: no cover - a RegionError always has one
-        kind = INVALID_REGION
+    if kind not in kinds:  # pragma: no cover - the model's errors always have one
+        kind = kinds[0]
     problem = Problem(kind, str(error))
     problem.extra.update(_plain(dict(getattr(error, "details", None) or {})))
     return problem
+
+
+def region_problem(error: Any) -> Problem:
+    """The problem (422) of a :class:`spacemesh.repair.RegionError`: its ``kind`` is the
+    problem's slug (one of :data:`REGION_KINDS`), its ``details`` (``defects``,
+    ``boundary_vertices``...) the extension members."""
+    return typed_problem(error, REGION_KINDS)
+
+
+def cloud_problem(error: Any) -> Problem:
+    """The problem (413 or 422) of a :class:`spacemesh.runtime.cloud.CloudError`: its
+    ``kind`` is the problem's slug (one of :data:`CLOUD_KINDS`), its ``details``
+    (``limit``, ``points``, ``singular_values``) the extension members."""
+    return typed_problem(error, CLOUD_KINDS)

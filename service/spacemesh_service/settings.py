@@ -14,6 +14,8 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from spacemesh.runtime.cloud import DEFAULT_MAX_POINTS, DEFAULT_MIN_POINTS
+
 #: Prefix of every environment variable.
 ENV_PREFIX = "SPACEMESH_"
 
@@ -45,8 +47,10 @@ class Settings(BaseModel):
     queue_size: int = Field(32, ge=1, description="Requests that may wait; beyond: 503.")
     request_timeout_s: float = Field(
         30.0, gt=0, description="Per-request limit (queue + inference) before a 504.")
-    max_points: int = Field(200_000, ge=1, description="Most points per request (413 above).")
-    min_points: int = Field(16, ge=1, description="Fewest points per request (422 below).")
+    max_points: int = Field(DEFAULT_MAX_POINTS, ge=1,
+                            description="Most points per request (413 above).")
+    min_points: int = Field(DEFAULT_MIN_POINTS, ge=1,
+                            description="Fewest points per request (422 below).")
     max_upload_bytes: int = Field(
         32 * 1024 * 1024, ge=1, description="Largest request body (413 above).")
     default_steps: int | None = Field(

@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from spacemesh.data.validate import triangles_intersect, triangles_of
 from spacemesh.mesh import PolygonMesh
 from spacemesh.topology import check_topology
-from spacemesh.typed import BoolArray, FloatArray, IntArray
+from spacemesh.typed import BoolArray, FloatArray
+
 
 def topology_flags(mesh: PolygonMesh) -> dict[str, bool | int]:
     """Connectivity validity of a mesh.
