@@ -163,3 +163,27 @@ def test_a_model_version_is_repackaged_with_todays_decode(toy_model, tmp_path):
     broken = CliRunner().invoke(app, ["export", str(new_dir), "--out", str(tmp_path),
                                       "--version", "8"])
     assert broken.exit_code != 0 and "sha256" in broken.output
+
+
+def test_an_empty_val_split_to_calibrate_on_is_one_line(toy_model, tmp_path):
+    """``export --calibrate-data`` with no val shapes once failed with numpy's "need at
+    least one array to concatenate"; exporting a run and repackaging a version both say
+    what is wrong, on one line, exit code 2, before writing anything."""
+    import subprocess
+    import sys
+
+    from spacemesh.data.shards import open_dataset
+    from spacemesh.train.toy import make_toy_dataset
+
+    empty = make_toy_dataset(tmp_path / "no-val", count=5)  # indices 0-4: all train
+    assert len(open_dataset(empty, "val")) == 0
+    cli = [sys.executable, "-c", "from spacemesh.cli import main; main()", "export"]
+    for source in (toy_model.run, toy_model.repository):
+        out = tmp_path / f"models-{source.name}"
+        done = subprocess.run([*cli, str(source), "--out", str(out), "--version", "9",
+                               "--calibrate-data", str(empty), "--threads", "1"],
+                              capture_output=True, text=True, timeout=300)
+        assert done.returncode == 2, done.stderr[-2000:]
+        assert done.stderr.count("\n") == 1, done.stderr
+        assert "the val split has no shapes to calibrate on" in done.stderr
+        assert not out.exists()

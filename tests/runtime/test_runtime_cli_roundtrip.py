@@ -98,3 +98,34 @@ def test_generate_option_errors_are_one_line(toy_model, tmp_path, flags, message
     assert len(lines) == 1 and lines[0].startswith("spacemesh: error: "), result.stderr
     assert message in lines[0]
     assert not out.exists()
+
+
+def _flat_cloud() -> np.ndarray:
+    xy = np.random.default_rng(3).normal(size=(200, 2))
+    return np.column_stack([xy, np.zeros(200)])
+
+
+@pytest.mark.parametrize(("points", "kind"), [
+    (np.random.default_rng(0).normal(size=(1, 3)), "too-few-points"),
+    (np.random.default_rng(0).normal(size=(3, 3)), "too-few-points"),
+    (np.random.default_rng(0).normal(size=(10, 3)), "too-few-points"),
+    (_flat_cloud(), "degenerate-geometry"),
+])
+def test_generate_refuses_what_the_service_refuses(toy_model, tmp_path, points, kind):
+    """The CLI checks clouds with the service's function and limits: 1, 3 or 10 points,
+    or a flat cloud, are one line and exit code 2 (they once made a closed mesh)."""
+    from spacemesh.runtime.cloud import CloudError, validate_cloud
+
+    with pytest.raises(CloudError) as info:  # what the service answers with a 422
+        validate_cloud(points)
+    assert info.value.kind == kind
+    cloud = tmp_path / "cloud.xyz"
+    np.savetxt(cloud, points)
+    out = tmp_path / "mesh.obj"
+    done = subprocess.run([*CLI, "generate", str(cloud), "-o", str(out), "--model",
+                           str(toy_model.repository), "--threads", "1", "--no-progress"],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr[-2000:]
+    assert done.stderr.count("\n") == 1 and f"({kind})" in done.stderr
+    assert str(info.value) in done.stderr
+    assert not out.exists()

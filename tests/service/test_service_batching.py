@@ -1,12 +1,16 @@
-"""Concurrency on real servers: dynamic batching, queue full (503), timeouts (504), loading.
+"""Concurrency and failures on real servers: dynamic batching, queue full (503), timeouts
+(504), clients that go away, unexpected errors, loading.
 
-The generator behind these servers waits on a gate, so each scenario is set up
-deterministically (no test depends on how fast anything runs).
+The generator behind most of these servers waits on a gate, so each scenario is set up
+deterministically; the one that checks that abandoned work stops slows every sampler
+step down instead, far beyond what the test waits.
 """
 
 from __future__ import annotations
 
+import json
 import re
+import socket
 import time
 from concurrent.futures import ThreadPoolExecutor
 
@@ -14,7 +18,7 @@ import grpc
 import httpx
 import pytest
 from grpc_health.v1 import health_pb2, health_pb2_grpc
-from service_testing import GatedGenerator
+from service_testing import FailingGenerator, GatedGenerator, SlowGenerator
 
 from spacemesh_service.pb import spacemesh_pb2 as pb
 from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
@@ -96,9 +100,9 @@ def test_timeout_answers_504_and_cancels_the_work(start_server, generator, case)
                           max_batch_delay_ms=0, request_timeout_s=0.5, drain_timeout_s=1)
     try:
         with ThreadPoolExecutor(2) as pool:
-            running = pool.submit(post, server.url, case)  # held at the gate
+            running = pool.submit(post, server.url, case, start="noise")  # held at the gate
             assert gated.entered.wait(30)
-            queued = pool.submit(post, server.url, case)  # waits in the queue
+            queued = pool.submit(post, server.url, case, start="noise")  # waits in the queue
             for response in (running.result(), queued.result()):
                 assert response.status_code == 504
                 assert response.json()["type"] == "https://spacemesh.dev/problems/timeout"
@@ -116,6 +120,61 @@ def test_timeout_answers_504_and_cancels_the_work(start_server, generator, case)
         assert "_AllCancelled" in gated.errors
     finally:
         gated.gate.set()
+
+
+def requests_counted(url: str, protocol: str, route: str, status: str) -> float:
+    return metric(url, f'spacemesh_requests_total{{protocol="{protocol}",route="{route}",'
+                       f'status="{status}"}}')
+
+
+def test_a_client_that_disconnects_cancels_its_work(start_server, generator, case):
+    """A REST client that goes away cancels its request, as a gRPC client does: its batch
+    stops at the next sampler step, the next request does not wait for it, and it is
+    counted as cancelled (status 499), not as a 200."""
+    slow = SlowGenerator(generator, step_seconds=0.5)  # 64 steps: 32 s if nobody stops it
+    server = start_server(slow, warmup=False, max_batch_size=1, max_batch_delay_ms=0)
+    host, port = server.url.removeprefix("http://").rsplit(":", 1)
+    body = json.dumps({"points": case.points.tolist(), "steps": 64, "start": "noise"})
+    head = (f"POST /generate HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\n"
+            f"Content-Length: {len(body)}\r\n\r\n")
+    with socket.create_connection((host, int(port))) as client:
+        client.sendall(head.encode() + body.encode())
+        wait_for(lambda: metric(server.url, "spacemesh_batches_total") >= 1,
+                 "the slow batch to start")
+    started = time.monotonic()  # the client has gone
+    response = post(server.url, case)
+    assert response.status_code == 200, response.text
+    assert time.monotonic() - started < 16  # not behind the abandoned 32 s
+    wait_for(lambda: metric(server.url, "spacemesh_stopped_batches_total") == 1,
+             "the abandoned batch to stop")
+    assert metric(server.url, "spacemesh_cancelled_requests_total") == 1
+    assert requests_counted(server.url, "http", "/generate", "499") == 1
+    assert requests_counted(server.url, "http", "/generate", "200") == 1
+
+
+def test_unexpected_errors_are_internal_problems_and_counted(start_server, generator, case):
+    """A bug (the generator raises) is a 500 ``internal-error`` over REST and INTERNAL with
+    the same problem metadata over gRPC, without the exception's text, and gRPC counts it
+    as INTERNAL, not OK."""
+    server = start_server(FailingGenerator(generator), warmup=False)
+    response = post(server.url, case)
+    assert response.status_code == 500
+    assert response.json()["type"] == "https://spacemesh.dev/problems/internal-error"
+    request = pb.GenerateRequest(points=pb.Points(xyz=case.points.ravel().tolist()))
+    with grpc.insecure_channel(server.grpc_target) as channel:
+        stub = pb_grpc.SpaceMeshStub(channel)
+        for method, call in (("Generate", stub.Generate),
+                             ("GenerateStream", lambda r: list(stub.GenerateStream(r)))):
+            with pytest.raises(grpc.RpcError) as info:
+                call(request)
+            assert info.value.code() == grpc.StatusCode.INTERNAL, method
+            assert info.value.details() == response.json()["detail"]
+            metadata = dict(info.value.trailing_metadata())
+            assert metadata["problem-type"] == response.json()["type"]
+            assert metadata["problem-status"] == "500"
+            route = f"/spacemesh.v1.SpaceMesh/{method}"
+            assert requests_counted(server.url, "grpc", route, "INTERNAL") == 1
+            assert requests_counted(server.url, "grpc", route, "OK") == 0
 
 
 def test_not_ready_until_the_warm_up_passes(start_server, generator, case):

@@ -74,14 +74,15 @@ def test_rest_and_grpc_give_byte_identical_meshes(stub, http, case, fmt):
 def test_generate_stream_reports_every_step_then_the_mesh(stub, case, generator):
     steps = 5
     events = list(stub.GenerateStream(points_request(case.points, seed=case.good_seed,
-                                                     steps=steps, format="obj")))
+                                                     steps=steps, format="obj",
+                                                     start="noise")))
     progress = [e.progress for e in events[:-1]]
     assert all(e.WhichOneof("event") == "progress" for e in events[:-1])
     assert [(p.step, p.total) for p in progress] == [(i, steps) for i in range(1, steps + 1)]
     last = events[-1]
     assert last.WhichOneof("event") == "mesh" and last.mesh.steps == steps
     unary = stub.Generate(points_request(case.points, seed=case.good_seed, steps=steps,
-                                         format="obj"))
+                                         format="obj", start="noise"))
     assert last.mesh.mesh == unary.mesh
 
 

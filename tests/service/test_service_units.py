@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
+from spacemesh.runtime.cloud import CloudError, check_degenerate
 from spacemesh_service import problems as P
 from spacemesh_service.inputs import (
-    check_degenerate,
     read_json,
     read_mesh_upload,
     read_region,
@@ -149,7 +149,7 @@ def test_settings_max_steps_is_checked_with_the_options():
     ({"start": "points", "start_time": 2}, "start_time"),
     ({"start": "points", "start_time": "abc"}, "start_time"),
     ({"start": "points", "target_vertices": 3}, "target_vertices"),
-    ({"start": "points", "target_vertices": "5000"}, "target_vertices"),
+    ({"start": "points", "target_vertices": "20000"}, "target_vertices"),
     ({"target_vertices": 100}, "target_vertices"),  # needs start=points
     ({"samples": 0}, "samples"),
     ({"samples": "17"}, "samples"),
@@ -264,8 +264,11 @@ def test_cloud_validation():
         [[1, 0, 0.5], [0, 1, 0.25], [0, 0, 1.0]]) + 100.0
     same = np.ones((20, 3))
     for cloud, word in ((same, "identical"), (line, "collinear"), (plane, "coplanar")):
-        with pytest.raises(Problem, match=word):
+        with pytest.raises(CloudError, match=word) as info:
             check_degenerate(cloud)
+        assert info.value.kind == "degenerate-geometry"
+        assert kind_of(lambda c=cloud: validate_cloud(c, None, settings, source="x")) == (
+            "degenerate-geometry")
 
 
 def test_mesh_validation_and_headers():

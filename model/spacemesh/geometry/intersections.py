@@ -23,6 +23,9 @@ from spacemesh.typed import BoolArray, FloatArray, IntArray
 #: Shrink of triangles that share corners, as a fraction of their size (large enough
 #: that rounding in nearly coplanar neighbours never reads as a crossing).
 SHRINK = 1e-3
+#: Pairs whose corners all lie within this fraction of their size of the other's plane
+#: are coplanar (rounding of float32 files is about 1e-7 of the size).
+COPLANAR_TOLERANCE = 1e-5
 #: Two triangles on one edge are compared only when folded onto each other: their
 #: normals' dot product is below minus this.
 FOLDED_COSINE = 0.999
@@ -71,9 +74,11 @@ def _segments_hit(p0: FloatArray, p1: FloatArray, t: FloatArray, normal: FloatAr
     return ~apart & ~flat & inside
 
 
-def _coplanar_overlap(ta: FloatArray, tb: FloatArray, normal: FloatArray, eps: float
+def _coplanar_overlap(ta: FloatArray, tb: FloatArray, normal: FloatArray, eps: FloatArray
                       ) -> BoolArray:
-    """``(M,)`` separating-axis test of coplanar triangle pairs in their plane."""
+    """``(M,)`` separating-axis test of coplanar triangle pairs in their plane: they
+    overlap when no axis separates them by more than ``-eps`` (``(M,)``: overlaps within
+    rounding do not count)."""
     axis = np.argmax(np.abs(normal), axis=1)  # (M,)
     keep = np.array([[1, 2], [0, 2], [0, 1]])[axis]  # (M, 2)
     rows = np.arange(len(ta))[:, None, None]
@@ -87,8 +92,8 @@ def _coplanar_overlap(ta: FloatArray, tb: FloatArray, normal: FloatArray, eps: f
             length = np.linalg.norm(n, axis=1, keepdims=True)
             n = n / np.where(length > 0, length, 1.0)
             pa, pb = np.einsum("mkd,md->mk", a2, n), np.einsum("mkd,md->mk", b2, n)
-            apart = (pa.max(axis=1) < pb.min(axis=1) - eps) | (
-                pb.max(axis=1) < pa.min(axis=1) - eps)
+            apart = (pa.max(axis=1) < pb.min(axis=1) + eps) | (
+                pb.max(axis=1) < pa.min(axis=1) + eps)
             overlap &= ~(apart & (length[:, 0] > 0))
     return overlap
 
@@ -114,12 +119,16 @@ def triangle_pairs_intersect(ta: FloatArray, tb: FloatArray, eps: float = 1e-9) 
     db = np.einsum("mkd,md->mk", ta - tb[:, None, 0], nb)
     apart = (np.all(da > eps, axis=1) | np.all(da < -eps, axis=1)
              | np.all(db > eps, axis=1) | np.all(db < -eps, axis=1))
-    coplanar = np.all(np.abs(da) <= eps, axis=1) & np.all(np.abs(db) <= eps, axis=1)
+    # within rounding of one plane (float32 files): the in-plane test decides, since a
+    # crossing point of nearly parallel planes is ill-conditioned
+    size = np.maximum(np.ptp(ta, axis=1).max(axis=1), np.ptp(tb, axis=1).max(axis=1))
+    flat = np.maximum(eps, COPLANAR_TOLERANCE * size)[:, None]  # (M, 1)
+    coplanar = np.all(np.abs(da) <= flat, axis=1) & np.all(np.abs(db) <= flat, axis=1)
     crossing = np.zeros(len(ta), dtype=bool)
     for s, t, normal in ((ta, tb, nb), (tb, ta, na)):
         for k in range(3):
             crossing |= _segments_hit(s[:, k], s[:, (k + 1) % 3], t, normal, eps)
-    out = np.where(coplanar, _coplanar_overlap(ta, tb, na, eps), crossing)
+    out = np.where(coplanar, _coplanar_overlap(ta, tb, na, flat[:, 0]), crossing)
     return out & ~apart & good_a & good_b
 
 

@@ -23,7 +23,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from spacemesh.errors import SpaceMeshError
+from spacemesh.errors import KindedError
 from spacemesh.mesh import PolygonMesh
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
@@ -48,7 +48,7 @@ ERROR_KINDS: tuple[str, ...] = (
 )
 
 
-class RegionError(SpaceMeshError):
+class RegionError(KindedError):
     """A repair request that cannot be served as asked (an HTTP 422).
 
     Parameters
@@ -62,12 +62,7 @@ class RegionError(SpaceMeshError):
         ``defects-outside-region``.
     """
 
-    def __init__(self, kind: str, message: str, details: dict[str, Any] | None = None) -> None:
-        if kind not in ERROR_KINDS:
-            raise ValueError(f"unknown region error kind {kind!r}")
-        super().__init__(message)
-        self.kind = kind
-        self.details = dict(details or {})
+    KINDS = ERROR_KINDS
 
 
 def _invalid(message: str) -> RegionError:

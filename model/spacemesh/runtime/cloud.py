@@ -10,11 +10,9 @@ CLI as one line on stderr and exit code 2.
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
-from spacemesh.errors import SpaceMeshError
+from spacemesh.errors import KindedError
 from spacemesh.typed import FloatArray
 
 #: Fewest and most points of a request, unless the caller sets other limits (the
@@ -42,25 +40,13 @@ ERROR_KINDS: tuple[str, ...] = (TOO_MANY_POINTS, TOO_FEW_POINTS, NON_FINITE, INV
                                 NORMALS_REQUIRED, DEGENERATE_GEOMETRY)
 
 
-class CloudError(SpaceMeshError):
-    """A point cloud that cannot be turned into a surface as sent.
+class CloudError(KindedError):
+    """A point cloud that cannot be turned into a surface as sent: a
+    :class:`~spacemesh.errors.KindedError` of a kind of :data:`ERROR_KINDS`, its
+    ``details`` the ``limit`` and ``points`` of a count, or the ``singular_values`` of
+    degenerate geometry."""
 
-    Parameters
-    ----------
-    kind : str
-        One of :data:`ERROR_KINDS`, stable across versions.
-    message : str
-        One human-readable sentence.
-    **details
-        Machine-readable context (``limit``, ``points``, ``singular_values``).
-    """
-
-    def __init__(self, kind: str, message: str, **details: Any) -> None:
-        if kind not in ERROR_KINDS:
-            raise ValueError(f"unknown point cloud error kind {kind!r}")
-        super().__init__(message)
-        self.kind = kind
-        self.details = details
+    KINDS = ERROR_KINDS
 
 
 def check_degenerate(points: FloatArray) -> None:
@@ -87,7 +73,7 @@ def check_degenerate(points: FloatArray) -> None:
     else:
         return
     raise CloudError(DEGENERATE_GEOMETRY, f"{shape}; a surface needs a 3D point cloud",
-                     singular_values=[float(v) for v in s])
+                     {"singular_values": [float(v) for v in s]})
 
 
 def validate_cloud(
@@ -121,10 +107,10 @@ def validate_cloud(
     count = len(points)
     if count > max_points:
         raise CloudError(TOO_MANY_POINTS, f"{count} points; at most {max_points} are "
-                         "accepted", limit=max_points, points=count)
+                         "accepted", {"limit": max_points, "points": count})
     if count < min_points:
         raise CloudError(TOO_FEW_POINTS, f"{count} points; at least {min_points} are "
-                         "needed", limit=min_points, points=count)
+                         "needed", {"limit": min_points, "points": count})
     finite = np.isfinite(points).all(axis=1)
     if not finite.all():
         bad = int(np.flatnonzero(~finite)[0])
