@@ -62,7 +62,7 @@ def test_python_client(rest_url, grpc_url, seed, tmp_path):
 def test_grpc_generate(grpc_url, seed, tmp_path):
     out = run_example([sys.executable, str(EXAMPLES / "grpc_generate.py"), str(POINTS)], tmp_path,
                       SPACEMESH_GRPC_TARGET=grpc_url.removeprefix("grpc://"), SEED=str(seed))
-    assert "closed=True" in out and "step " in out
+    assert "closed=True" in out  # no "step" lines: the default start denoises nothing
     assert (tmp_path / "mesh.glb").read_bytes()[:4] == b"glTF"
 
 
