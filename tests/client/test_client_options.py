@@ -13,7 +13,7 @@ import subprocess
 import sys
 
 import pytest
-from service_testing import as_ply
+from service_testing import BAD_OPTIONS, as_ply
 
 from spacemesh.geometry.report import FitReport
 from spacemesh.runtime.options import OPTION_FIELDS, GenerateOptions
@@ -88,16 +88,7 @@ def test_the_fit_report_is_the_same_over_both_transports(rest_url, grpc_url, cas
     assert rest.data == grpc_mesh.data
 
 
-@pytest.mark.parametrize(("options", "name"), [
-    ({"start": "bogus"}, "start"),
-    ({"start": "noise", "start_time": 0.5}, "start_time"),
-    ({"start": "points", "start_time": 2}, "start_time"),
-    ({"start": "points", "target_vertices": 3}, "target_vertices"),
-    ({"start": "points", "target_vertices": 20000}, "target_vertices"),
-    ({"samples": 0}, "samples"),
-    ({"samples": 17}, "samples"),
-    ({"raw": "maybe"}, "raw"),
-])
+@pytest.mark.parametrize(("options", "name"), BAD_OPTIONS)
 def test_bad_options_raise_invalid_option(client, case, options, name):
     with pytest.raises(E.InvalidOption) as info:
         client.generate(case.points, **options)

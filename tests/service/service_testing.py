@@ -218,3 +218,17 @@ def check_repair(original, region: dict, vertices: np.ndarray, faces, repair: di
         assert expected <= got
     if polygons:  # kept faces, then the new ones
         assert out.n_faces == original.n_faces - repair["region_faces"] + repair["new_faces"]
+
+
+#: Requests that must answer 422 invalid-option, and the option each names (REST, gRPC
+#: and the SDK's tests send them all).
+BAD_OPTIONS = [
+    ({"start": "bogus"}, "start"),
+    ({"start": "noise", "start_time": 0.5}, "start_time"),
+    ({"start": "points", "start_time": 2}, "start_time"),
+    ({"start": "points", "target_vertices": 3}, "target_vertices"),
+    ({"start": "points", "target_vertices": 20000}, "target_vertices"),
+    ({"samples": 0}, "samples"),
+    ({"samples": 17}, "samples"),
+    ({"raw": "maybe"}, "raw"),
+]

@@ -11,6 +11,7 @@ from __future__ import annotations
 import grpc
 import numpy as np
 import pytest
+from service_testing import BAD_OPTIONS
 
 from spacemesh.io import load_mesh
 from spacemesh.runtime.options import GenerateOptions
@@ -20,17 +21,6 @@ from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
 pytestmark = pytest.mark.slow
 
 PROBLEM = "application/problem+json"
-#: Requests that must answer 422 invalid-option, and the option each names.
-BAD_OPTIONS = [
-    ({"start": "bogus"}, "start"),
-    ({"start": "noise", "start_time": 0.5}, "start_time"),
-    ({"start": "points", "start_time": 2}, "start_time"),
-    ({"start": "points", "target_vertices": 3}, "target_vertices"),
-    ({"start": "points", "target_vertices": 20000}, "target_vertices"),
-    ({"samples": 0}, "samples"),
-    ({"samples": 17}, "samples"),
-    ({"raw": "maybe"}, "raw"),
-]
 #: Option sets that must reach the generator (each with the test's seed).
 GOOD_OPTIONS = [
     {"start": "points"},
