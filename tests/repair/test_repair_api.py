@@ -39,11 +39,20 @@ def test_oracle_model_gives_the_original_back():
     ids = np.concatenate([plan.patch.known, plan.cut.removed_vertices])
     backend = OracleBackend(plan.patch.to_unit(mesh.vertices[ids]),
                             subset(fitted_embeddings(mesh), ids), spec.schedule)
-    result = repair_mesh(mesh, region, backend=backend, spec=spec, plan=plan, seed=3)
+    result = repair_mesh(mesh, region, backend=backend, spec=spec, plan=plan, seed=3,
+                         fit_patch=False)
     assert result.stats.new_vertices == 6 and result.stats.fallback == "none"
     assert geometric_faces(result.mesh, 4) == geometric_faces(mesh, 4)
     assert_outside_identical(mesh, result)
     assert_closed_manifold(result.mesh)
+    # the fit of the new vertices to the region's surface keeps the oracle's answer
+    # (only its weak springs move the vertices) and everything outside
+    fitted = repair_mesh(mesh, region, backend=backend, spec=spec, plan=plan, seed=3)
+    assert np.array_equal(fitted.mesh.face_indices, result.mesh.face_indices)
+    moved = np.abs(fitted.mesh.vertices - result.mesh.vertices).max()
+    assert 0 < moved < 0.02
+    assert_outside_identical(mesh, fitted)
+    assert_closed_manifold(fitted.mesh)
 
 
 CASES = {

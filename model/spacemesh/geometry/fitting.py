@@ -41,7 +41,7 @@ from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
 from spacemesh.geometry.surface_fit import closest_points_on_triangles, nearest_triangles
-from spacemesh.typed import FloatArray, IntArray
+from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Neighbours of the plane fit of :func:`estimate_point_normals`.
 NORMAL_NEIGHBOURS = 12
@@ -280,6 +280,7 @@ def fit_vertices(
     points: FloatArray,
     normals: FloatArray | None = None,
     options: FitOptions | None = None,
+    fixed: BoolArray | None = None,
 ) -> tuple[FloatArray, list[float]]:
     """Move the vertices to minimise the fit energy (see the module docstring).
 
@@ -293,6 +294,9 @@ def fit_vertices(
     normals : (P, 3) float, optional
         The points' normals (any sign); estimated when None.
     options : FitOptions, optional
+    fixed : (N,) bool, optional
+        Vertices that keep their positions exactly (a repair's kept vertices); the
+        solve is over the others only.
 
     Returns
     -------
@@ -315,17 +319,23 @@ def fit_vertices(
     tree = cKDTree(points)
     used = np.zeros(len(positions), dtype=bool)
     used[triangles.reshape(-1)] = True
+    free = used if fixed is None else used & ~np.asarray(fixed, dtype=bool)
+    unknown = np.repeat(free, 3)  # (3N,) coordinates that the solve moves
     energies = []
-    for _ in range(options.iterations):
+    for _ in range(options.iterations if free.any() else 0):
         matrix, rhs, energy = fit_energy_terms(positions, triangles, points, normals, tree,
                                                options)
         energies.append(energy)
         damping = options.damping / len(positions)
-        # unused vertices only feel the damping, so they stay put
-        diagonal = np.repeat(np.where(used, damping, 1.0), 3)
-        matrix = matrix + sp.diags(diagonal)
-        solution = spsolve(matrix.tocsc(), rhs + diagonal * positions.reshape(-1))
+        x = positions.reshape(-1)
+        # the others stay put: A_ff x_f = r_f - A_fc x_c (+ damping toward x_f)
+        matrix = matrix.tocsr()
+        block = matrix[unknown][:, unknown] + sp.identity(int(unknown.sum())) * damping
+        known = matrix[unknown][:, ~unknown] @ x[~unknown]
+        solution = spsolve(block.tocsc(), rhs[unknown] - known + damping * x[unknown])
         if not np.isfinite(solution).all():
             break
-        positions = solution.reshape(-1, 3)
+        x = x.copy()
+        x[unknown] = solution
+        positions = x.reshape(-1, 3)
     return positions, energies

@@ -223,6 +223,7 @@ def refine_geometry(
     options: GeometryOptions | None = None,
     *,
     target_vertices: int | None = None,
+    fixed: np.ndarray | None = None,
 ) -> GeometryResult:
     """Fit a decoded mesh to its points (see the module docstring).
 
@@ -238,6 +239,9 @@ def refine_geometry(
     options : GeometryOptions, optional
     target_vertices : int, optional
         Split edges up to this many vertices first.
+    fixed : (N,) bool, optional
+        Vertices that must not move (a repair's kept vertices). With it, no edge is
+        split or flipped, so every face between fixed vertices stays as it is.
 
     Returns
     -------
@@ -255,23 +259,26 @@ def refine_geometry(
         stats["kept"] = False
         return GeometryResult(mesh, stats)
     triangle_mesh = mesh.is_triangle_mesh()
+    edits = fixed is None  # splits and flips only when every vertex may move
     start_positions = mesh.vertices.astype(np.float64)
     if triangle_mesh:
         tri, source = mesh.face_indices.reshape(-1, 3).astype(np.int64), None
     else:  # polygons: the fit only, on a triangulation
         tri, source = triangles_of(mesh)
     positions = start_positions
-    if triangle_mesh and target_vertices is not None and target_vertices > len(positions):
+    if (edits and triangle_mesh and target_vertices is not None
+            and target_vertices > len(positions)):
         positions, tri = split_longest_edges(positions, tri, target_vertices)
         stats["n_split"] = len(positions) - len(start_positions)
     before_share, _ = _intersection_share(mesh, positions, tri, source)
     unfitted, unflipped = positions.copy(), tri.copy()
     energies: list[float] = []
     for round_index in range(max(options.rounds, 1)):
-        if triangle_mesh and options.flips and round_index > 0:
+        if edits and triangle_mesh and options.flips and round_index > 0:
             tri, count = _flip_toward(positions, tri, points, options.fit_gain)
             stats["n_flipped"] += count
-        positions, round_energies = fit_vertices(positions, tri, points, normals, options.fit)
+        positions, round_energies = fit_vertices(positions, tri, points, normals, options.fit,
+                                                 fixed)
         energies += round_energies
     stats.update(energy_before=energies[0] if energies else None,
                  energy_after=energies[-1] if energies else None,

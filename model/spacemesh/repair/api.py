@@ -11,6 +11,7 @@ The data flow (docs/REPAIR.md)::
       -> new vertices: free tokens alive by the mask, in the hole
       -> connectivity network on known + new vertices
       -> fill: edges new-new and new-boundary, fans spliced           spacemesh.repair.splice
+      -> new vertices fitted to the region's original surface         spacemesh.geometry
       -> mesh: kept faces unchanged, new faces appended
 
 The same three networks as generation (numpy + onnxruntime; no torch, no retraining).
@@ -20,12 +21,15 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
+from spacemesh.data.validate import triangles_of
 from spacemesh.decode import Embeddings
+from spacemesh.geometry import refine_geometry
+from spacemesh.geometry.surface_fit import nearest_triangles
 from spacemesh.mesh import PolygonMesh
 from spacemesh.repair.cut import Cut, cut_region
 from spacemesh.repair.inpaint import InpaintResult, inpaint_tokens
@@ -37,15 +41,16 @@ from spacemesh.repair.patch import (
     in_hole,
     plan_patch,
     sample_patch,
+    sub_mesh,
 )
 from spacemesh.repair.region import Region
-from spacemesh.repair.splice import fill_hole, splice
+from spacemesh.repair.splice import Spliced, fill_hole, splice
 from spacemesh.repair.weld import weld_region, weld_vertices
 from spacemesh.runtime.backend import Backend, ConnectivityOutputs
 from spacemesh.runtime.pipeline import MeshGenerator, ModelSpec, drop_duplicates
 from spacemesh.runtime.sampler import ProgressFn
 from spacemesh.runtime.schedule import METHODS
-from spacemesh.typed import BoolArray, IntArray
+from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Hole points sampled per free token (the first ``N - K`` pad the alignment; all of
 #: them decide which generated vertices are in the hole).
@@ -310,6 +315,42 @@ def _sampler_options(spec: ModelSpec, steps: int | None, method: str | None) -> 
     return steps, method
 
 
+def surface_normals(points: FloatArray, surface: PolygonMesh) -> FloatArray:
+    """``(P, 3)`` unit normals of the faces of ``surface`` nearest to ``points``."""
+    triangles, _ = triangles_of(surface)
+    owner, _ = nearest_triangles(points, surface.vertices, triangles)
+    corners = surface.vertices[triangles[owner]]  # (P, 3, 3)
+    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    length = np.linalg.norm(normal, axis=1, keepdims=True)
+    return normal / np.where(length > 0, length, 1.0)
+
+
+def fit_new_vertices(spliced: Spliced, points: FloatArray, normals: FloatArray,
+                     spec: ModelSpec) -> PolygonMesh:
+    """The spliced mesh with its new vertices fitted to ``points`` (the region's original
+    surface and its surroundings, with that surface's ``normals``) by the geometry
+    stage; every kept vertex stays fixed and no face changes, so everything outside the
+    region is untouched.
+
+    The stage runs on the new faces and the kept faces around them only, so its cost
+    does not grow with the mesh (the self-intersection guard sees that neighbourhood).
+    """
+    mesh = spliced.mesh
+    n_kept = mesh.n_vertices - spliced.n_new_vertices
+    face = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
+    touching = np.zeros(mesh.n_faces, dtype=bool)
+    touching[face[mesh.face_indices >= n_kept]] = True
+    near = np.zeros(mesh.n_vertices, dtype=bool)
+    near[mesh.face_indices[touching[face]]] = True
+    local_faces = np.flatnonzero(np.bincount(face, near[mesh.face_indices], mesh.n_faces) > 0)
+    local = sub_mesh(mesh, local_faces)
+    local, ids = local.remove_unreferenced_vertices()
+    refined = refine_geometry(local, points, normals, spec.geometry, fixed=ids < n_kept)
+    vertices = mesh.vertices.copy()
+    vertices[ids] = refined.mesh.vertices
+    return mesh.with_vertices(vertices)
+
+
 def repair_mesh(
     mesh: PolygonMesh,
     region: Region | Mapping[str, Any] | BoolArray,
@@ -323,6 +364,7 @@ def repair_mesh(
     progress: ProgressFn | None = None,
     plan: RepairPlan | None = None,
     weld: bool = False,
+    fit_patch: bool = True,
 ) -> RepairResult:
     """Re-generate the vertices and faces of ``region`` (paper Sec. 5.5, Supplement D).
 
@@ -351,6 +393,10 @@ def repair_mesh(
         Merge vertices at exactly equal positions (split at UV seams, hard edges) before
         the cut, and repair the welded mesh (:mod:`spacemesh.repair.weld`). Without it,
         such a mesh is open along every seam.
+    fit_patch : bool
+        Fit the new vertices to the region's original surface with the geometry stage
+        (:func:`spacemesh.geometry.refine_geometry`, kept vertices fixed, no edge
+        edits, self-intersections never increased); False gives the networks' patch.
 
     Returns
     -------
@@ -411,6 +457,16 @@ def repair_mesh(
     fill = fill_hole(emb, len(cut.boundary), cut.loop_next, cut.loop_prev, spec.decode)
     spliced = splice(cut, patch.from_unit(positions[candidates]), fill)
     timings["splice"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    if fit_patch and spliced.n_new_vertices:
+        cloud = patch.from_unit(np.concatenate([samples.hole, samples.kept]))
+        kept = patch.faces[~cut.region[patch.faces]]
+        surface = PolygonMesh.from_faces(plan.hole.vertices,
+                                         plan.hole.faces + sub_mesh(mesh, kept).faces)
+        spliced = replace(spliced, mesh=fit_new_vertices(
+            spliced, cloud, surface_normals(cloud, surface), spec))
+    timings["geometry"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start + (plan.seconds if plan_given else 0.0)
 
     fs = fill.stats
