@@ -42,6 +42,8 @@ def main() -> int:
     parser.add_argument("--meshes", type=Path, default=ROOT.parent / "shared" / "meshes")
     parser.add_argument("--split", choices=("dev", "test"), default="dev")
     parser.add_argument("--model", default=None)
+    parser.add_argument("--noise", type=float, default=0.0,
+                        help="Gaussian noise on the points (fraction of the diagonal)")
     parser.add_argument("--variant", action="append", default=[],
                         help="NAME=JSON of spec / geometry changes (repeatable)")
     args = parser.parse_args()
@@ -51,7 +53,7 @@ def main() -> int:
     from spacemesh.evaluate.runner import pin_threads
 
     pin_threads(1)
-    from spacemesh.evaluate.runner import mesh_shapes
+    from spacemesh.evaluate.runner import corrupt_points, mesh_shapes
     from spacemesh.metrics.compare import Reference, score_mesh
     from spacemesh.metrics.sampling import apply_normalisation, normalisation
     from spacemesh.runtime import MeshGenerator
@@ -66,8 +68,9 @@ def main() -> int:
     for index, shape in enumerate(shapes):
         centre, scale = normalisation(shape.mesh)
         truth = apply_normalisation(shape.mesh, centre, scale)
-        prepared.append(((shape.points - centre) / scale,
-                         Reference.from_mesh(truth, seed=[0, index, 0])))
+        points = corrupt_points((shape.points - centre) / scale, noise=args.noise,
+                                seed=[0, index])
+        prepared.append((points, Reference.from_mesh(truth, seed=[0, index, 0])))
     shipped = generator.spec
     variants = [v.split("=", 1) for v in (args.variant or ["shipped={}"])]
     for name, text in variants:

@@ -33,7 +33,7 @@ adds the edge operations. Normals: the upload's when it has them, otherwise
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -68,6 +68,9 @@ class FitOptions:
         length.
     spring_weight : float
         ``w_s`` (every term is a mean of squared lengths, so weights are scale-free).
+    noise_spring : float
+        Added to ``w_s`` times ``(sigma / mean edge length)^2``, where ``sigma`` is the
+        points' noise (:func:`point_noise`): noisy points get a smoother surface.
     damping : float
         ``w_r``.
     face_samples : int
@@ -81,6 +84,7 @@ class FitOptions:
     plane_neighbours: int = 8
     plane_reach: float = 0.5
     spring_weight: float = 1e-3
+    noise_spring: float = 5.0
     damping: float = 1e-3
     face_samples: int = 4
 
@@ -107,6 +111,19 @@ def estimate_point_normals(points: FloatArray, k: int = NORMAL_NEIGHBOURS) -> Fl
     covariance = np.einsum("pki,pkj->pij", patch, patch)  # (P, 3, 3)
     _, vectors = np.linalg.eigh(covariance)
     return vectors[:, :, 0]
+
+
+def point_noise(points: FloatArray, k: int = NORMAL_NEIGHBOURS) -> float:
+    """The points' noise: the median standard deviation of each neighbourhood of ``k``
+    points about its fitted plane (0 for points on a smooth surface)."""
+    points = np.asarray(points, dtype=np.float64)
+    k = int(min(k, len(points)))
+    if k < 4:
+        return 0.0
+    _, near = cKDTree(points).query(points, k=k)
+    patch = points[near] - points[near].mean(axis=1, keepdims=True)  # (P, k, 3)
+    smallest = np.linalg.eigvalsh(np.einsum("pki,pkj->pij", patch, patch))[:, 0]
+    return float(np.sqrt(np.median(np.maximum(smallest, 0.0) / k)))
 
 
 def barycentric(points: FloatArray, corners: FloatArray) -> FloatArray:
@@ -320,6 +337,13 @@ def fit_vertices(
     used = np.zeros(len(positions), dtype=bool)
     used[triangles.reshape(-1)] = True
     free = used if fixed is None else used & ~np.asarray(fixed, dtype=bool)
+    if options.noise_spring > 0:
+        edges = _edges(triangles)
+        length = float(np.mean(np.linalg.norm(
+            positions[edges[:, 0]] - positions[edges[:, 1]], axis=1)))
+        ratio = (point_noise(points) / length) ** 2 if length > 0 else 0.0
+        options = replace(options, spring_weight=options.spring_weight
+                          + options.noise_spring * ratio)
     unknown = np.repeat(free, 3)  # (3N,) coordinates that the solve moves
     energies = []
     for _ in range(options.iterations if free.any() else 0):
