@@ -89,8 +89,8 @@ class FitOptions:
     face_samples: int = 4
 
 
-def estimate_point_normals(points: FloatArray, k: int = NORMAL_NEIGHBOURS) -> FloatArray:
-    """Unoriented unit normals from a plane fit to each point's ``k`` nearest neighbours.
+def plane_fits(points: FloatArray, k: int = NORMAL_NEIGHBOURS) -> tuple[FloatArray, float]:
+    """Plane fits to each point's ``k`` nearest neighbours: their normals and the noise.
 
     Parameters
     ----------
@@ -99,31 +99,33 @@ def estimate_point_normals(points: FloatArray, k: int = NORMAL_NEIGHBOURS) -> Fl
 
     Returns
     -------
-    (P, 3) float64
-        The direction of least variance of each neighbourhood (sign arbitrary).
+    normals : (P, 3) float64
+        The direction of least variance of each neighbourhood (sign arbitrary; +z for
+        fewer than 3 points).
+    noise : float
+        The median standard deviation of the neighbourhoods about their planes (0 for
+        points on a smooth surface).
     """
     points = np.asarray(points, dtype=np.float64)
     k = int(min(k, len(points)))
     if k < 3:
-        return np.tile([0.0, 0.0, 1.0], (len(points), 1))
+        return np.tile([0.0, 0.0, 1.0], (len(points), 1)), 0.0
     _, near = cKDTree(points).query(points, k=k)
     patch = points[near] - points[near].mean(axis=1, keepdims=True)  # (P, k, 3)
     covariance = np.einsum("pki,pkj->pij", patch, patch)  # (P, 3, 3)
-    _, vectors = np.linalg.eigh(covariance)
-    return vectors[:, :, 0]
+    values, vectors = np.linalg.eigh(covariance)  # ascending
+    noise = float(np.sqrt(np.median(np.maximum(values[:, 0], 0.0) / k)))
+    return vectors[:, :, 0], noise
+
+
+def estimate_point_normals(points: FloatArray, k: int = NORMAL_NEIGHBOURS) -> FloatArray:
+    """Unoriented unit normals of :func:`plane_fits`."""
+    return plane_fits(points, k)[0]
 
 
 def point_noise(points: FloatArray, k: int = NORMAL_NEIGHBOURS) -> float:
-    """The points' noise: the median standard deviation of each neighbourhood of ``k``
-    points about its fitted plane (0 for points on a smooth surface)."""
-    points = np.asarray(points, dtype=np.float64)
-    k = int(min(k, len(points)))
-    if k < 4:
-        return 0.0
-    _, near = cKDTree(points).query(points, k=k)
-    patch = points[near] - points[near].mean(axis=1, keepdims=True)  # (P, k, 3)
-    smallest = np.linalg.eigvalsh(np.einsum("pki,pkj->pij", patch, patch))[:, 0]
-    return float(np.sqrt(np.median(np.maximum(smallest, 0.0) / k)))
+    """The points' noise of :func:`plane_fits`."""
+    return plane_fits(points, k)[1]
 
 
 def barycentric(points: FloatArray, corners: FloatArray) -> FloatArray:
@@ -298,6 +300,7 @@ def fit_vertices(
     normals: FloatArray | None = None,
     options: FitOptions | None = None,
     fixed: BoolArray | None = None,
+    noise: float | None = None,
 ) -> tuple[FloatArray, list[float]]:
     """Move the vertices to minimise the fit energy (see the module docstring).
 
@@ -314,6 +317,9 @@ def fit_vertices(
     fixed : (N,) bool, optional
         Vertices that keep their positions exactly (a repair's kept vertices); the
         solve is over the others only.
+    noise : float, optional
+        The points' noise for ``options.noise_spring`` (from :func:`plane_fits` when
+        None; a caller fitting several times passes it once measured).
 
     Returns
     -------
@@ -327,12 +333,13 @@ def fit_vertices(
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if len(triangles) == 0 or len(points) < 4:
         return positions, []
-    if normals is None:
-        normals = estimate_point_normals(points)
-    else:
-        normals = np.asarray(normals, dtype=np.float64)
-        length = np.linalg.norm(normals, axis=1, keepdims=True)
-        normals = np.where(length > 0, normals / np.where(length > 0, length, 1.0), 0.0)
+    if normals is None or (noise is None and options.noise_spring > 0):
+        fitted, measured = plane_fits(points)
+        noise = measured if noise is None else noise
+        normals = fitted if normals is None else normals
+    normals = np.asarray(normals, dtype=np.float64)
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = np.where(length > 0, normals / np.where(length > 0, length, 1.0), 0.0)
     tree = cKDTree(points)
     used = np.zeros(len(positions), dtype=bool)
     used[triangles.reshape(-1)] = True
@@ -341,7 +348,7 @@ def fit_vertices(
         edges = _edges(triangles)
         length = float(np.mean(np.linalg.norm(
             positions[edges[:, 0]] - positions[edges[:, 1]], axis=1)))
-        ratio = (point_noise(points) / length) ** 2 if length > 0 else 0.0
+        ratio = (float(noise) / length) ** 2 if length > 0 else 0.0
         options = replace(options, spring_weight=options.spring_weight
                           + options.noise_spring * ratio)
     unknown = np.repeat(free, 3)  # (3N,) coordinates that the solve moves

@@ -26,7 +26,7 @@ import numpy as np
 
 from spacemesh.data.validate import triangles_of
 from spacemesh.encode import connectivity_from_faces
-from spacemesh.geometry.fitting import FitOptions, fit_vertices
+from spacemesh.geometry.fitting import FitOptions, fit_vertices, plane_fits
 from spacemesh.geometry.intersections import intersecting_triangles, self_intersecting_faces
 from spacemesh.geometry.refinement import flip_diagonals
 from spacemesh.mesh import PolygonMesh
@@ -272,13 +272,15 @@ def refine_geometry(
         stats["n_split"] = len(positions) - len(start_positions)
     before_share, _ = _intersection_share(mesh, positions, tri, source)
     unfitted, unflipped = positions.copy(), tri.copy()
+    fitted, noise = plane_fits(points)  # once for every round
+    normals = fitted if normals is None else normals
     energies: list[float] = []
     for round_index in range(max(options.rounds, 1)):
         if edits and triangle_mesh and options.flips and round_index > 0:
             tri, count = _flip_toward(positions, tri, points, options.fit_gain)
             stats["n_flipped"] += count
         positions, round_energies = fit_vertices(positions, tri, points, normals, options.fit,
-                                                 fixed)
+                                                 fixed, noise)
         energies += round_energies
     stats.update(energy_before=energies[0] if energies else None,
                  energy_after=energies[-1] if energies else None,
