@@ -247,6 +247,45 @@ class GenerateResult:
         return str(self.options.sampler)
 
 
+@dataclass(frozen=True)
+class PreparedInput:
+    """One request's points, checked and normalised once and shared by its seeds.
+
+    Attributes
+    ----------
+    cloud : (n_points, 3 or 6) float32
+        Encoder input.
+    centre : (3,) float
+    scale : float
+        ``points = unit * scale + centre``.
+    points : (P, 3) float64
+        The uploaded points (the fit report's reference).
+    unit : (P, 3) float64
+        The same, normalised.
+    normals : (P, 3) float64, optional
+        The upload's normals.
+    weights : (P,) float64, optional
+        Farthest-point weights (``start=points`` only).
+    """
+
+    cloud: np.ndarray
+    centre: FloatArray
+    scale: float
+    points: FloatArray
+    unit: FloatArray
+    normals: FloatArray | None
+    weights: FloatArray | None
+
+    def fit_points(self) -> tuple[FloatArray, FloatArray | None]:
+        """The normalised points (and normals) the geometry stage fits to, at most
+        :data:`MAX_FIT_POINTS` of them (a fixed subset)."""
+        if len(self.unit) <= MAX_FIT_POINTS:
+            return self.unit, self.normals
+        pick = np.sort(np.random.default_rng(POINT_SUBSET_SEED).choice(
+            len(self.unit), MAX_FIT_POINTS, replace=False))
+        return self.unit[pick], None if self.normals is None else self.normals[pick]
+
+
 def normalize_points(points: FloatArray) -> tuple[FloatArray, FloatArray, float]:
     """Centre the bounding box at the origin and scale the longest axis to [-1, 1].
 
@@ -460,16 +499,15 @@ class MeshGenerator:
             An option out of range (before any network runs).
         """
         resolved = [r.options.resolve(self.spec) for r in requests]
-        for request in requests:
-            self.prepare_points(request.points, request.normals)  # fail before any work
-        jobs: list[tuple[int, GenerateRequest]] = []  # (request index, one seed)
-        for index, (request, options) in enumerate(zip(requests, resolved, strict=True)):
-            for k in range(options.samples):
-                single = replace(options, seed=options.seed + k)
-                jobs.append((index, replace(request, options=single)))
+        # each request's points once, shared by its seeds (fails before any work)
+        inputs = [self.prepare_input(r, o) for r, o in zip(requests, resolved, strict=True)]
+        jobs: list[tuple[int, GenerateOptions]] = []  # (request index, one seed)
+        for index, options in enumerate(resolved):
+            jobs += [(index, replace(options, seed=options.seed + k))
+                     for k in range(options.samples)]
         groups: dict[tuple[int, str, str, float], list[int]] = {}
-        for j, (_, job) in enumerate(jobs):
-            groups.setdefault(self._sampler_key(job.options), []).append(j)
+        for j, (_, options) in enumerate(jobs):
+            groups.setdefault(self._sampler_key(options), []).append(j)
         total = sum(self._denoiser_steps(key) for key in groups)
         outcomes: list[GenerateResult | None] = [None] * len(jobs)
         done = 0
@@ -478,7 +516,8 @@ class MeshGenerator:
                 if progress is not None:
                     progress(offset + step, total)
 
-            batch = self._run_group([jobs[j][1] for j in members], key, report)
+            batch = self._run_group([(inputs[jobs[j][0]], jobs[j][1]) for j in members],
+                                    key, report)
             for j, result in zip(members, batch, strict=True):
                 outcomes[j] = result
             done += self._denoiser_steps(key)
@@ -505,7 +544,29 @@ class MeshGenerator:
         self, points: FloatArray, normals: FloatArray | None
     ) -> tuple[np.ndarray, FloatArray, float]:
         """Encoder input ``(n_points, 3 or 6)`` float32 and the normalisation transform."""
-        p, n = check_points(points, normals)
+        prepared = self.prepare_input(GenerateRequest(points, normals))
+        return prepared.cloud, prepared.centre, prepared.scale
+
+    def prepare_input(self, request: GenerateRequest,
+                      options: GenerateOptions | None = None) -> PreparedInput:
+        """A request's points checked, normalised and subsampled once for all its seeds.
+
+        Parameters
+        ----------
+        request : GenerateRequest
+        options : GenerateOptions, optional
+            Resolved; with ``start=points`` the farthest-point weights are made too.
+
+        Returns
+        -------
+        PreparedInput
+
+        Raises
+        ------
+        ValueError
+            Points (or normals) that cannot be used.
+        """
+        p, n = check_points(request.points, request.normals)
         if self.spec.normals and n is None:
             raise ValueError("this model needs normals with the points")
         unit, centre, scale = normalize_points(p)
@@ -515,27 +576,28 @@ class MeshGenerator:
         if self.spec.normals:
             length = np.linalg.norm(n, axis=1, keepdims=True)
             columns.append((n / np.where(length > 0, length, 1.0))[pick])
-        return np.concatenate(columns, axis=1).astype(np.float32), centre, scale
+        cloud = np.concatenate(columns, axis=1).astype(np.float32)
+        weights = (feature_weights(unit, self.spec.feature_boost)
+                   if options is not None and options.start == "points" else None)
+        return PreparedInput(cloud, centre, scale, p, unit, n, weights)
 
     def vertex_count(self, options: GenerateOptions) -> int:
         """Vertices ``start=points`` chooses: the target, else the model's default."""
         return int(options.target_vertices or self.spec.vertices)
 
-    def _start_tokens(self, requests: list[GenerateRequest]) -> np.ndarray:
-        """Clean tokens ``(B, N, 4)`` of the farthest-point vertices of each request's
+    def _start_tokens(self, jobs: list[tuple[PreparedInput, GenerateOptions]]) -> np.ndarray:
+        """Clean tokens ``(B, N, 4)`` of the farthest-point vertices of each job's
         normalised cloud (real tokens first, padding after with mask -1)."""
         chosen = []
-        for request in requests:
-            unit, _, _ = normalize_points(check_points(request.points)[0])
-            wanted = self.vertex_count(request.options)
-            if not request.options.raw:
+        for prepared, options in jobs:
+            wanted = self.vertex_count(options)
+            if not options.raw:
                 wanted = min(wanted, self.spec.max_vertices)  # the stage splits the rest
-            weights = feature_weights(unit, self.spec.feature_boost)
-            pick = farthest_point_sampling(unit, wanted, seed=request.options.seed,
-                                           weights=weights)
-            chosen.append(unit[pick])
+            pick = farthest_point_sampling(prepared.unit, wanted, seed=options.seed,
+                                           weights=prepared.weights)
+            chosen.append(prepared.unit[pick])
         n = max([self.spec.max_vertices, *(len(c) for c in chosen)])
-        tokens = np.zeros((len(requests), n, 4), dtype=np.float32)
+        tokens = np.zeros((len(jobs), n, 4), dtype=np.float32)
         tokens[..., 3] = -1.0
         for b, c in enumerate(chosen):
             tokens[b, : len(c), :3] = c
@@ -543,20 +605,19 @@ class MeshGenerator:
         return tokens
 
     def _run_group(
-        self, requests: list[GenerateRequest], key: tuple[int, str, str, float],
-        progress: ProgressFn,
+        self, jobs: list[tuple[PreparedInput, GenerateOptions]],
+        key: tuple[int, str, str, float], progress: ProgressFn,
     ) -> list[GenerateResult]:
         steps, method, start, start_time = key
         t0 = time.perf_counter()
-        prepared = [self.prepare_points(r.points, r.normals) for r in requests]
-        points = np.stack([p[0] for p in prepared])  # (B, P, C)
+        points = np.stack([prepared.cloud for prepared, _ in jobs])  # (B, P, C)
         volumes = self.backend.encode(points)
         t1 = time.perf_counter()
-        clean = self._start_tokens(requests) if start == "points" else None
+        clean = self._start_tokens(jobs) if start == "points" else None
         n_tokens = self.spec.max_vertices if clean is None else clean.shape[1]
         tokens = sample(
             lambda x, t: self.backend.denoise(x, t, volumes),
-            seeds=[r.options.seed for r in requests], n_vertices=n_tokens,
+            seeds=[options.seed for _, options in jobs], n_vertices=n_tokens,
             steps=self.spec.schedule.respaced(steps), method=method, progress=progress,
             start=clean, start_time=start_time,
         )
@@ -568,52 +629,37 @@ class MeshGenerator:
         emb = self.backend.connect(positions, alive, volumes)
         t3 = time.perf_counter()
         results = []
-        for b, (request, (cloud, centre, scale)) in enumerate(
-                zip(requests, prepared, strict=True)):
+        for b, (prepared, options) in enumerate(jobs):
             e0 = time.perf_counter()
             embeddings = Embeddings(
                 np.asarray(emb.x[b], np.float64), emb.tau, np.asarray(emb.root[b], np.float64),
                 np.asarray(emb.prev[b], np.float64), np.asarray(emb.next[b], np.float64),
             )
             decoded = decode(positions[b].astype(np.float64), embeddings, self.spec.decode,
-                             alive=alive[b], points=cloud[:, :3])
+                             alive=alive[b], points=prepared.cloud[:, :3])
             mesh = _outward(decoded.mesh)
             e1 = time.perf_counter()
             geometry_stats: dict[str, Any] = {}
-            if not request.options.raw:
-                unit, normals = self._fit_points(request, centre, scale)
+            if not options.raw:
+                unit, normals = prepared.fit_points()
                 refined = refine_geometry(
                     mesh, unit, normals, self.spec.geometry,
-                    target_vertices=(self.vertex_count(request.options)
-                                     if start == "points" else None),
+                    target_vertices=self.vertex_count(options) if start == "points" else None,
                 )
                 mesh, geometry_stats = _outward(refined.mesh), refined.stats
-            mesh = mesh.with_vertices(mesh.vertices * scale + centre)
+            mesh = mesh.with_vertices(mesh.vertices * prepared.scale + prepared.centre)
             e2 = time.perf_counter()
-            report = fit_report(mesh, check_points(request.points)[0])
+            report = fit_report(mesh, prepared.points)
             timings = {"encoder": t1 - t0, "sampler": t2 - t1, "connectivity": t3 - t2,
                        "extraction": e1 - e0, "geometry": e2 - e1,
                        "report": time.perf_counter() - e2}
             timings["total"] = sum(timings.values())
             results.append(GenerateResult(
-                mesh=mesh, options=request.options, timings=timings,
+                mesh=mesh, options=options, timings=timings,
                 n_sampled_vertices=int(alive[b].sum()), decode_stats=dict(decoded.stats),
                 geometry_stats=geometry_stats, fit=report,
             ))
         return results
-
-    @staticmethod
-    def _fit_points(request: GenerateRequest, centre: FloatArray, scale: float
-                    ) -> tuple[FloatArray, FloatArray | None]:
-        """The request's points (and normals) in the normalised frame, at most
-        :data:`MAX_FIT_POINTS` of them (a fixed subset)."""
-        points, normals = check_points(request.points, request.normals)
-        if len(points) > MAX_FIT_POINTS:
-            pick = np.sort(np.random.default_rng(POINT_SUBSET_SEED).choice(
-                len(points), MAX_FIT_POINTS, replace=False))
-            points = points[pick]
-            normals = None if normals is None else normals[pick]
-        return (points - centre) / scale, normals
 
 
 def _outward(mesh: PolygonMesh) -> PolygonMesh:
