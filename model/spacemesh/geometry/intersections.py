@@ -201,3 +201,10 @@ def self_intersecting_faces(mesh: PolygonMesh) -> BoolArray:
     hit = intersecting_triangles(mesh.vertices, triangles, source)
     faces[source[hit]] = True
     return faces
+
+
+def self_intersection_fraction(mesh: PolygonMesh) -> float:
+    """The fraction (in [0, 1]) of faces that intersect another face (0 for no faces)."""
+    if mesh.n_faces == 0:
+        return 0.0
+    return float(self_intersecting_faces(mesh).mean())

@@ -25,7 +25,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from spacemesh.data.validate import triangles_of
-from spacemesh.geometry.intersections import self_intersecting_faces
+from spacemesh.geometry.intersections import self_intersection_fraction
 from spacemesh.geometry.surface_fit import nearest_triangles
 from spacemesh.mesh import PolygonMesh
 from spacemesh.typed import FloatArray
@@ -133,6 +133,6 @@ def fit_report(mesh: PolygonMesh, points: FloatArray) -> FitReport:
         *values, *(v / relative for v in values),
         coverage=float(np.mean(to_mesh <= COVERAGE_FRACTION * relative)),
         components=face_components(mesh),
-        self_intersections=float(self_intersecting_faces(mesh).mean()),
+        self_intersections=self_intersection_fraction(mesh),
         diagonal=diagonal, n_points=len(points),
     )

@@ -17,9 +17,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from spacemesh.geometry.intersections import (  # noqa: F401  (the metrics' definition)
+    self_intersecting_faces,
+    self_intersection_fraction,
+)
 from spacemesh.mesh import PolygonMesh
 from spacemesh.topology import check_topology
-from spacemesh.typed import BoolArray, FloatArray
+from spacemesh.typed import FloatArray
 
 
 def topology_flags(mesh: PolygonMesh) -> dict[str, bool | int]:
@@ -46,31 +50,6 @@ def topology_flags(mesh: PolygonMesh) -> dict[str, bool | int]:
         "valid": bool(report.is_closed_oriented_manifold),
         "components": int(report.n_components),
     }
-
-
-def self_intersecting_faces(mesh: PolygonMesh) -> BoolArray:
-    """Which polygon faces intersect another face: the one definition the geometry
-    stage's guard and the fit report use
-    (:func:`spacemesh.geometry.intersections.self_intersecting_faces`).
-
-    Parameters
-    ----------
-    mesh : PolygonMesh
-
-    Returns
-    -------
-    (F,) bool
-    """
-    from spacemesh.geometry.intersections import self_intersecting_faces as faces
-
-    return faces(mesh)
-
-
-def self_intersection_fraction(mesh: PolygonMesh) -> float:
-    """The fraction (in [0, 1]) of faces that intersect another face (0 for no faces)."""
-    if mesh.n_faces == 0:
-        return 0.0
-    return float(self_intersecting_faces(mesh).mean())
 
 
 def edge_lengths(mesh: PolygonMesh) -> FloatArray:
