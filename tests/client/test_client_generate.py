@@ -96,6 +96,7 @@ def test_save_and_to_trimesh(client, case, tmp_path):
         assert np.allclose(np.sort(loaded.vertices, axis=0), np.sort(mesh.vertices, axis=0),
                            atol=1e-5), fmt
     converted = mesh.to_trimesh()
+    assert len(converted.faces) > 0  # an empty mesh is watertight too
     assert converted.is_watertight and converted.is_winding_consistent
     assert len(converted.faces) == len(mesh.triangles())
     assert np.array_equal(converted.vertices, mesh.vertices)

@@ -20,7 +20,7 @@ from spacemesh.mesh import PolygonMesh
 from spacemesh.runtime.backend import ConnectivityOutputs
 from spacemesh.runtime.pipeline import ModelSpec
 from spacemesh.runtime.schedule import NoiseSchedule
-from spacemesh.topology import check_topology
+from tests.validity import assert_valid_mesh
 
 K, N_SPACE, KP = 16, 8, 6
 
@@ -133,10 +133,9 @@ def geometric_faces(mesh: PolygonMesh, decimals: int = 5) -> set:
 
 
 def assert_closed_manifold(mesh: PolygonMesh) -> None:
-    """Closed, oriented, manifold, no repeated vertex in a face, no unused vertex."""
-    report = check_topology(mesh)
-    assert report.is_closed_oriented_manifold, report.defects()
-    assert report.n_unreferenced_vertices == 0
+    """Non-empty, closed, oriented, manifold, no repeated vertex in a face, no unused
+    vertex (:func:`tests.validity.assert_valid_mesh`)."""
+    assert_valid_mesh(mesh)
 
 
 def assert_outside_identical(original: PolygonMesh, result) -> None:

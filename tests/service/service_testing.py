@@ -201,12 +201,11 @@ def check_repair(original, region: dict, vertices: np.ndarray, faces, repair: di
     region, ``repair["grown_faces"]`` of them, may change)."""
     from spacemesh.mesh import PolygonMesh
     from spacemesh.repair import parse_region
-    from spacemesh.topology import check_topology
+    from tests.validity import assert_valid_mesh
 
     out = PolygonMesh.from_faces(np.asarray(vertices, dtype=np.float64),
                                  [np.asarray(f) for f in faces])
-    report = check_topology(out)
-    assert report.is_closed_oriented_manifold, report.defects()
+    assert_valid_mesh(out)
     requested = parse_region(region).face_mask(original)
     assert repair["requested_faces"] == int(requested.sum()) > 0
     assert repair["region_faces"] == repair["requested_faces"] + repair["grown_faces"]
