@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.repair import RegionError, RepairPlan, plan_repair, repair_mesh
+from spacemesh.repair import RegionError, RepairPlan, plan_repair, repair_mesh, verify_repair
 from spacemesh.repair.region import Region
 from spacemesh.runtime.options import GenerateOptions, OptionError
 from spacemesh.runtime.pipeline import GenerateRequest, MeshGenerator
@@ -501,6 +501,11 @@ class Engine:
         outcome = await self._queued(self.batcher.submit_call(run, progress=progress),
                                      decode_s)
         result = outcome.result
+        issues = verify_repair(job.plan, result)
+        if issues:  # a faulty repair is refused, never returned
+            log.error("repair refused: %s", "; ".join(issues))
+            raise Problem(P.INVALID_OUTPUT, "the repair changed the mesh outside the grown "
+                          "region: " + "; ".join(issues))
         stats = result.stats
         summary = repair_summary(stats)
         options = {"seed": stats.seed, "steps": stats.steps, "sampler": stats.method}

@@ -219,6 +219,34 @@ def check_repair(original, region: dict, vertices: np.ndarray, faces, repair: di
         assert out.n_faces == original.n_faces - repair["region_faces"] + repair["new_faces"]
 
 
+def faulty_repair(repair_mesh, fault: str = "moved"):
+    """``repair_mesh`` with a bug outside the region, which the server's check
+    (:func:`spacemesh.repair.verify_repair`) must refuse: ``"moved"`` moves a corner of
+    the first kept face, ``"dropped"`` re-generates the first kept face as well (it is
+    left out of the kept faces and added back as a new one)."""
+    from dataclasses import replace
+
+    from spacemesh.mesh import PolygonMesh
+
+    def repair(*args, **kwargs):
+        result = repair_mesh(*args, **kwargs)
+        mesh, source = result.mesh, result.face_source
+        first = int(np.flatnonzero(source >= 0)[0])
+        corners = mesh.face_indices[mesh.face_offsets[first]: mesh.face_offsets[first + 1]]
+        if fault == "moved":
+            vertices = mesh.vertices.copy()
+            vertices[corners[0]] += 0.01 * (np.ptp(mesh.vertices, axis=0).max() or 1.0)
+            return replace(result, mesh=PolygonMesh(vertices, mesh.face_indices,
+                                                    mesh.face_offsets))
+        faces = [mesh.face_indices[mesh.face_offsets[f]: mesh.face_offsets[f + 1]]
+                 for f in range(mesh.n_faces)]
+        order = [f for f in range(mesh.n_faces) if f != first] + [first]
+        moved = PolygonMesh.from_faces(mesh.vertices, [faces[f] for f in order])
+        return replace(result, mesh=moved, face_source=np.append(np.delete(source, first), -1))
+
+    return repair
+
+
 #: Requests that must answer 422 invalid-option, and the option each names (REST, gRPC
 #: and the SDK's tests send them all).
 BAD_OPTIONS = [

@@ -15,7 +15,14 @@
 numpy, scipy and onnxruntime only (never torch). See docs/REPAIR.md.
 """
 
-from spacemesh.repair.api import RepairPlan, RepairResult, RepairStats, plan_repair, repair_mesh
+from spacemesh.repair.api import (
+    RepairPlan,
+    RepairResult,
+    RepairStats,
+    plan_repair,
+    repair_mesh,
+    verify_repair,
+)
 from spacemesh.repair.region import ERROR_KINDS, Region, RegionError, parse_region
 from spacemesh.repair.weld import weld_vertices
 
@@ -29,5 +36,6 @@ __all__ = [
     "parse_region",
     "plan_repair",
     "repair_mesh",
+    "verify_repair",
     "weld_vertices",
 ]

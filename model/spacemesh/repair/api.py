@@ -193,6 +193,59 @@ class RepairResult:
     stats: RepairStats
 
 
+def verify_repair(plan: RepairPlan, result: RepairResult) -> list[str]:
+    """What a repair changed beyond the grown region (empty when nothing).
+
+    The faces a repair may change are exactly the plan's grown region
+    (``plan.cut.region``, computed before any network ran): every other input face must
+    come back first, in input order, as the same polygon on the same positions (same
+    cycle, same first corner), and only new faces may follow. A server runs this on
+    every repair before it answers, so a faulty repair is refused, never returned.
+
+    Parameters
+    ----------
+    plan : RepairPlan
+        The plan the repair ran with.
+    result : RepairResult
+
+    Returns
+    -------
+    list of str
+        One sentence per violation.
+    """
+    source, region = plan.cut.mesh, plan.cut.region
+    out, face_source = result.mesh, np.asarray(result.face_source)
+    issues: list[str] = []
+    if not np.array_equal(np.asarray(result.region, dtype=bool), region):
+        issues.append("the repair reports another region than the plan's grown region")
+    if len(face_source) != out.n_faces:
+        return [*issues, f"{len(face_source)} face sources for {out.n_faces} faces"]
+    expected = np.flatnonzero(~region)
+    n_kept = len(expected)
+    kept = face_source >= 0
+    if not (int(kept.sum()) == n_kept and kept[:n_kept].all()
+            and np.array_equal(face_source[:n_kept], expected)):
+        inside = np.unique(face_source[kept & (face_source < len(region))])
+        dropped = np.setdiff1d(expected, face_source[kept])
+        grown = inside[region[inside]] if len(inside) else inside
+        issues.append(f"the kept faces are not the {n_kept} input faces outside the grown "
+                      f"region in order ({len(dropped)} of them missing, "
+                      f"{len(grown)} region faces kept)")
+        return issues
+    if not np.array_equal(out.face_sizes[:n_kept], source.face_sizes[expected]):
+        changed = np.flatnonzero(out.face_sizes[:n_kept] != source.face_sizes[expected])
+        return [*issues, f"{len(changed)} faces outside the grown region changed their "
+                f"number of corners (input face {int(expected[changed[0]])} first)"]
+    in_corners = source.face_indices[~region[source.face_of_corner]]
+    out_corners = out.face_indices[: out.face_offsets[n_kept]]
+    moved = np.any(out.vertices[out_corners] != source.vertices[in_corners], axis=1)
+    if moved.any():
+        faces = np.unique(out.face_of_corner[: len(out_corners)][moved])
+        issues.append(f"{len(faces)} faces outside the grown region changed (input face "
+                      f"{int(expected[faces[0]])} first)")
+    return issues
+
+
 def plan_repair(mesh: PolygonMesh, region: Region | Mapping[str, Any] | BoolArray,
                 n_tokens: int, *, max_rings: int = MAX_RINGS, weld: bool = False
                 ) -> RepairPlan:
