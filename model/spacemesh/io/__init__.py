@@ -28,20 +28,21 @@ from pathlib import Path
 from typing import BinaryIO, TypeAlias
 
 from spacemesh.io import gltf, obj, off, ply, stl
-from spacemesh.io.errors import MeshFormatError, UnsupportedFormatError
+from spacemesh.io.errors import MeshFormatError, TooLargeError, UnsupportedFormatError
+from spacemesh.io.limits import UNLIMITED, ReadLimits
 from spacemesh.io.points import SUPPORTED_POINTS_READ, load_points
 from spacemesh.mesh import PolygonMesh
 
 #: A file path, the file's bytes, or an open binary file.
 MeshSource: TypeAlias = "str | os.PathLike[str] | bytes | bytearray | memoryview | BinaryIO"
 
-_READERS: dict[str, Callable[[bytes, Path | None], PolygonMesh]] = {
-    "glb": lambda data, base: gltf.load_glb(data, base_dir=base),
-    "gltf": lambda data, base: gltf.load_gltf(data, base_dir=base),
-    "obj": lambda data, base: obj.load_obj(data),
-    "off": lambda data, base: off.load_off(data),
-    "ply": lambda data, base: ply.load_ply(data),
-    "stl": lambda data, base: stl.load_stl(data),
+_READERS: dict[str, Callable[[bytes, Path | None, ReadLimits], PolygonMesh]] = {
+    "glb": lambda data, base, limits: gltf.load_glb(data, base_dir=base, limits=limits),
+    "gltf": lambda data, base, limits: gltf.load_gltf(data, base_dir=base, limits=limits),
+    "obj": lambda data, base, limits: obj.load_obj(data, limits),
+    "off": lambda data, base, limits: off.load_off(data, limits),
+    "ply": lambda data, base, limits: ply.load_ply(data, limits),
+    "stl": lambda data, base, limits: stl.load_stl(data, limits),
 }
 _WRITERS: dict[str, Callable[..., bytes]] = {
     "glb": gltf.export_glb,
@@ -202,7 +203,9 @@ def resolve_file_type(
     return sniffed
 
 
-def load_mesh(source: MeshSource, file_type: str | None = None) -> PolygonMesh:
+def load_mesh(
+    source: MeshSource, file_type: str | None = None, limits: ReadLimits | None = None
+) -> PolygonMesh:
     """Read a polygon mesh from a file or its bytes.
 
     Parameters
@@ -212,6 +215,8 @@ def load_mesh(source: MeshSource, file_type: str | None = None) -> PolygonMesh:
         or, when it is not given, as whatever their content looks like.
     file_type : str, optional
         ``"obj"``, ``".off"``, ``"upload.ply"``...; overrides the extension.
+    limits : ReadLimits, optional
+        Counts and decoded sizes allowed, checked while reading (default: none).
 
     Returns
     -------
@@ -222,13 +227,15 @@ def load_mesh(source: MeshSource, file_type: str | None = None) -> PolygonMesh:
     ------
     MeshFormatError
         The file is malformed, truncated or empty.
+    TooLargeError
+        The file declares or holds more than ``limits`` allow.
     UnsupportedFormatError
         The file type is not one of :data:`SUPPORTED_MESH_READ`.
     """
     data, extension, folder = read_source(source)
     fmt = resolve_file_type(file_type, extension, data, SUPPORTED_MESH_READ, "mesh")
     try:
-        return _READERS[fmt](data, folder)
+        return _READERS[fmt](data, folder, limits or UNLIMITED)
     except MeshFormatError:
         raise
     except (ValueError, IndexError, KeyError, TypeError, struct.error, OverflowError) as exc:
@@ -285,6 +292,8 @@ __all__ = [
     "SUPPORTED_POINTS_READ",
     "MeshFormatError",
     "MeshSource",
+    "ReadLimits",
+    "TooLargeError",
     "UnsupportedFormatError",
     "export_mesh",
     "load_mesh",

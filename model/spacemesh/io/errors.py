@@ -24,6 +24,27 @@ class NonFiniteError(MeshFormatError):
     """A well-formed file whose coordinates include NaN or infinity."""
 
 
+class TooLargeError(MeshFormatError):
+    """A file that declares or holds more than a :class:`~spacemesh.io.limits.ReadLimits`
+    allows, refused before the reader allocates for it.
+
+    Attributes
+    ----------
+    what : str
+        What is counted: ``"points"``, ``"vertices"``, ``"faces"``, ``"corners"``,
+        ``"bytes"`` or ``"values"`` (JSON numbers, strings and containers).
+    count : int
+        How many the file declares or holds (at least; readers stop counting at the
+        limit).
+    limit : int
+        The most allowed.
+    """
+
+    def __init__(self, message: str, *, what: str, count: int, limit: int) -> None:
+        super().__init__(message)
+        self.what, self.count, self.limit = what, count, limit
+
+
 def decode_text(data: bytes, fmt: str) -> str:
     """Decode a text format as UTF-8 (tolerating a BOM), falling back to Latin-1.
 
@@ -113,6 +134,8 @@ def check_face_indices(
 
 __all__ = [
     "MeshFormatError",
+    "NonFiniteError",
+    "TooLargeError",
     "UnsupportedFormatError",
     "check_face_indices",
     "check_vertices",

@@ -27,7 +27,8 @@ from urllib.parse import unquote
 
 import numpy as np
 
-from spacemesh.io.errors import MeshFormatError, check_vertices, require_nonempty
+from spacemesh.io.errors import MeshFormatError, TooLargeError, check_vertices, require_nonempty
+from spacemesh.io.limits import UNLIMITED, ReadLimits, load_json
 from spacemesh.mesh import PolygonMesh
 from spacemesh.triangulate import triangulate_manifold
 from spacemesh.typed import FloatArray, IntArray
@@ -46,18 +47,29 @@ _COMPONENTS = {
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _NORMALIZED_SCALE = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}
 _TRIANGLE_MODES = (4, 5, 6)
+#: Most node visits while placing the scene's meshes (instancing a shared subtree
+#: multiplies them).
+MAX_NODE_VISITS = 100_000
 
 
 class _Document:
     """A parsed glTF JSON document with its buffers, read on demand."""
 
-    def __init__(self, doc: dict, fmt: str, binary: bytes | None, base_dir: Path | None) -> None:
+    def __init__(
+        self,
+        doc: dict,
+        fmt: str,
+        binary: bytes | None,
+        base_dir: Path | None,
+        limits: ReadLimits = UNLIMITED,
+    ) -> None:
         if not isinstance(doc, dict):
             raise MeshFormatError(f"{fmt}: the JSON document is not an object")
         version = str(doc.get("asset", {}).get("version", "2.0"))
         if not version.startswith("2"):
             raise MeshFormatError(f"{fmt}: glTF version {version} is not supported (only 2.0)")
         self.doc, self.fmt, self.binary, self.base_dir = doc, fmt, binary, base_dir
+        self.limits = limits
         self._buffers: dict[int, bytes] = {}
 
     def buffer(self, index: int) -> bytes:
@@ -67,6 +79,8 @@ class _Document:
 
     def _load_buffer(self, index: int) -> bytes:
         spec = self.doc["buffers"][index]
+        declared = int(spec.get("byteLength", 0))
+        self.limits.check_bytes(self.fmt, declared, f"buffer {index}")
         uri = spec.get("uri")
         if uri is None:
             if self.binary is None:
@@ -76,6 +90,7 @@ class _Document:
             head, _, payload = uri.partition(",")
             if not head.endswith(";base64"):
                 raise MeshFormatError(f"{self.fmt}: buffer {index}: only base64 data URIs")
+            self.limits.check_bytes(self.fmt, len(payload) * 3 // 4, f"buffer {index}")
             try:
                 data = base64.b64decode(payload)
             except binascii.Error:
@@ -83,6 +98,7 @@ class _Document:
         elif self.base_dir is not None:
             path = self.base_dir / unquote(uri)
             try:
+                self.limits.check_bytes(self.fmt, path.stat().st_size, f"buffer {index}")
                 data = path.read_bytes()
             except OSError as exc:
                 raise MeshFormatError(
@@ -151,7 +167,7 @@ def _node_matrix(node: dict) -> FloatArray:
     return matrix
 
 
-def _mesh_instances(doc: dict) -> list[tuple[int, FloatArray]]:
+def _mesh_instances(doc: dict, fmt: str = "glTF") -> list[tuple[int, FloatArray]]:
     """``(mesh, world matrix)`` for every mesh placed in the default scene."""
     nodes = doc.get("nodes", [])
     n_meshes = len(doc.get("meshes", []))
@@ -162,10 +178,19 @@ def _mesh_instances(doc: dict) -> list[tuple[int, FloatArray]]:
         roots = [i for i in range(len(nodes)) if i not in children]
     instances: list[tuple[int, FloatArray]] = []
     stack = [(int(r), np.eye(4), 0) for r in reversed(roots)]
+    visits = 0
     while stack:
         index, parent, depth = stack.pop()
         if depth > 64:
             raise MeshFormatError("glTF: the node hierarchy is cyclic or too deep")
+        visits += 1
+        if visits > MAX_NODE_VISITS:
+            raise TooLargeError(
+                f"{fmt}: the scene places more than {MAX_NODE_VISITS} nodes",
+                what="nodes",
+                count=visits,
+                limit=MAX_NODE_VISITS,
+            )
         node = nodes[index]
         world = parent @ _node_matrix(node)
         if "mesh" in node:
@@ -194,16 +219,18 @@ def _primitive_triangles(indices: IntArray, mode: int) -> IntArray:
 
 
 def _to_mesh(document: _Document) -> PolygonMesh:
-    fmt, doc = document.fmt, document.doc
+    fmt, doc, limits = document.fmt, document.doc, document.limits
     positions: list[FloatArray] = []
     triangles: list[IntArray] = []
-    n_vertices = 0
-    for mesh_index, world in _mesh_instances(doc):
+    n_vertices = n_corners = 0
+    for mesh_index, world in _mesh_instances(doc, fmt):
         for p, primitive in enumerate(doc["meshes"][mesh_index].get("primitives", [])):
             where = f"mesh {mesh_index} primitive {p}"
             if "POSITION" not in primitive.get("attributes", {}):
                 raise MeshFormatError(f"{fmt}: {where} has no POSITION attribute")
-            local = document.accessor(int(primitive["attributes"]["POSITION"]))
+            position = int(primitive["attributes"]["POSITION"])
+            limits.check_vertices(fmt, n_vertices + _declared_count(doc, position))
+            local = document.accessor(position)
             if local.shape[1] != 3:
                 raise MeshFormatError(f"{fmt}: {where}: POSITION is not VEC3")
             local = local.astype(np.float64)
@@ -211,6 +238,9 @@ def _to_mesh(document: _Document) -> PolygonMesh:
             mode = int(primitive.get("mode", 4))
             if mode in _TRIANGLE_MODES:
                 if "indices" in primitive:
+                    n_corners += _declared_count(doc, int(primitive["indices"]))
+                    limits.check_corners(fmt, n_corners)
+                    limits.check_faces(fmt, n_corners // 3)
                     raw = document.accessor(int(primitive["indices"]))
                     if raw.dtype.kind not in "ui" or raw.shape[1] != 1:
                         raise MeshFormatError(f"{fmt}: {where}: indices are not integers")
@@ -235,11 +265,16 @@ def _to_mesh(document: _Document) -> PolygonMesh:
     return PolygonMesh.from_faces(vertices, faces.astype(np.int64).reshape(-1, 3))
 
 
-def _parse_json(text: bytes, fmt: str) -> dict:
-    try:
-        return json.loads(text.decode("utf-8-sig"))
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise MeshFormatError(f"{fmt}: the JSON part is not valid JSON ({exc})") from None
+def _declared_count(doc: dict, accessor: int) -> int:
+    """The item count an accessor declares (checked against the limits before reading)."""
+    count = int(doc["accessors"][accessor]["count"])
+    if count < 0:
+        raise MeshFormatError(f"glTF: accessor {accessor} has a negative count")
+    return count
+
+
+def _parse_json(text: bytes, fmt: str, limits: ReadLimits = UNLIMITED) -> dict:
+    return load_json(text, f"{fmt} JSON part", limits)
 
 
 def _read(document_factory: Callable[[], _Document], fmt: str) -> PolygonMesh:
@@ -252,8 +287,13 @@ def _read(document_factory: Callable[[], _Document], fmt: str) -> PolygonMesh:
         raise MeshFormatError(f"{fmt}: malformed document ({type(exc).__name__}: {exc})") from None
 
 
-def load_glb(data: bytes, *, base_dir: Path | None = None) -> PolygonMesh:
+def load_glb(
+    data: bytes, *, base_dir: Path | None = None, limits: ReadLimits | None = None
+) -> PolygonMesh:
     """Read a binary glTF (GLB) file's triangles.
+
+    Declared buffer lengths and accessor counts are checked against ``limits`` (and
+    against the bytes present) before any is read.
 
     Parameters
     ----------
@@ -261,6 +301,7 @@ def load_glb(data: bytes, *, base_dir: Path | None = None) -> PolygonMesh:
         The file's content.
     base_dir : Path, optional
         Folder for external buffer files (only when reading from a path).
+    limits : ReadLimits, optional
 
     Returns
     -------
@@ -284,11 +325,14 @@ def load_glb(data: bytes, *, base_dir: Path | None = None) -> PolygonMesh:
         at += 8 + size
     if _CHUNK_JSON not in chunks:
         raise MeshFormatError("GLB: the file has no JSON chunk")
-    doc = _parse_json(chunks[_CHUNK_JSON], "GLB")
-    return _read(lambda: _Document(doc, "GLB", chunks.get(_CHUNK_BIN), base_dir), "GLB")
+    limits = limits or UNLIMITED
+    doc = _parse_json(chunks[_CHUNK_JSON], "GLB", limits)
+    return _read(lambda: _Document(doc, "GLB", chunks.get(_CHUNK_BIN), base_dir, limits), "GLB")
 
 
-def load_gltf(data: bytes, *, base_dir: Path | None = None) -> PolygonMesh:
+def load_gltf(
+    data: bytes, *, base_dir: Path | None = None, limits: ReadLimits | None = None
+) -> PolygonMesh:
     """Read a JSON glTF file's triangles (buffers embedded or, from a path, external).
 
     Parameters
@@ -297,6 +341,8 @@ def load_gltf(data: bytes, *, base_dir: Path | None = None) -> PolygonMesh:
         The file's content.
     base_dir : Path, optional
         Folder for external buffer files (only when reading from a path).
+    limits : ReadLimits, optional
+        As for :func:`load_glb`; the JSON's values are counted before it is parsed.
 
     Returns
     -------
@@ -304,9 +350,10 @@ def load_gltf(data: bytes, *, base_dir: Path | None = None) -> PolygonMesh:
     """
     require_nonempty(data, "glTF")
     if data[:4] == _GLB_MAGIC:
-        return load_glb(data, base_dir=base_dir)
-    doc = _parse_json(data, "glTF")
-    return _read(lambda: _Document(doc, "glTF", None, base_dir), "glTF")
+        return load_glb(data, base_dir=base_dir, limits=limits)
+    limits = limits or UNLIMITED
+    doc = _parse_json(data, "glTF", limits)
+    return _read(lambda: _Document(doc, "glTF", None, base_dir, limits), "glTF")
 
 
 def _build(mesh: PolygonMesh, uri: str | None) -> tuple[dict, bytes]:

@@ -20,6 +20,7 @@ from spacemesh.io.errors import (
     decode_text,
     require_nonempty,
 )
+from spacemesh.io.limits import UNLIMITED, ReadLimits, iter_lines
 from spacemesh.mesh import PolygonMesh
 from spacemesh.typed import FloatArray, IntArray
 
@@ -37,7 +38,7 @@ class ObjData:
 def _logical_lines(text: str) -> Iterator[tuple[int, str]]:
     """Yield ``(line_number, content)`` with comments cut and continuations joined."""
     pending, start = "", 0
-    for number, raw in enumerate(text.splitlines(), start=1):
+    for number, raw in enumerate(iter_lines(text), start=1):
         line = raw.split("#", 1)[0]
         if not pending:
             start = number
@@ -61,19 +62,24 @@ def _floats(tokens: list[str], line: int, what: str) -> list[float]:
         ) from None
 
 
-def parse_obj(data: bytes) -> ObjData:
+def parse_obj(data: bytes, limits: ReadLimits | None = None) -> ObjData:
     """Parse OBJ bytes into positions, ``vn`` normals and polygon faces.
+
+    Lines are read one at a time; past ``limits`` (vertices, normals, faces or face
+    corners) the reading stops with :class:`~spacemesh.io.errors.TooLargeError`.
 
     Parameters
     ----------
     data : bytes
         The file's content.
+    limits : ReadLimits, optional
 
     Returns
     -------
     ObjData
     """
     require_nonempty(data, "OBJ")
+    limits = limits or UNLIMITED
     text = decode_text(data, "OBJ")
     vertices: list[list[float]] = []
     normals: list[list[float]] = []
@@ -86,13 +92,17 @@ def parse_obj(data: bytes) -> ObjData:
             continue
         key = tokens[0]
         if key == "v":
+            limits.check_vertices("OBJ", len(vertices) + 1)
             vertices.append(_floats(tokens[1:], number, "v"))
         elif key == "vn":
+            limits.check_vertices("OBJ", len(normals) + 1)
             normals.append(_floats(tokens[1:], number, "vn"))
         elif key == "f":
             corners = tokens[1:]
             if not corners:
                 raise MeshFormatError(f"OBJ: line {number}: face has no vertices")
+            limits.check_faces("OBJ", len(sizes) + 1)
+            limits.check_corners("OBJ", len(indices) + len(corners))
             n_known = len(vertices)
             for corner in corners:
                 head = corner.split("/", 1)[0]
@@ -133,19 +143,21 @@ def parse_obj(data: bytes) -> ObjData:
     return ObjData(positions, normal_array, flat, offsets)
 
 
-def load_obj(data: bytes) -> PolygonMesh:
+def load_obj(data: bytes, limits: ReadLimits | None = None) -> PolygonMesh:
     """Read an OBJ file's polygons.
 
     Parameters
     ----------
     data : bytes
         The file's content.
+    limits : ReadLimits, optional
+        Counts allowed (:func:`parse_obj`).
 
     Returns
     -------
     PolygonMesh
     """
-    parsed = parse_obj(data)
+    parsed = parse_obj(data, limits)
     return PolygonMesh(parsed.vertices, parsed.face_indices, parsed.face_offsets)
 
 

@@ -10,7 +10,9 @@ token stream (several records per line).
 
 from __future__ import annotations
 
+import itertools
 import re
+from collections.abc import Iterator
 from itertools import pairwise
 
 import numpy as np
@@ -22,6 +24,7 @@ from spacemesh.io.errors import (
     decode_text,
     require_nonempty,
 )
+from spacemesh.io.limits import UNLIMITED, ReadLimits, iter_lines
 from spacemesh.mesh import PolygonMesh
 
 _HEADER = re.compile(r"^(ST)?(C)?(N)?(4)?(n)?OFF$")
@@ -183,13 +186,42 @@ def _parse(lines: list[list[str]], by_line: bool) -> PolygonMesh:
     return PolygonMesh(vertices, flat, offsets)
 
 
-def load_off(data: bytes) -> PolygonMesh:
+def _token_lines(text: str) -> Iterator[list[str]]:
+    """The non-empty token lines of ``text``, comments cut, read one at a time."""
+    for raw in iter_lines(text):
+        tokens = raw.split("#", 1)[0].split()
+        if tokens:
+            yield tokens
+
+
+def _check_header(text: str, size: int, limits: ReadLimits) -> None:
+    """Refuse declared counts over ``limits`` or more than ``size`` bytes can hold
+    (a vertex takes at least 6 bytes, ``"0 0 0\\n"``, a face at least 4, ``"1 0\\n"``)."""
+    head = list(itertools.islice(_token_lines(text), 2))
+    if not head:
+        raise MeshFormatError("OFF: the file holds only comments")
+    _, n_vertices, n_faces, _ = _read_header(head)
+    limits.check_vertices("OFF", n_vertices)
+    limits.check_faces("OFF", n_faces)
+    needed = 6 * n_vertices + 4 * n_faces - 1
+    if needed > size:
+        raise MeshFormatError(
+            f"OFF: file ends early: the header declares {n_vertices} vertices and {n_faces} "
+            f"faces, which need at least {needed} bytes; the file holds {size}"
+        )
+
+
+def load_off(data: bytes, limits: ReadLimits | None = None) -> PolygonMesh:
     """Read an OFF file's polygons.
+
+    The header's counts are checked against ``limits`` and the bytes present before
+    the records are read.
 
     Parameters
     ----------
     data : bytes
         The file's content.
+    limits : ReadLimits, optional
 
     Returns
     -------
@@ -197,9 +229,8 @@ def load_off(data: bytes) -> PolygonMesh:
     """
     require_nonempty(data, "OFF")
     text = decode_text(data, "OFF")
-    lines = [tokens for raw in text.splitlines() if (tokens := raw.split("#", 1)[0].split())]
-    if not lines:
-        raise MeshFormatError("OFF: the file holds only comments")
+    _check_header(text, len(data), limits or UNLIMITED)
+    lines = list(_token_lines(text))
     try:
         return _parse(lines, by_line=True)
     except MeshFormatError as by_line_error:

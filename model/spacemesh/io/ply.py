@@ -9,6 +9,7 @@ types), and any other elements skipped. Written: ``double`` positions and
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from itertools import pairwise
 
@@ -20,6 +21,7 @@ from spacemesh.io.errors import (
     check_vertices,
     require_nonempty,
 )
+from spacemesh.io.limits import UNLIMITED, ReadLimits
 from spacemesh.mesh import PolygonMesh
 from spacemesh.typed import FloatArray, IntArray
 
@@ -43,6 +45,7 @@ _TYPES = {
 }
 _ENCODINGS = {"ascii": "", "binary_little_endian": "<", "binary_big_endian": ">"}
 _FACE_LISTS = ("vertex_indices", "vertex_index")
+_SPACE = re.compile(r"\s")
 
 
 @dataclass(frozen=True)
@@ -121,6 +124,62 @@ def _parse_property(words: list[str], number: int, encoding: str | None) -> _Pro
     raise MeshFormatError(f"PLY: header line {number}: bad property line '{' '.join(words)}'")
 
 
+def _check_counts(
+    elements: list[_Element], encoding: str, available: int, limits: ReadLimits
+) -> None:
+    """Refuse element counts over the limits, or more than the bytes present can hold.
+
+    A binary row takes at least the sizes of its scalars and list counts; an ASCII row
+    at least two characters (a digit and a separator) per property.
+    """
+    needed = 0
+    for element in elements:
+        if element.name == "vertex":
+            limits.check_vertices("PLY", element.count)
+        elif element.name == "face":
+            limits.check_faces("PLY", element.count)
+        else:
+            limits.check_rows("PLY", f"'{element.name}' rows", element.count)
+        if encoding == "ascii":
+            needed += element.count * 2 * len(element.properties)
+        else:
+            needed += element.count * sum(
+                (p.count_dtype or p.dtype).itemsize for p in element.properties
+            )
+    if needed > available + 1:
+        raise MeshFormatError(
+            f"PLY: file ends early: expected {', '.join(_rows(e) for e in elements)} "
+            f"(at least {needed} bytes), the file holds {available}"
+        )
+
+
+class _Tokens:
+    """The whitespace-separated tokens of a text, split only as far as they are read."""
+
+    _BLOCK = 1 << 20  # characters split at a time
+
+    def __init__(self, text: str) -> None:
+        self.text, self.pos, self.items = text, 0, []
+
+    def fill(self, count: int) -> int:
+        """Split until ``count`` tokens are known (or the text ends); how many are known."""
+        text, items = self.text, self.items
+        while len(items) < count and self.pos < len(text):
+            end = min(len(text), self.pos + self._BLOCK)
+            space = _SPACE.search(text, end) if end < len(text) else None
+            end = space.start() if space is not None else len(text)
+            items.extend(text[self.pos : end].split())
+            self.pos = end
+        return len(items)
+
+    def __getitem__(self, key: int | slice) -> str | list[str]:
+        if isinstance(key, slice):
+            self.fill(key.stop)
+            return self.items[key]
+        self.fill(key + 1)
+        return self.items[key]
+
+
 def _rows(element: _Element) -> str:
     """``"1000 vertices"``, ``"12 faces"`` or ``"3 'edge' rows"`` for messages."""
     plural = {"vertex": "vertices", "face": "faces"}.get(element.name)
@@ -132,8 +191,10 @@ def _gather(raw: np.ndarray, positions: IntArray, dtype: np.dtype) -> np.ndarray
     """Values of ``dtype`` starting at each byte position of ``raw``."""
     if positions.size == 0:
         return np.zeros(0, dtype=dtype)
-    take = positions[:, None] + np.arange(dtype.itemsize)  # (n, itemsize)
-    return np.ascontiguousarray(raw[take]).view(dtype).reshape(-1)
+    out = np.empty((positions.size, dtype.itemsize), dtype=np.uint8)
+    for byte in range(dtype.itemsize):  # one byte column at a time: small temporaries
+        out[:, byte] = raw[positions + byte]
+    return out.view(dtype).reshape(-1)
 
 
 def _items(starts: IntArray, counts: IntArray, itemsize: int) -> IntArray:
@@ -264,13 +325,15 @@ def _walk_rows(
 
 
 # ---------------------------------------------------------------------- ascii
-def _read_ascii(tokens: list[str], at: int, element: _Element) -> tuple[dict, int]:
+def _read_ascii(
+    tokens: _Tokens, at: int, element: _Element, limits: ReadLimits
+) -> tuple[dict, int]:
     """Read one ASCII element from the token stream starting at token ``at``."""
     n, props = element.count, element.properties
     ends_early = f"PLY: file ends early: expected {_rows(element)}"
     if not any(p.count_dtype for p in props):
         k = len(props)
-        if at + n * k > len(tokens):
+        if at + n * k > tokens.fill(at + n * k):
             raise MeshFormatError(ends_early)
         try:
             table = np.array(tokens[at : at + n * k], dtype=np.float64).reshape(n, k)
@@ -279,6 +342,7 @@ def _read_ascii(tokens: list[str], at: int, element: _Element) -> tuple[dict, in
         return {p.name: table[:, i] for i, p in enumerate(props)}, at + n * k
     columns: list[list[str]] = [[] for _ in props]
     lengths: list[list[int]] = [[] for _ in props]
+    corners = 0
     try:
         for _ in range(n):
             for i, p in enumerate(props):
@@ -289,6 +353,8 @@ def _read_ascii(tokens: list[str], at: int, element: _Element) -> tuple[dict, in
                     length = int(tokens[at])
                     if length < 0:
                         raise MeshFormatError(f"PLY: a {element.name} list length is negative")
+                    corners += length
+                    limits.check_corners("PLY", corners)
                     columns[i].extend(tokens[at + 1 : at + 1 + length])
                     lengths[i].append(length)
                     at += 1 + length
@@ -296,7 +362,7 @@ def _read_ascii(tokens: list[str], at: int, element: _Element) -> tuple[dict, in
         raise MeshFormatError(ends_early) from None
     except ValueError:
         raise MeshFormatError(f"PLY: a {element.name} list length is not a number") from None
-    if at > len(tokens):
+    if at > tokens.fill(at):
         raise MeshFormatError(ends_early)
     values = {}
     for i, p in enumerate(props):
@@ -309,13 +375,17 @@ def _read_ascii(tokens: list[str], at: int, element: _Element) -> tuple[dict, in
 
 
 # ---------------------------------------------------------------------- reading
-def parse_ply(data: bytes) -> PlyData:
+def parse_ply(data: bytes, limits: ReadLimits | None = None) -> PlyData:
     """Parse PLY bytes into positions, optional normals and polygon faces.
+
+    The header's element counts are checked against ``limits`` and against the bytes
+    present before any element is read; ASCII data is split only as far as it is read.
 
     Parameters
     ----------
     data : bytes
         The file's content.
+    limits : ReadLimits, optional
 
     Returns
     -------
@@ -323,19 +393,23 @@ def parse_ply(data: bytes) -> PlyData:
         Faces are empty when the file has no ``face`` element.
     """
     require_nonempty(data, "PLY")
+    limits = limits or UNLIMITED
     encoding, elements, start = _parse_header(data)
+    _check_counts(elements, encoding, len(data) - start, limits)
     found: dict[str, dict] = {}
     if encoding == "ascii":
-        tokens = data[start:].decode("latin-1").split()
+        tokens = _Tokens(data[start:].decode("latin-1"))
         at = 0
         for element in elements:
-            values, at = _read_ascii(tokens, at, element)
+            values, at = _read_ascii(tokens, at, element, limits)
             found.setdefault(element.name, values)
     else:
         pos = start
         for element in elements:
             values, pos = _read_binary(data, pos, element)
             found.setdefault(element.name, values)
+            if element.name == "face" and "face" in found and found["face"] is values:
+                _check_face_corners(values, limits)
 
     vertex = found.get("vertex")
     if vertex is None:
@@ -366,19 +440,28 @@ def parse_ply(data: bytes) -> PlyData:
     return PlyData(vertices, normals, indices, offsets)
 
 
-def load_ply(data: bytes) -> PolygonMesh:
+def _check_face_corners(values: dict, limits: ReadLimits) -> None:
+    """Refuse a binary face element whose lists hold more corners than allowed."""
+    for name in _FACE_LISTS:
+        if isinstance(values.get(name), tuple):
+            limits.check_corners("PLY", int(values[name][1].sum()))
+
+
+def load_ply(data: bytes, limits: ReadLimits | None = None) -> PolygonMesh:
     """Read a PLY file's polygons (a point cloud gives a mesh without faces).
 
     Parameters
     ----------
     data : bytes
         The file's content.
+    limits : ReadLimits, optional
+        Counts allowed (:func:`parse_ply`).
 
     Returns
     -------
     PolygonMesh
     """
-    parsed = parse_ply(data)
+    parsed = parse_ply(data, limits)
     return PolygonMesh(parsed.vertices, parsed.face_indices, parsed.face_offsets)
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from spacemesh.io.errors import MeshFormatError, check_vertices, decode_text, require_nonempty
+from spacemesh.io.limits import UNLIMITED, ReadLimits
 from spacemesh.mesh import PolygonMesh
 from spacemesh.triangulate import triangulate_manifold
 from spacemesh.typed import FloatArray, IntArray
@@ -30,11 +31,12 @@ def binary_count(data: bytes) -> int | None:
     return count if len(data) == 84 + 50 * count else None
 
 
-def _read_binary(data: bytes) -> FloatArray:
-    """(3 n, 3) corner positions of a binary STL."""
+def _read_binary(data: bytes, limits: ReadLimits) -> FloatArray:
+    """(3 n, 3) corner positions of a binary STL (the declared count checked first)."""
     if len(data) < 84:
         raise MeshFormatError("STL: file ends early: a binary STL has an 84-byte header")
     count = int(np.frombuffer(data, "<u4", 1, 80)[0])
+    limits.check_faces("STL", count)
     if len(data) < 84 + 50 * count:
         found = (len(data) - 84) // 50
         raise MeshFormatError(
@@ -44,8 +46,9 @@ def _read_binary(data: bytes) -> FloatArray:
     return records["corners"].reshape(-1, 3).astype(np.float64)
 
 
-def _read_ascii(data: bytes) -> FloatArray:
+def _read_ascii(data: bytes, limits: ReadLimits) -> FloatArray:
     """(3 n, 3) corner positions of an ASCII STL (every ``vertex`` line, in order)."""
+    limits.check_faces("STL", sum(data.count(w) for w in (b"endfacet", b"ENDFACET")))
     tokens = decode_text(data, "STL").split()
     lowered = [t.lower() for t in tokens]
     at = [i for i, t in enumerate(lowered) if t == "vertex"]
@@ -61,13 +64,17 @@ def _read_ascii(data: bytes) -> FloatArray:
         raise MeshFormatError("STL: a 'vertex' line does not have three numbers") from None
 
 
-def load_stl(data: bytes) -> PolygonMesh:
+def load_stl(data: bytes, limits: ReadLimits | None = None) -> PolygonMesh:
     """Read an STL file (ASCII or binary) and weld exactly coincident corners.
+
+    The triangle count (binary: declared in the header; ASCII: counted) is checked
+    against ``limits.max_faces`` before the triangles are read.
 
     Parameters
     ----------
     data : bytes
         The file's content.
+    limits : ReadLimits, optional
 
     Returns
     -------
@@ -78,9 +85,9 @@ def load_stl(data: bytes) -> PolygonMesh:
     require_nonempty(data, "STL")
     looks_ascii = data.lstrip()[:5].lower() == b"solid" and b"\x00" not in data[:1024]
     if looks_ascii and binary_count(data) is None:
-        corners = _read_ascii(data)
+        corners = _read_ascii(data, limits or UNLIMITED)
     else:
-        corners = _read_binary(data)
+        corners = _read_binary(data, limits or UNLIMITED)
     if len(corners) == 0:
         raise MeshFormatError("STL: the file contains no triangles")
     corners = check_vertices(corners, "STL")
