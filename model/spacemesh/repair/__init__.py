@@ -4,6 +4,8 @@
   :func:`parse_region`) and :class:`RegionError` with its stable ``kind``.
 - :mod:`~spacemesh.repair.weld`: merging vertices split at seams (``weld=True``), and
   mapping a region onto the welded mesh.
+- :mod:`~spacemesh.repair.auto`: automatic regions (``{"auto": "holes"}``...): holes and
+  defects found, the faces oriented, each region repaired by a pass of its own.
 - :mod:`~spacemesh.repair.cut`: cutting the region out, growth, boundary loops, and
   the defects left outside.
 - :mod:`~spacemesh.repair.patch`: the local patch the model sees, and its point sets.
@@ -27,7 +29,9 @@ from spacemesh.repair.region import ERROR_KINDS, Region, RegionError, parse_regi
 from spacemesh.repair.weld import weld_vertices
 
 __all__ = [
+    "DEFAULT_MAX_GROWTH",
     "ERROR_KINDS",
+    "AutoPlan",
     "Region",
     "RegionError",
     "RepairPlan",

@@ -31,6 +31,7 @@ from spacemesh.decode import Embeddings
 from spacemesh.geometry import refine_geometry
 from spacemesh.geometry.surface_fit import nearest_triangles
 from spacemesh.mesh import PolygonMesh
+from spacemesh.repair.auto import AutoPlan, plan_auto, repair_auto
 from spacemesh.repair.cut import Cut, cut_region
 from spacemesh.repair.inpaint import InpaintResult, inpaint_tokens
 from spacemesh.repair.patch import (
@@ -43,7 +44,7 @@ from spacemesh.repair.patch import (
     sample_patch,
     sub_mesh,
 )
-from spacemesh.repair.region import Region
+from spacemesh.repair.region import REGION_GROWTH_EXCEEDED, Region, RegionError, parse_region
 from spacemesh.repair.splice import Spliced, fill_hole, splice
 from spacemesh.repair.weld import weld_region, weld_vertices
 from spacemesh.runtime.backend import Backend, ConnectivityOutputs
@@ -55,6 +56,8 @@ from spacemesh.typed import BoolArray, FloatArray, IntArray
 #: Hole points sampled per free token (the first ``N - K`` pad the alignment; all of
 #: them decide which generated vertices are in the hole).
 HOLE_POINTS_PER_TOKEN = 4
+#: Largest share of the mesh's faces a region may grow to (``max_growth``) by default.
+DEFAULT_MAX_GROWTH = 0.25
 
 
 @dataclass(frozen=True)
@@ -127,6 +130,28 @@ class RepairStats:
     welded_vertices : int
         Input vertices merged into another at the same position (``weld=True``; 0
         without).
+    region_share : float
+        Share of the mesh's faces the region covers after growth (the largest region's
+        for an automatic region).
+    auto_region : str
+        ``holes``, ``defects`` or ``all`` for an automatic region, else "".
+    passes : int
+        Model passes run (1 for a marked region).
+    reversed_faces : int
+        Faces an automatic region's orientation reversed (:func:`spacemesh.repair.auto.
+        orient_faces`).
+    flipped_mesh : bool
+        The whole mesh was inside out and was reversed.
+    findings : list of dict
+        Automatic regions: every hole and defect found (first
+        :data:`spacemesh.repair.auto.MAX_REPORTED`): ``kind``, ``size``, ``vertex``,
+        ``region``, ``action``, and for holes ``filled_by`` (``model``, ``fallback`` or
+        ``model-and-fallback``).
+    findings_total : int
+        Holes and defects found (all of them).
+    regions : list of dict
+        Automatic regions: each region's faces, growth (``grown_faces``, ``share``),
+        ``strategy``, ``passes`` and ``filled_by`` (first ``MAX_REPORTED``).
     seed, steps : int
     method : str
     timings : dict of str to float
@@ -153,6 +178,14 @@ class RepairStats:
     inpaint: dict[str, int] = field(default_factory=dict)
     flipped_orientation: bool = False
     welded_vertices: int = 0
+    region_share: float = 0.0
+    auto_region: str = ""
+    passes: int = 1
+    reversed_faces: int = 0
+    flipped_mesh: bool = False
+    findings: list[dict[str, Any]] = field(default_factory=list)
+    findings_total: int = 0
+    regions: list[dict[str, Any]] = field(default_factory=list)
     seed: int = 0
     steps: int = 0
     method: str = ""
@@ -246,9 +279,40 @@ def verify_repair(plan: RepairPlan, result: RepairResult) -> list[str]:
     return issues
 
 
+def check_growth(cut: Cut, max_growth: float) -> None:
+    """Refuse a region that growth took beyond ``max_growth`` of the mesh's faces.
+
+    Raises
+    ------
+    RegionError
+        ``region-growth-exceeded`` with ``share``, ``max_growth``, ``requested_faces``,
+        ``region_faces`` and ``faces``.
+    """
+    n_faces = cut.mesh.n_faces
+    share = float(cut.region.sum()) / max(n_faces, 1)
+    if cut.n_grown > 0 and share > max_growth:
+        raise RegionError(
+            REGION_GROWTH_EXCEEDED,
+            f"the region of {int(cut.requested.sum())} faces grows to {int(cut.region.sum())} "
+            f"faces ({share:.0%} of the mesh's {n_faces}; at most {max_growth:.0%} allowed) "
+            "because the vertices around it are pinched: mark a region without pinched "
+            "corners, or allow more with max_growth",
+            {"share": round(share, 4), "max_growth": max_growth,
+             "requested_faces": int(cut.requested.sum()),
+             "region_faces": int(cut.region.sum()), "faces": n_faces})
+
+
+def _max_growth(value: float | None) -> float:
+    value = DEFAULT_MAX_GROWTH if value is None else float(value)
+    if not 0.0 <= value <= 1.0:
+        raise ValueError(f"max_growth must be in 0..1, not {value}")
+    return value
+
+
 def plan_repair(mesh: PolygonMesh, region: Region | Mapping[str, Any] | BoolArray,
-                n_tokens: int, *, max_rings: int = MAX_RINGS, weld: bool = False
-                ) -> RepairPlan:
+                n_tokens: int, *, max_rings: int = MAX_RINGS, weld: bool = False,
+                max_growth: float | None = None, tolerated: BoolArray | None = None
+                ) -> RepairPlan | AutoPlan:
     """Cut the region and choose the patch (no network runs).
 
     Parameters
@@ -263,23 +327,39 @@ def plan_repair(mesh: PolygonMesh, region: Region | Mapping[str, Any] | BoolArra
     weld : bool
         Merge vertices at exactly equal positions first and repair the welded mesh
         (:mod:`spacemesh.repair.weld`); vertex indices of the region are mapped.
+    max_growth : float, optional
+        Largest share (0..1) of the mesh's faces the region may grow to
+        (:func:`check_growth`; default :data:`DEFAULT_MAX_GROWTH`).
+    tolerated : (V,) bool, optional
+        Vertices whose defects may stay outside the region (the other regions of an
+        automatic repair; :func:`spacemesh.repair.cut.outside_defects`).
 
     Returns
     -------
-    RepairPlan
+    RepairPlan or AutoPlan
+        An :class:`~spacemesh.repair.auto.AutoPlan` for an ``{"auto": ...}`` region.
 
     Raises
     ------
     RegionError
         With ``kind`` one of ``invalid-region``, ``empty-region``,
-        ``whole-mesh-region``, ``defects-outside-region``, ``region-too-large``.
+        ``whole-mesh-region``, ``defects-outside-region``, ``region-too-large``,
+        ``region-growth-exceeded``, ``non-orientable`` (automatic regions).
+    ValueError
+        ``max_growth`` outside 0..1.
     """
     start = time.perf_counter()
+    max_growth = _max_growth(max_growth)
+    if not isinstance(region, np.ndarray):
+        shape = parse_region(region)
+        if shape.is_auto:
+            return plan_auto(mesh, str(shape.mode), n_tokens, weld=weld, max_growth=max_growth)
     work, weld_map = mesh, None
     if weld:
         work, weld_map = weld_vertices(mesh)
         region = weld_region(region, weld_map)
-    cut = cut_region(work, region)
+    cut = cut_region(work, region, tolerated)
+    check_growth(cut, max_growth)
     hole = hole_surface(cut)
     patch = plan_patch(cut, n_tokens, max_rings=max_rings, hole=hole)
     return RepairPlan(cut, patch, hole, time.perf_counter() - start, mesh, weld_map)
@@ -418,6 +498,7 @@ def repair_mesh(
     plan: RepairPlan | None = None,
     weld: bool = False,
     fit_patch: bool = True,
+    max_growth: float | None = None,
 ) -> RepairResult:
     """Re-generate the vertices and faces of ``region`` (paper Sec. 5.5, Supplement D).
 
@@ -450,6 +531,9 @@ def repair_mesh(
         Fit the new vertices to the region's original surface with the geometry stage
         (:func:`spacemesh.geometry.refine_geometry`, kept vertices fixed, no edge
         edits, self-intersections never increased); False gives the networks' patch.
+    max_growth : float, optional
+        Largest share of the mesh's faces a region may grow to (see :func:`plan_repair`;
+        the plan's when one is given).
 
     Returns
     -------
@@ -469,11 +553,17 @@ def repair_mesh(
     backend, spec = _resolve(generator, backend, spec)
     steps, method = _sampler_options(spec, steps, method)
     if plan is None:
-        plan = plan_repair(mesh, region, spec.max_vertices, weld=weld)
-    elif plan.input_mesh is not mesh or plan.patch.n_tokens != spec.max_vertices:
-        raise ValueError("the plan was made for another mesh or model")
-    elif (plan.weld_map is not None) != bool(weld):
-        raise ValueError(f"the plan was made with weld={plan.weld_map is not None}")
+        plan = plan_repair(mesh, region, spec.max_vertices, weld=weld, max_growth=max_growth)
+    else:
+        n_tokens = plan.n_tokens if isinstance(plan, AutoPlan) else plan.patch.n_tokens
+        if plan.input_mesh is not mesh or n_tokens != spec.max_vertices:
+            raise ValueError("the plan was made for another mesh or model")
+        if (plan.weld_map is not None) != bool(weld):
+            raise ValueError(f"the plan was made with weld={plan.weld_map is not None}")
+    if isinstance(plan, AutoPlan):
+        return _repair_automatic(plan, backend, spec, seed=int(seed), steps=steps,
+                                 method=method, progress=progress, fit_patch=fit_patch,
+                                 started=t_start)
     cut, patch = plan.cut, plan.patch
     mesh = cut.mesh  # the input, or its weld
     timings = {"cut": plan.seconds}
@@ -536,9 +626,80 @@ def repair_mesh(
         known_vertices=len(patch.known), tokens=patch.n_tokens, candidates=len(candidates),
         fallback=fallback, fill=dict(fs),
         inpaint=dropped,
-        flipped_orientation=flipped, welded_vertices=plan.welded_vertices, seed=int(seed),
+        flipped_orientation=flipped, welded_vertices=plan.welded_vertices,
+        region_share=round(float(cut.region.sum()) / max(mesh.n_faces, 1), 4), seed=int(seed),
         steps=steps, method=method, timings=timings,
     )
     vertex_map = spliced.vertex_map if plan.weld_map is None else (
         spliced.vertex_map[plan.weld_map])
     return RepairResult(spliced.mesh, vertex_map, spliced.face_source, cut.region, stats)
+
+
+_FALLBACK_RANK = ("none", "removed-new-vertices", "polygon", "fan")
+
+
+def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed: int,
+                      steps: int, method: str, progress: ProgressFn | None, fit_patch: bool,
+                      started: float) -> RepairResult:
+    """Run the passes of an automatic plan (:func:`spacemesh.repair.auto.repair_auto`)
+    and put their results together; pass ``k`` uses the seed ``seed + k``."""
+    from spacemesh.repair.auto import MAX_REPORTED
+
+    def run_pass(mesh: PolygonMesh, faces: BoolArray, tolerated: BoolArray,
+                 index: int) -> RepairResult:
+        step = plan_repair(mesh, faces, spec.max_vertices, max_growth=plan.max_growth,
+                           tolerated=tolerated)
+        return repair_mesh(mesh, faces, backend=backend, spec=spec, seed=seed + index,
+                           steps=steps, method=method, progress=progress, plan=step,
+                           fit_patch=fit_patch)
+
+    state, findings, regions = repair_auto(plan, run_pass)
+    passes = [r.stats for r in state.results]
+    out, work = state.mesh, plan.mesh
+    new = state.face_source < 0
+    sizes, counts = np.unique(out.face_sizes[new], return_counts=True)
+    kept_vertices = np.unique(state.vertex_map[state.vertex_map >= 0])
+    removed = np.ones(work.n_faces, dtype=bool)
+    removed[state.face_source[~new]] = False
+
+    def total(name: str) -> int:
+        return int(sum(getattr(p, name) for p in passes))
+
+    def summed(name: str) -> dict[str, Any]:
+        out_dict: dict[str, Any] = {}
+        for p in passes:
+            for key, value in getattr(p, name).items():
+                out_dict[key] = out_dict.get(key, 0) + value
+        return out_dict
+
+    worst = [p.fallback for p in passes] + [
+        "fan" for r in regions if r["filled_by"] != "model"]
+    timings = summed("timings")
+    timings["cut"] = timings.get("cut", 0.0) + plan.seconds
+    timings["total"] = time.perf_counter() - started
+    requested = sum(int(r.requested.sum()) for r in plan.regions)
+    stats = RepairStats(
+        requested_faces=requested, region_faces=int(removed.sum()),
+        grown_faces=sum(int(r.region.sum() - r.requested.sum()) for r in plan.regions),
+        removed_vertices=work.n_vertices - len(kept_vertices),
+        boundary_vertices=total("boundary_vertices"), loops=total("loops"),
+        new_vertices=out.n_vertices - len(kept_vertices), new_faces=int(new.sum()),
+        new_face_degrees={int(s): int(c) for s, c in zip(sizes, counts, strict=True)},
+        patch_faces=total("patch_faces"),
+        patch_rings=max([p.patch_rings for p in passes], default=0),
+        known_vertices=total("known_vertices"), tokens=spec.max_vertices,
+        candidates=total("candidates"),
+        fallback=max(worst, key=_FALLBACK_RANK.index, default="none"),
+        fill=summed("fill"), inpaint=summed("inpaint"),
+        flipped_orientation=any(p.flipped_orientation for p in passes),
+        welded_vertices=plan.welded_vertices,
+        region_share=max([r["share"] for r in regions], default=0.0),
+        auto_region=plan.mode, passes=len(passes),
+        reversed_faces=int(plan.reversed_faces.sum()),
+        flipped_mesh=bool(plan.reversed_faces.size and plan.reversed_faces.all()),
+        findings=findings[:MAX_REPORTED], findings_total=len(findings),
+        regions=regions[:MAX_REPORTED], seed=seed, steps=steps, method=method,
+        timings=timings,
+    )
+    vertex_map = state.vertex_map if plan.weld_map is None else state.vertex_map[plan.weld_map]
+    return RepairResult(out, vertex_map, state.face_source, removed, stats)

@@ -187,7 +187,8 @@ def _listed(values: IntArray) -> list[int]:
     return [int(v) for v in np.unique(values)[:MAX_LISTED]]
 
 
-def outside_defects(mesh: PolygonMesh, region: BoolArray) -> list[dict]:
+def outside_defects(mesh: PolygonMesh, region: BoolArray,
+                    tolerated: BoolArray | None = None) -> list[dict]:
     """The topological defects of the kept faces that the region does not cover.
 
     Parameters
@@ -195,6 +196,10 @@ def outside_defects(mesh: PolygonMesh, region: BoolArray) -> list[dict]:
     mesh : PolygonMesh
     region : (F,) bool
         Faces removed.
+    tolerated : (V,) bool, optional
+        Vertices whose defects are left alone (those of the other regions of an
+        automatic repair, repaired by passes of their own): an edge with both ends, a
+        vertex, or a face with a corner there is not reported.
 
     Returns
     -------
@@ -209,37 +214,43 @@ def outside_defects(mesh: PolygonMesh, region: BoolArray) -> list[dict]:
     sub = FaceSubset.of(mesh, kept)
     he, count = sub.halfedges, sub.edge_count[sub.edge]
     defects: list[dict] = []
+    ok = np.zeros(mesh.n_vertices, dtype=bool) if tolerated is None else tolerated
+    he_ok = ok[he[:, 0]] & ok[he[:, 1]]
 
     n = max(mesh.n_vertices, 1)
     sizes = mesh.face_sizes[kept]
     fv = np.sort(sub.face * n + he[:, 0])
     repeated = np.unique(fv[1:][fv[1:] == fv[:-1]] // n)
     degenerate = np.union1d(kept[sizes < 3], repeated)
+    if tolerated is not None and degenerate.size:
+        near = np.zeros(mesh.n_faces, dtype=bool)
+        near[mesh.face_of_corner[tolerated[mesh.face_indices]]] = True
+        degenerate = degenerate[~near[degenerate]]
     if degenerate.size:
         defects.append({"kind": "degenerate-faces", "count": int(degenerate.size),
                         "description": "degenerate faces (fewer than three distinct vertices)",
                         "faces": _listed(degenerate)})
 
     touched = _region_vertices(mesh, region)
-    open_side = (count == 1) & ~(touched[he[:, 0]] & touched[he[:, 1]])
+    open_side = (count == 1) & ~(touched[he[:, 0]] & touched[he[:, 1]]) & ~he_ok
     if open_side.any():
         defects.append({"kind": "open-boundary", "count": int(open_side.sum()),
                         "description": "open boundary edges",
                         "vertices": _listed(he[open_side].reshape(-1))})
-    nonmanifold = count > 2
+    nonmanifold = (count > 2) & ~he_ok
     if nonmanifold.any():
         defects.append({"kind": "non-manifold-edges",
                         "count": int(np.unique(sub.edge[nonmanifold]).size),
                         "description": "non-manifold edges (more than two faces)",
                         "vertices": _listed(he[nonmanifold].reshape(-1))})
-    misoriented = (count == 2) & (sub.twin < 0)
+    misoriented = (count == 2) & (sub.twin < 0) & ~he_ok
     if misoriented.any():
         defects.append({"kind": "misoriented-edges",
                         "count": int(np.unique(sub.edge[misoriented]).size),
                         "description": "misoriented edges (two faces traverse them the same way)",
                         "vertices": _listed(he[misoriented].reshape(-1))})
     fans = sub.fan_counts(mesh.n_vertices)
-    pinched = np.flatnonzero(fans > 1)
+    pinched = np.flatnonzero((fans > 1) & ~ok)
     if pinched.size:
         defects.append({"kind": "pinched-vertices", "count": int(pinched.size),
                         "description": "pinched vertices (more than one fan of faces)",
@@ -388,7 +399,8 @@ def boundary_loops(hole: IntArray) -> tuple[IntArray, IntArray, IntArray, list[I
     return boundary, loop_next, loop_prev, loops
 
 
-def cut_region(mesh: PolygonMesh, region: Region | dict | BoolArray) -> Cut:
+def cut_region(mesh: PolygonMesh, region: Region | dict | BoolArray,
+               tolerated: BoolArray | None = None) -> Cut:
     """Cut a region out of ``mesh`` (rules in the module docstring).
 
     Parameters
@@ -396,6 +408,8 @@ def cut_region(mesh: PolygonMesh, region: Region | dict | BoolArray) -> Cut:
     mesh : PolygonMesh
     region : Region, dict or (F,) bool
         A region, its JSON form, or a face mask.
+    tolerated : (V,) bool, optional
+        Vertices whose defects are left alone (:func:`outside_defects`).
 
     Returns
     -------
@@ -419,7 +433,7 @@ def cut_region(mesh: PolygonMesh, region: Region | dict | BoolArray) -> Cut:
     if grown.all():
         raise RegionError(WHOLE_MESH_REGION, "the region grows to the whole mesh: every kept "
                           "vertex next to it would be pinched; mark a smaller region")
-    defects = outside_defects(mesh, grown)
+    defects = outside_defects(mesh, grown, tolerated)
     if defects:
         coincident = coincident_vertices(mesh)
         raise RegionError(DEFECTS_OUTSIDE_REGION, defects_message(defects, coincident),

@@ -1,6 +1,6 @@
 """The region a user marks for repair, in the mesh's own coordinates.
 
-Four forms, as JSON (the REST body, the gRPC message and the CLI all map to these):
+Five forms, as JSON (the REST body, the gRPC message and the CLI all map to these):
 
 ``{"faces": [f, ...]}``
     Face indices.
@@ -10,6 +10,11 @@ Four forms, as JSON (the REST body, the gRPC message and the CLI all map to thes
     Every face with at least one vertex inside the closed ball.
 ``{"box": {"min": [x, y, z], "max": [x, y, z]}}``
     Every face with at least one vertex inside the closed axis-aligned box.
+``{"auto": "holes" | "defects" | "all"}``
+    Found automatically (:mod:`spacemesh.repair.auto`): every boundary loop (a hole)
+    with the ring of faces around it, every non-manifold edge or vertex and pinched or
+    degenerate face with its neighbourhood, or both; each is repaired as a region of
+    its own.
 
 :class:`RegionError` carries a stable ``kind`` that the service turns into the
 problem+json ``type`` of its 422 answers (see :data:`ERROR_KINDS`).
@@ -27,8 +32,10 @@ from spacemesh.errors import KindedError
 from spacemesh.mesh import PolygonMesh
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
-RegionKind = Literal["faces", "vertices", "sphere", "box"]
-REGION_KINDS: tuple[str, ...] = ("faces", "vertices", "sphere", "box")
+RegionKind = Literal["faces", "vertices", "sphere", "box", "auto"]
+REGION_KINDS: tuple[str, ...] = ("faces", "vertices", "sphere", "box", "auto")
+#: The values of an ``{"auto": ...}`` region: what it selects.
+AUTO_MODES: tuple[str, ...] = ("holes", "defects", "all")
 
 #: The region selects no face.
 EMPTY_REGION = "empty-region"
@@ -42,9 +49,16 @@ DEFECTS_OUTSIDE_REGION = "defects-outside-region"
 #: The region's boundary alone needs more vertex tokens than the model has.
 REGION_TOO_LARGE = "region-too-large"
 
+#: Growth (:func:`spacemesh.repair.cut.grow_region`) would take the region beyond the
+#: allowed share of the mesh's faces (``max_growth``).
+REGION_GROWTH_EXCEEDED = "region-growth-exceeded"
+#: An automatic region found a surface that cannot be oriented (a Moebius strip).
+NON_ORIENTABLE = "non-orientable"
+
 #: Every kind a :class:`RegionError` may carry.
 ERROR_KINDS: tuple[str, ...] = (
     EMPTY_REGION, WHOLE_MESH_REGION, INVALID_REGION, DEFECTS_OUTSIDE_REGION, REGION_TOO_LARGE,
+    REGION_GROWTH_EXCEEDED, NON_ORIENTABLE,
 )
 
 
@@ -136,7 +150,7 @@ class Region:
 
     Attributes
     ----------
-    kind : {"faces", "vertices", "sphere", "box"}
+    kind : {"faces", "vertices", "sphere", "box", "auto"}
     indices : (K,) int64
         Face or vertex indices (``faces`` and ``vertices`` forms).
     center : (3,) float64
@@ -145,6 +159,8 @@ class Region:
         Sphere radius.
     lower, upper : (3,) float64
         Box corners.
+    mode : {"holes", "defects", "all"} or None
+        What an ``auto`` region selects.
     """
 
     kind: RegionKind
@@ -153,6 +169,7 @@ class Region:
     radius: float = 0.0
     lower: FloatArray | None = None
     upper: FloatArray | None = None
+    mode: str | None = None
 
     # ------------------------------------------------------------------ constructors
     @classmethod
@@ -185,6 +202,19 @@ class Region:
             raise _invalid("the box's min must not exceed its max on any axis")
         return cls("box", lower=lo, upper=hi)
 
+    @classmethod
+    def auto(cls, mode: str) -> Region:
+        """Found automatically: ``holes``, ``defects`` or ``all`` (both)."""
+        if not isinstance(mode, str) or mode not in AUTO_MODES:
+            raise _invalid(f"an auto region is one of {', '.join(AUTO_MODES)}, not {mode!r}")
+        return cls("auto", mode=mode)
+
+    @property
+    def is_auto(self) -> bool:
+        """An ``{"auto": ...}`` region (repaired region by region, see
+        :mod:`spacemesh.repair.auto`)."""
+        return self.kind == "auto"
+
     # ------------------------------------------------------------------ selection
     def vertex_mask(self, vertices: FloatArray) -> BoolArray:
         """(V,) vertices inside a sphere or box region."""
@@ -208,6 +238,10 @@ class Region:
             mask = np.zeros(mesh.n_faces, dtype=bool)
             mask[self.indices] = True
             return mask
+        if self.kind == "auto":
+            from spacemesh.repair.auto import auto_faces
+
+            return auto_faces(mesh, str(self.mode))
         if self.kind == "vertices":
             check_range(self.indices, mesh.n_vertices, "vertex", "vertices")
             inside = np.zeros(mesh.n_vertices, dtype=bool)
@@ -222,6 +256,8 @@ class Region:
         """The JSON form (inverse of :func:`parse_region`)."""
         if self.kind in ("faces", "vertices"):
             return {self.kind: self.indices.tolist()}
+        if self.kind == "auto":
+            return {"auto": self.mode}
         if self.kind == "sphere":
             return {"sphere": {"center": self.center.tolist(), "radius": self.radius}}
         return {"box": {"min": self.lower.tolist(), "max": self.upper.tolist()}}
@@ -233,7 +269,7 @@ def parse_region(data: Mapping[str, Any] | Region) -> Region:
     Parameters
     ----------
     data : dict or Region
-        Exactly one of the keys ``faces``, ``vertices``, ``sphere``, ``box``.
+        Exactly one of the keys ``faces``, ``vertices``, ``sphere``, ``box``, ``auto``.
 
     Returns
     -------
@@ -262,6 +298,8 @@ def parse_region(data: Mapping[str, Any] | Region) -> Region:
         return Region.from_faces(value)
     if kind == "vertices":
         return Region.from_vertices(value)
+    if kind == "auto":
+        return Region.auto(value)
     if not isinstance(value, Mapping):
         raise _invalid(f"the region's {kind} must be an object")
     if kind == "sphere":

@@ -1,0 +1,78 @@
+"""Meshes with holes and defects for the automatic-region tests (repair, CLI, service)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from spacemesh.examples import icosphere
+from spacemesh.mesh import PolygonMesh
+from spacemesh.repair.patch import sub_mesh
+
+
+def without_faces(mesh: PolygonMesh, drop: np.ndarray) -> PolygonMesh:
+    """``mesh`` without the faces ``drop`` ((F,) bool) and the vertices only they used."""
+    return sub_mesh(mesh, np.flatnonzero(~drop)).remove_unreferenced_vertices()[0]
+
+
+def punched(mesh: PolygonMesh, centres: list[list[float]], radius: float = 0.25
+            ) -> PolygonMesh:
+    """``mesh`` with a hole around each centre: the faces with a vertex within ``radius``
+    removed."""
+    d = np.linalg.norm(mesh.vertices[:, None] - np.asarray(centres, float)[None], axis=2)
+    near = d.min(axis=1) < radius
+    drop = np.zeros(mesh.n_faces, dtype=bool)
+    drop[mesh.face_of_corner[near[mesh.face_indices]]] = True
+    return without_faces(mesh, drop)
+
+
+def hemisphere(subdivisions: int = 4) -> PolygonMesh:
+    """The lower half of an icosphere: one large open loop."""
+    mesh = icosphere(subdivisions)
+    drop = np.zeros(mesh.n_faces, dtype=bool)
+    drop[mesh.face_of_corner[(mesh.vertices[:, 2] > 0.0)[mesh.face_indices]]] = True
+    return without_faces(mesh, drop)
+
+
+def moebius(n: int = 12, width: float = 0.3) -> PolygonMesh:
+    """A Moebius strip of ``n`` quads (not orientable)."""
+    verts = []
+    for a in np.linspace(0, 2 * np.pi, n, endpoint=False):
+        for s in (-width, width):
+            r = 1 + s * np.cos(a / 2)
+            verts.append([r * np.cos(a), r * np.sin(a), s * np.sin(a / 2)])
+    faces = [[2 * i, 2 * (i + 1), 2 * (i + 1) + 1, 2 * i + 1] for i in range(n - 1)]
+    faces.append([2 * (n - 1), 1, 0, 2 * (n - 1) + 1])  # the half twist
+    return PolygonMesh.from_faces(np.asarray(verts), faces)
+
+
+def with_fin(mesh: PolygonMesh) -> PolygonMesh:
+    """``mesh`` plus a triangle on the first edge of face 0 (a non-manifold edge)."""
+    a, b = mesh.faces[0][:2]
+    vertices = np.vstack([mesh.vertices, 2.0 * mesh.vertices[a]])
+    return PolygonMesh.from_faces(vertices, [*mesh.faces, np.array([a, b, len(vertices) - 1])])
+
+
+def with_degenerate_face(mesh: PolygonMesh) -> PolygonMesh:
+    """``mesh`` plus a face visiting a vertex twice."""
+    a, b = mesh.faces[0][:2]
+    return PolygonMesh.from_faces(mesh.vertices, [*mesh.faces, np.array([a, b, a])])
+
+
+def pinched_spheres() -> PolygonMesh:
+    """Two icospheres sharing one vertex (a non-manifold vertex)."""
+    ico = icosphere(1)
+    top, bottom = int(np.argmax(ico.vertices[:, 2])), int(np.argmin(ico.vertices[:, 2]))
+    second = np.arange(ico.n_vertices) + ico.n_vertices
+    second[bottom] = top
+    lifted = ico.vertices + np.array([0.0, 0.0, 2.0])
+    mesh = PolygonMesh.from_faces(np.vstack([ico.vertices, lifted]),
+                                  ico.faces + [second[f] for f in ico.faces])
+    return mesh.remove_unreferenced_vertices()[0]
+
+
+def grid_disk(n: int = 6) -> PolygonMesh:
+    """A flat ``(n - 1) x (n - 1)`` quad grid: an open disk."""
+    verts = [[x, y, 0.0] for y in range(n) for x in range(n)]
+    faces = [[y * n + x, y * n + x + 1, (y + 1) * n + x + 1, (y + 1) * n + x]
+             for y in range(n - 1) for x in range(n - 1)]
+    return PolygonMesh.from_faces(np.asarray(verts, float), faces)

@@ -1,0 +1,194 @@
+"""Automatic regions (``{"auto": "holes" | "defects" | "all"}``) and the growth bound,
+with the untrained-looking stand-in model: whatever it predicts, every hole and defect
+must come back closed, oriented and manifold, the faces outside the regions unchanged."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from auto_meshes import (
+    grid_disk,
+    hemisphere,
+    moebius,
+    pinched_spheres,
+    punched,
+    with_degenerate_face,
+    with_fin,
+)
+from repair_testing import NoiseBackend, assert_closed_manifold, assert_outside_identical, make_spec
+
+from spacemesh.examples import icosphere
+from spacemesh.repair import Region, RegionError, parse_region, plan_repair, repair_mesh
+from spacemesh.repair.auto import AutoPlan, find_issues, orient_faces, reverse_faces, wedge_size
+from spacemesh.repair.cut import defect_vertices
+from spacemesh.topology import check_topology
+
+SPEC = make_spec()
+
+
+def run(mesh, region, **kwargs):
+    return repair_mesh(mesh, region, backend=NoiseBackend(), spec=SPEC, **kwargs)
+
+
+# ---------------------------------------------------------------------- the region form
+def test_auto_region_json_round_trip_and_bad_values():
+    for mode in ("holes", "defects", "all"):
+        region = parse_region({"auto": mode})
+        assert region.is_auto and region.mode == mode
+        assert region.to_dict() == {"auto": mode}
+    for bad in ({"auto": "everything"}, {"auto": 1}, {"auto": "holes", "faces": [1]}):
+        with pytest.raises(RegionError) as info:
+            parse_region(bad)
+        assert info.value.kind == "invalid-region"
+
+
+def test_auto_face_mask_selects_the_ring_of_every_hole():
+    mesh = punched(icosphere(3), [[0, 0, 1], [0, 0, -1]])
+    mask = Region.auto("holes").face_mask(mesh)
+    open_vertices = defect_vertices(mesh)
+    touching = np.zeros(mesh.n_faces, dtype=bool)
+    touching[mesh.face_of_corner[open_vertices[mesh.face_indices]]] = True
+    assert np.array_equal(mask, touching) and mask.any() and not mask.all()
+    assert not Region.auto("defects").face_mask(mesh).any()  # holes are not defects
+
+
+# ---------------------------------------------------------------------- holes
+def test_holes_are_filled_closed_and_the_rest_is_unchanged():
+    mesh = punched(icosphere(3), [[0, 0, 1], [0, 0, -1], [1, 0, 0]])
+    assert not check_topology(mesh).is_closed_oriented_manifold
+    result = run(mesh, {"auto": "holes"}, seed=3)
+    assert_closed_manifold(result.mesh)
+    assert_outside_identical(mesh, result)
+    stats = result.stats
+    assert stats.auto_region == "holes" and stats.passes == 3 and stats.findings_total == 3
+    assert [f["kind"] for f in stats.findings] == ["hole"] * 3
+    assert all(f["filled_by"] == "model" and f["action"] == "filled" for f in stats.findings)
+    assert sorted(f["region"] for f in stats.findings) == [0, 1, 2]
+    for region in stats.regions:
+        assert region["strategy"] == "model" and region["passes"] == 1
+        assert region["region_faces"] == region["requested_faces"] + region["grown_faces"]
+        assert 0 < region["share"] < 0.25
+    # the same seed gives the same mesh
+    again = run(mesh, {"auto": "holes"}, seed=3)
+    assert np.array_equal(again.mesh.vertices, result.mesh.vertices)
+
+
+def test_a_hole_too_large_for_one_pass_is_filled_in_wedges():
+    mesh = hemisphere(4)  # one loop of 96 vertices; the stand-in model holds 56
+    plan = plan_repair(mesh, {"auto": "holes"}, SPEC.max_vertices)
+    assert isinstance(plan, AutoPlan)
+    [region] = plan.regions
+    assert region.strategy == "fan" and region.reason == "region-too-large"
+    result = run(mesh, {"auto": "holes"}, plan=plan)
+    assert_closed_manifold(result.mesh)
+    assert_outside_identical(mesh, result)
+    stats = result.stats
+    [hole] = stats.findings
+    assert hole["size"] == 96 and hole["filled_by"] in ("model", "model-and-fallback")
+    assert 1 <= stats.passes <= -(-96 // wedge_size(SPEC.max_vertices))
+    assert stats.region_faces == 0  # the fan leaves every input face in place
+
+
+def test_an_open_disk_whose_ring_is_most_of_the_mesh_is_closed():
+    mesh = grid_disk(6)
+    result = run(mesh, {"auto": "holes"})
+    assert_closed_manifold(result.mesh)
+    assert_outside_identical(mesh, result)
+
+
+def test_a_closed_mesh_has_nothing_to_repair():
+    with pytest.raises(RegionError) as info:
+        plan_repair(icosphere(2), {"auto": "all"}, SPEC.max_vertices)
+    assert info.value.kind == "empty-region" and "nothing to repair" in str(info.value)
+
+
+# ---------------------------------------------------------------------- defects
+@pytest.mark.parametrize("build, mode, kinds", [
+    (lambda: with_fin(icosphere(2)), "all", {"hole", "non-manifold-edges"}),
+    (lambda: with_degenerate_face(icosphere(2)), "defects", {"degenerate-faces"}),
+    (pinched_spheres, "defects", {"pinched-vertices"}),
+])
+def test_defects_are_rebuilt_into_a_closed_manifold(build, mode, kinds):
+    mesh = build()
+    found = {f.kind for f in find_issues(mesh, mode)}
+    assert kinds <= found
+    result = run(mesh, {"auto": mode})
+    assert_closed_manifold(result.mesh)
+    assert_outside_identical(mesh, result)
+    assert kinds <= {f["kind"] for f in result.stats.findings}
+    assert all(f["action"] == ("filled" if f["kind"] == "hole" else "rebuilt")
+               for f in result.stats.findings)
+
+
+def test_holes_alone_leave_other_defects_refused():
+    mesh = with_fin(punched(icosphere(3), [[0, 0, -1]]))
+    with pytest.raises(RegionError) as info:
+        plan_repair(mesh, {"auto": "defects"}, SPEC.max_vertices)
+    # the fin's own open edges are a hole; the defects region does not cover the holes
+    assert info.value.kind == "defects-outside-region"
+    assert info.value.details["findings"]
+    result = run(mesh, {"auto": "all"})
+    assert_closed_manifold(result.mesh)
+
+
+# ---------------------------------------------------------------------- orientation
+def test_moebius_strip_is_refused_as_non_orientable():
+    with pytest.raises(RegionError) as info:
+        plan_repair(moebius(), {"auto": "holes"}, SPEC.max_vertices)
+    assert info.value.kind == "non-orientable" and "Moebius" in str(info.value)
+    assert info.value.details["faces"]
+
+
+def test_flipped_faces_are_reoriented_and_inside_out_meshes_flipped_whole():
+    ico = icosphere(2)
+    cap = np.zeros(ico.n_faces, dtype=bool)
+    cap[:30] = True
+    oriented, reversed_ = orient_faces(reverse_faces(ico, cap))
+    assert np.array_equal(reversed_, cap)
+    assert np.array_equal(oriented.face_indices, ico.face_indices)
+    result = run(reverse_faces(ico, cap), {"auto": "defects"})
+    assert result.stats.reversed_faces == 30 and not result.stats.flipped_mesh
+    assert_closed_manifold(result.mesh)
+    inside_out = reverse_faces(ico, np.ones(ico.n_faces, dtype=bool))
+    result = run(inside_out, {"auto": "all"})
+    assert result.stats.flipped_mesh and result.stats.reversed_faces == ico.n_faces
+    assert np.array_equal(result.mesh.face_indices, ico.face_indices)
+
+
+# ---------------------------------------------------------------------- growth bound
+def _pinched_pair(mesh):
+    """Two faces that touch at one vertex only (a region that must grow)."""
+    v = 0
+    around = np.flatnonzero(np.isin(np.arange(mesh.n_faces),
+                                    mesh.face_of_corner[mesh.face_indices == v]))
+    faces = [set(mesh.faces[f].tolist()) for f in around]
+    for i, a in enumerate(around):
+        for j, b in enumerate(around):
+            if i < j and faces[i] & faces[j] == {v}:
+                return [int(a), int(b)]
+    raise AssertionError("no pinched pair")
+
+
+def test_growth_beyond_the_share_is_refused_and_max_growth_overrides_it():
+    mesh = icosphere(1)  # 80 faces; the pinched pair grows to the 5 faces around vertex 0
+    region = {"faces": _pinched_pair(mesh)}
+    plan = plan_repair(mesh, region, SPEC.max_vertices)  # 6% <= 25%
+    assert plan.cut.n_grown > 0
+    with pytest.raises(RegionError) as info:
+        plan_repair(mesh, region, SPEC.max_vertices, max_growth=0.05)
+    error = info.value
+    assert error.kind == "region-growth-exceeded"
+    assert error.details["share"] == pytest.approx(plan.cut.region.sum() / 80, abs=1e-4)
+    assert error.details["max_growth"] == 0.05 and "max_growth" in str(error)
+    result = run(mesh, region, max_growth=0.5)
+    assert result.stats.grown_faces == plan.cut.n_grown
+    assert result.stats.region_share == pytest.approx(plan.cut.region.sum() / 80, abs=1e-4)
+    with pytest.raises(ValueError, match="max_growth"):
+        plan_repair(mesh, region, SPEC.max_vertices, max_growth=1.5)
+
+
+def test_a_marked_region_that_does_not_grow_is_never_refused_for_its_size():
+    mesh = icosphere(1)
+    plan = plan_repair(mesh, {"sphere": {"center": [0, 0, 1], "radius": 1.0}},
+                       SPEC.max_vertices, max_growth=0.0)
+    assert plan.cut.n_grown == 0 and plan.cut.region.sum() > 0.25 * mesh.n_faces
