@@ -37,6 +37,9 @@ Layout (Triton style)::
     Steps, seconds, device, world size, threads.
 ``metrics``
     Held-out metrics (see :mod:`spacemesh.train.evaluate`).
+``golden``
+    Each graph's raw outputs for a fixed input, checked when the model loads (see
+    :mod:`spacemesh.runtime.golden`; written by :func:`spacemesh.export.golden.record_golden`).
 """
 
 from __future__ import annotations
@@ -64,6 +67,7 @@ from spacemesh.runtime.backend import (
     ENCODER_INPUTS,
     volume_names,
 )
+from spacemesh.runtime.golden import SECTION as SECTION_GOLDEN
 from spacemesh.runtime.options import POINTS_START
 from spacemesh.runtime.repository import (
     FORMAT,
@@ -521,6 +525,8 @@ def export_run(
         ``calibrate_data`` has no val shape that fits the model
         (:func:`require_calibration_shapes`).
     """
+    from spacemesh.export.golden import record_golden
+
     if calibrate_data is not None:
         require_calibration_shapes(calibrate_data)
     model, state = load_trained_model(run)
@@ -580,6 +586,7 @@ def export_run(
     directory = write_model_repository(model, root, name=name, version=version, data=data,
                                        training=training, metrics=metrics, base=base)
     update_manifest(directory, decode=decode)
+    record_golden(directory)
     if calibrate_data is not None:
         record_vertex_spacing(directory, calibrate_data, training, threads=threads)
     if eval_data is not None:
@@ -639,6 +646,8 @@ def repackage_repository(
         The source is not a model version folder, a graph's checksum does not match,
         the target is the source, or ``calibrate_data`` has no val shape.
     """
+    from spacemesh.export.golden import record_golden
+
     source = Path(source)
     if not (source / MANIFEST).is_file():
         raise ValueError(f"{source}: not a model version folder (no {MANIFEST})")
@@ -660,6 +669,8 @@ def repackage_repository(
                     geometry=geometry_section())
     manifest["sampler"].update(POINTS_START)
     write_manifest(directory, manifest)
+    if SECTION_GOLDEN not in manifest:  # exported before the section existed
+        manifest = record_golden(directory)
     if calibrate_data is not None:
         manifest = record_vertex_spacing(directory, calibrate_data,
                                          manifest.get("training", {}), threads=threads)

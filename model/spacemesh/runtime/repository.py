@@ -14,12 +14,15 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from spacemesh.runtime.backend import OnnxBackend
+from spacemesh.runtime.golden import SECTION as GOLDEN
+from spacemesh.runtime.golden import golden_mismatches
 
 #: Manifest ``format`` value.
 FORMAT = "spacemesh-model"
@@ -33,6 +36,9 @@ _SOURCE_ROOT = Path(__file__).resolve().parents[3]
 _SHIPPED = _SOURCE_ROOT / "models" / DEFAULT_MODEL_NAME
 #: Environment variable that overrides the default model path.
 MODEL_ENV = "SPACEMESH_MODEL"
+
+
+log = logging.getLogger(__name__)
 
 
 class ModelRepositoryError(Exception):
@@ -182,6 +188,7 @@ class ModelRepository:
         inter_op_threads: int = 1,
         providers: tuple[str, ...] = ("CPUExecutionProvider",),
         verify: bool = True,
+        golden: bool = True,
     ) -> ModelRepository:
         """Read and verify a model repository, and create its sessions.
 
@@ -196,6 +203,8 @@ class ModelRepository:
             onnxruntime execution providers.
         verify : bool
             Check the sha256 of every file (on by default).
+        golden : bool
+            Run the golden check (:meth:`check_golden`; on by default).
 
         Returns
         -------
@@ -204,7 +213,8 @@ class ModelRepository:
         Raises
         ------
         ModelRepositoryError
-            Missing folder, manifest or file, unknown format, or a sha256 mismatch.
+            Missing folder, manifest or file, unknown format, a sha256 mismatch, or
+            outputs that differ from the manifest's golden section.
         """
         directory = resolve_version_dir(path if path is not None else default_model_dir())
         try:
@@ -224,7 +234,34 @@ class ModelRepository:
         sessions = {
             g: create_session(directory / manifest["graphs"][g]["file"], options) for g in GRAPHS
         }
-        return cls(directory, manifest, OnnxBackend(**sessions))
+        repository = cls(directory, manifest, OnnxBackend(**sessions))
+        if golden:
+            repository.check_golden()
+        return repository
+
+    def check_golden(self) -> None:
+        """Run the graphs on the manifest's golden input and compare their outputs
+        (:mod:`spacemesh.runtime.golden`). A manifest without the section (exported
+        before it existed) passes with a warning.
+
+        Raises
+        ------
+        ModelRepositoryError
+            Naming every graph output outside the tolerance, and by how much.
+        """
+        if GOLDEN not in self.manifest:
+            log.warning("%s has no golden section: the graphs' outputs are not checked "
+                        "(re-export, or python -m spacemesh.export.golden %s)",
+                        self.path / MANIFEST, self.path)
+            return
+        try:
+            problems = golden_mismatches(self.backend, self.manifest)
+        except Exception as error:  # a graph that cannot even run on the golden input
+            raise ModelRepositoryError(f"model {self.path} fails its golden check: "
+                                       f"{type(error).__name__}: {error}") from error
+        if problems:
+            raise ModelRepositoryError(f"model {self.path} fails its golden check: "
+                                       + "; ".join(problems))
 
     @property
     def name(self) -> str:
