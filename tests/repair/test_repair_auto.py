@@ -192,3 +192,76 @@ def test_a_marked_region_that_does_not_grow_is_never_refused_for_its_size():
     plan = plan_repair(mesh, {"sphere": {"center": [0, 0, 1], "radius": 1.0}},
                        SPEC.max_vertices, max_growth=0.0)
     assert plan.cut.n_grown == 0 and plan.cut.region.sum() > 0.25 * mesh.n_faces
+
+
+# ---------------------------------------------------------------------- command line
+@pytest.fixture()
+def fake_model(monkeypatch):
+    from spacemesh.runtime import MeshGenerator
+
+    def from_repository(cls, path=None, **kwargs):
+        return cls(NoiseBackend(), make_spec(), name="noise")
+
+    monkeypatch.setattr(MeshGenerator, "from_repository", classmethod(from_repository))
+
+
+def _cli(args):
+    from typer.testing import CliRunner
+
+    from spacemesh.cli import _register
+    from spacemesh.cli.common import app
+
+    _register()
+    return CliRunner().invoke(app, ["repair", *args])
+
+
+@pytest.mark.parametrize("flags, mode", [(["--holes"], "holes"), (["--defects"], "defects"),
+                                         (["--auto"], "all"), (["--holes", "--defects"], "all")])
+def test_cli_flags_map_to_the_auto_forms(flags, mode):
+    from spacemesh.cli.repair import region_from_options
+
+    options = {f.lstrip("-"): True for f in flags}
+    assert region_from_options(None, None, None, None, **options) == {"auto": mode}
+
+
+def test_cli_fills_holes(fake_model, tmp_path):
+    import json
+
+    from spacemesh.io import load_mesh, save_mesh
+
+    source, out = tmp_path / "open.obj", tmp_path / "closed.obj"
+    mesh = punched(icosphere(3), [[0, 0, 1], [0, 0, -1]])
+    save_mesh(mesh, source)
+    result = _cli([str(source), "--holes", "-o", str(out), "--json", "--no-progress"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output)
+    assert summary["auto_region"] == "holes" and summary["findings_total"] == 2
+    assert_closed_manifold(load_mesh(out))
+    result = _cli([str(source), "--auto", "-o", str(out), "--no-progress"])
+    assert result.exit_code == 0 and "found 2 hole" in result.output
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--holes", "--faces", "1"], "do not combine with --faces"),
+    (["--auto", "--sphere", "0,0,1,0.3"], "do not combine with --sphere"),
+    (["--defects"], "empty-region"),
+    (["--faces", "0,1", "--max-growth", "2"], "max-growth"),
+])
+def test_cli_auto_errors_are_one_line(fake_model, tmp_path, args, message):
+    from spacemesh.io import save_mesh
+
+    source = tmp_path / "ico.obj"
+    save_mesh(punched(icosphere(2), [[0, 0, 1]]), source)
+    result = _cli([str(source), *args, "-o", str(tmp_path / "o.obj")])
+    assert result.exit_code == 2
+    assert message in result.output and "Traceback" not in result.output
+
+
+def test_cli_refuses_a_moebius_strip(fake_model, tmp_path):
+    from spacemesh.io import save_mesh
+
+    source = tmp_path / "moebius.obj"
+    save_mesh(moebius(), source)
+    result = _cli([str(source), "--holes", "-o", str(tmp_path / "o.obj")])
+    assert result.exit_code == 2 and "non-orientable" in result.output
+    assert len(result.output.strip().splitlines()) == 1

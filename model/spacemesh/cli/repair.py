@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -40,12 +40,22 @@ def _indices(text: str, what: str) -> list[int]:
 
 
 def region_from_options(faces: str | None, vertices: str | None, sphere: str | None,
-                        box: str | None) -> dict:
-    """The JSON form of the region given by exactly one of the four options."""
+                        box: str | None, *, holes: bool = False, defects: bool = False,
+                        auto: bool = False) -> dict:
+    """The JSON form of the region given by exactly one of the four options, or the
+    automatic region of ``--holes``, ``--defects`` or ``--auto`` (both; ``--holes
+    --defects`` is the same)."""
     given = [(k, v) for k, v in (("faces", faces), ("vertices", vertices), ("sphere", sphere),
                                  ("box", box)) if v is not None]
+    if holes or defects or auto:
+        if given:
+            fail("--holes, --defects and --auto find the region themselves; they do not "
+                 f"combine with --{given[0][0]}")
+        return {"auto": "all" if auto or (holes and defects) else
+                "holes" if holes else "defects"}
     if len(given) != 1:
-        fail("give exactly one of --faces, --vertices, --sphere, --box")
+        fail("give exactly one of --faces, --vertices, --sphere, --box (or --holes, "
+             "--defects, --auto)")
     kind, text = given[0]
     if kind in ("faces", "vertices"):
         return {kind: _indices(text, kind)}
@@ -54,6 +64,18 @@ def region_from_options(faces: str | None, vertices: str | None, sphere: str | N
         return {"sphere": {"center": [cx, cy, cz], "radius": r}}
     values = _numbers(text, "box", 6)
     return {"box": {"min": values[:3], "max": values[3:]}}
+
+
+def auto_summary(stats: Any) -> str:
+    """What an automatic repair found and did, in a few words."""
+    kinds: dict[str, int] = {}
+    for finding in stats.findings:
+        kinds[finding["kind"]] = kinds.get(finding["kind"], 0) + 1
+    found = ", ".join(f"{n} {k}" for k, n in kinds.items()) or "nothing"
+    by_fan = sum(1 for f in stats.findings if f.get("filled_by", "model") != "model")
+    return (f"found {found} ({stats.findings_total} in all), {stats.passes} passes"
+            + (f", {by_fan} holes partly filled by the fallback fan" if by_fan else "")
+            + (f", {stats.reversed_faces} faces reoriented" if stats.reversed_faces else ""))
 
 
 @app.command()
@@ -71,6 +93,16 @@ def repair(
         "--sphere", help="cx,cy,cz,r: every face with a vertex inside.")] = None,
     box: Annotated[str | None, typer.Option(
         "--box", help="x0,y0,z0,x1,y1,z1: every face with a vertex inside.")] = None,
+    holes: Annotated[bool, typer.Option(
+        "--holes", help="Fill every hole (boundary loop) with the ring of faces around it.")
+    ] = False,
+    defects: Annotated[bool, typer.Option(
+        "--defects", help="Rebuild every non-manifold edge or vertex and degenerate face "
+        "with its neighbourhood.")] = False,
+    auto: Annotated[bool, typer.Option("--auto", help="--holes and --defects.")] = False,
+    max_growth: Annotated[float | None, typer.Option(
+        "--max-growth", min=0.0, max=1.0, help="Largest share of the faces a region may grow "
+        "to (default 0.25).")] = None,
     weld: Annotated[bool, typer.Option(
         "--weld", help="Merge vertices at exactly equal positions first (meshes split at UV "
         "seams or hard edges, e.g. GLB); --vertices are the file's indices.")] = False,
@@ -102,7 +134,8 @@ def repair(
         fail(f"{output.parent}: no such directory")
     if not mesh_path.is_file():
         fail(f"{mesh_path}: no such file")
-    region = region_from_options(faces, vertices, sphere, box)
+    region = region_from_options(faces, vertices, sphere, box, holes=holes, defects=defects,
+                                 auto=auto)
     try:
         mesh = load_mesh(mesh_path)
     except MeshFormatError as error:
@@ -112,7 +145,8 @@ def repair(
     except ModelRepositoryError as error:
         fail(str(error))
     try:
-        plan = plan_repair(mesh, region, generator.spec.max_vertices, weld=weld)
+        plan = plan_repair(mesh, region, generator.spec.max_vertices, weld=weld,
+                           max_growth=max_growth)
     except RegionError as error:
         fail(f"{error.kind}: {error}")
     bar = tqdm(desc="inpainting", unit="step", disable=not progress or as_json, leave=False)
@@ -143,5 +177,6 @@ def repair(
             f"to the region), {stats.new_vertices} new vertices, {stats.new_faces} new faces, "
             f"fallback {stats.fallback}"
             + (f", {stats.welded_vertices} vertices welded" if weld else "")
+            + (f", {auto_summary(stats)}" if stats.auto_region else "")
             + f" ({stats.timings['total']:.2f} s)"
         )
