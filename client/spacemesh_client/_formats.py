@@ -159,6 +159,11 @@ def _gltf_arrays(doc: dict, buffers: Sequence[bytes]) -> tuple[np.ndarray, Faces
 
     primitive = doc["meshes"][0]["primitives"][0]
     vertices = accessor(primitive["attributes"]["POSITION"]).astype(np.float64)
+    node = next((n for n in doc.get("nodes", []) if n.get("mesh") == 0), {})
+    if "matrix" in node:  # column-major 4x4
+        matrix = np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T
+        vertices = vertices @ matrix[:3, :3].T + matrix[:3, 3]
+    vertices = vertices + np.asarray(node.get("translation", [0.0] * 3), dtype=np.float64)
     if "indices" not in primitive:
         return vertices, []
     triangles = accessor(primitive["indices"]).reshape(-1, 3).astype(np.int64)
@@ -312,15 +317,22 @@ def write_mesh(vertices: np.ndarray, faces: Faces, fmt: str) -> bytes:
 
 
 def _write_gltf(vertices: np.ndarray, triangles: np.ndarray, fmt: str) -> bytes:
-    """GLB or glTF (buffer embedded) of a triangle mesh, as the service writes them."""
-    positions = np.ascontiguousarray(vertices, dtype="<f4")  # (V, 3)
+    """GLB or glTF (buffer embedded) of a triangle mesh, as the service writes them:
+    float32 positions relative to the node's float64 translation (the bounding box
+    centre, none when float32 holds the vertices exactly)."""
+    vertices = np.asarray(vertices, dtype=np.float64)
+    origin = np.zeros(3)
+    if len(vertices) and not np.array_equal(vertices.astype(np.float32), vertices):
+        origin = (vertices.min(axis=0) + vertices.max(axis=0)) / 2
+    positions = np.ascontiguousarray(vertices - origin, dtype="<f4")  # (V, 3)
     indices = np.ascontiguousarray(triangles.reshape(-1), dtype="<u4")  # (3 T,)
     blob = indices.tobytes() + positions.tobytes()
     lo = positions.min(axis=0).tolist() if len(positions) else [0.0] * 3
     hi = positions.max(axis=0).tolist() if len(positions) else [0.0] * 3
     doc: dict = {
         "asset": {"version": "2.0", "generator": "spacemesh-client"},
-        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "translation": origin.tolist()} if origin.any() else {"mesh": 0}],
         "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "mode": 4}]}],
         "accessors": [
             {"bufferView": 0, "componentType": 5126, "count": len(positions), "type": "VEC3",

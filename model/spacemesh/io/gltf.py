@@ -7,7 +7,9 @@ may have any integer component type; a primitive without indices is sequential.
 Buffers: the GLB ``BIN`` chunk, base64 data URIs, and, when reading from a path,
 files next to the ``.gltf``. Vertices are not welded: a seam in the file stays open.
 
-Written: one mesh with one primitive, ``POSITION`` float32 (with min/max) and
+Written: one mesh with one primitive, ``POSITION`` float32 (with min/max) relative to
+its node's float64 ``translation`` (the bounding box centre, so meshes far from the
+origin keep their precision; none when float32 holds the vertices exactly) and
 ``uint32`` indices, triangulated with :func:`spacemesh.triangulate.triangulate_manifold`
 so every triangle keeps its polygon's orientation and a manifold polygon mesh gives a
 manifold triangle mesh (a face whose every fan would duplicate an edge gets a centroid
@@ -356,12 +358,23 @@ def load_gltf(
     return _read(lambda: _Document(doc, "glTF", None, base_dir, limits), "glTF")
 
 
+def _local_origin(vertices: FloatArray) -> FloatArray:
+    """Where the float32 positions are measured from: the bounding box centre (the
+    node's float64 translation), so that a mesh far from the origin keeps its float64
+    precision to ~1e-7 of its size; zero when float32 holds every vertex exactly."""
+    vertices = np.asarray(vertices, dtype=np.float64)
+    if np.array_equal(vertices.astype(np.float32), vertices):
+        return np.zeros(3)
+    return (vertices.min(axis=0) + vertices.max(axis=0)) / 2
+
+
 def _build(mesh: PolygonMesh, uri: str | None) -> tuple[dict, bytes]:
     """The glTF document and its binary buffer for a triangulated mesh."""
     if mesh.n_vertices == 0:
         raise ValueError("glTF cannot store a mesh without vertices")
     vertices, triangles, _ = triangulate_manifold(mesh)  # (V + C, 3), (T, 3)
-    positions = np.ascontiguousarray(vertices, dtype="<f4")  # (V + C, 3)
+    origin = _local_origin(vertices)
+    positions = np.ascontiguousarray(vertices - origin, dtype="<f4")  # (V + C, 3)
     indices = np.ascontiguousarray(triangles.reshape(-1), dtype="<u4")  # (3 T,)
     blob = indices.tobytes() + positions.tobytes()  # both multiples of 4 bytes
     accessors = [
@@ -391,7 +404,7 @@ def _build(mesh: PolygonMesh, uri: str | None) -> tuple[dict, bytes]:
         "asset": {"version": "2.0", "generator": "SpaceMesh"},
         "scene": 0,
         "scenes": [{"nodes": [0]}],
-        "nodes": [{"mesh": 0}],
+        "nodes": [{"mesh": 0, "translation": origin.tolist()} if origin.any() else {"mesh": 0}],
         "meshes": [{"primitives": [primitive]}],
         "accessors": accessors,
         "bufferViews": views,
