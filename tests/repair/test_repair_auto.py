@@ -18,7 +18,14 @@ from auto_meshes import (
 from repair_testing import NoiseBackend, assert_closed_manifold, assert_outside_identical, make_spec
 
 from spacemesh.examples import icosphere
-from spacemesh.repair import Region, RegionError, parse_region, plan_repair, repair_mesh
+from spacemesh.repair import (
+    Region,
+    RegionError,
+    parse_region,
+    plan_repair,
+    repair_mesh,
+    verify_repair,
+)
 from spacemesh.repair.auto import AutoPlan, find_issues, orient_faces, reverse_faces, wedge_size
 from spacemesh.repair.cut import defect_vertices
 from spacemesh.topology import check_topology
@@ -27,7 +34,12 @@ SPEC = make_spec()
 
 
 def run(mesh, region, **kwargs):
-    return repair_mesh(mesh, region, backend=NoiseBackend(), spec=SPEC, **kwargs)
+    """Plan, repair and check that nothing beyond the planned regions changed."""
+    plan = kwargs.pop("plan", None) or plan_repair(
+        mesh, region, SPEC.max_vertices, max_growth=kwargs.pop("max_growth", None))
+    result = repair_mesh(mesh, region, backend=NoiseBackend(), spec=SPEC, plan=plan, **kwargs)
+    assert verify_repair(plan, result) == []
+    return result
 
 
 # ---------------------------------------------------------------------- the region form

@@ -18,6 +18,7 @@ numpy, scipy and onnxruntime only (never torch). See docs/REPAIR.md.
 """
 
 from spacemesh.repair.api import (
+    DEFAULT_MAX_GROWTH,
     RepairPlan,
     RepairResult,
     RepairStats,
@@ -25,6 +26,7 @@ from spacemesh.repair.api import (
     repair_mesh,
     verify_repair,
 )
+from spacemesh.repair.auto import AutoPlan
 from spacemesh.repair.region import ERROR_KINDS, Region, RegionError, parse_region
 from spacemesh.repair.weld import weld_vertices
 

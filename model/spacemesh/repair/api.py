@@ -226,7 +226,7 @@ class RepairResult:
     stats: RepairStats
 
 
-def verify_repair(plan: RepairPlan, result: RepairResult) -> list[str]:
+def verify_repair(plan: RepairPlan | AutoPlan, result: RepairResult) -> list[str]:
     """What a repair changed beyond the grown region (empty when nothing).
 
     The faces a repair may change are exactly the plan's grown region
@@ -237,8 +237,10 @@ def verify_repair(plan: RepairPlan, result: RepairResult) -> list[str]:
 
     Parameters
     ----------
-    plan : RepairPlan
-        The plan the repair ran with.
+    plan : RepairPlan or AutoPlan
+        The plan the repair ran with. For an automatic plan the faces that may change
+        are its regions after growth (:attr:`AutoPlan.changeable`; a region filled by
+        the fan changes none), compared with its working mesh (welded and oriented).
     result : RepairResult
 
     Returns
@@ -246,11 +248,17 @@ def verify_repair(plan: RepairPlan, result: RepairResult) -> list[str]:
     list of str
         One sentence per violation.
     """
-    source, region = plan.cut.mesh, plan.cut.region
     out, face_source = result.mesh, np.asarray(result.face_source)
     issues: list[str] = []
-    if not np.array_equal(np.asarray(result.region, dtype=bool), region):
-        issues.append("the repair reports another region than the plan's grown region")
+    if isinstance(plan, AutoPlan):
+        source, region = plan.mesh, np.asarray(result.region, dtype=bool)
+        if region.shape != plan.changeable.shape or (region & ~plan.changeable).any():
+            issues.append("the repair removed faces outside the planned regions")
+            return issues
+    else:
+        source, region = plan.cut.mesh, plan.cut.region
+        if not np.array_equal(np.asarray(result.region, dtype=bool), region):
+            issues.append("the repair reports another region than the plan's grown region")
     if len(face_source) != out.n_faces:
         return [*issues, f"{len(face_source)} face sources for {out.n_faces} faces"]
     expected = np.flatnonzero(~region)
@@ -646,9 +654,12 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
     from spacemesh.repair.auto import MAX_REPORTED
 
     def run_pass(mesh: PolygonMesh, faces: BoolArray, tolerated: BoolArray,
-                 index: int) -> RepairResult:
+                 allowed: BoolArray, index: int) -> RepairResult:
         step = plan_repair(mesh, faces, spec.max_vertices, max_growth=plan.max_growth,
                            tolerated=tolerated)
+        if (step.cut.region & ~allowed).any():
+            raise RegionError(REGION_GROWTH_EXCEEDED, "the pass grows beyond its planned "
+                              "region")
         return repair_mesh(mesh, faces, backend=backend, spec=spec, seed=seed + index,
                            steps=steps, method=method, progress=progress, plan=step,
                            fit_patch=fit_patch)

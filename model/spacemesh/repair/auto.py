@@ -321,6 +321,16 @@ class AutoPlan:
         return self.source
 
     @property
+    def changeable(self) -> BoolArray:
+        """(F,) faces of the working mesh a repair may change: the model-filled regions
+        after growth (a region filled by the fan keeps every face)."""
+        mask = np.zeros(self.mesh.n_faces, dtype=bool)
+        for region in self.regions:
+            if region.strategy == "model":
+                mask |= region.region
+        return mask
+
+    @property
     def welded_vertices(self) -> int:
         """Input vertices merged away by the weld (0 without ``weld=True``)."""
         return 0 if self.weld_map is None else len(self.weld_map) - self.mesh.n_vertices
@@ -499,10 +509,11 @@ def repair_auto(plan: AutoPlan, run_pass: Any) -> tuple[Any, list[dict], list[di
     ----------
     plan : AutoPlan
     run_pass : callable
-        ``run_pass(mesh, faces, tolerated, index)`` repairs the faces ``faces`` ((F,)
-        bool) of ``mesh`` (the ``index``-th pass), leaving the defects at the vertices
-        ``tolerated`` ((V,) bool: the regions not repaired yet) alone, and returns a
-        :class:`spacemesh.repair.api.RepairResult`.
+        ``run_pass(mesh, faces, tolerated, allowed, index)`` repairs the faces
+        ``faces`` ((F,) bool) of ``mesh`` (the ``index``-th pass), leaving the defects
+        at the vertices ``tolerated`` ((V,) bool: the regions not repaired yet) alone,
+        and returns a :class:`spacemesh.repair.api.RepairResult`; it raises
+        :class:`RegionError` when the region grows beyond the faces ``allowed``.
 
     Returns
     -------
@@ -526,7 +537,8 @@ def repair_auto(plan: AutoPlan, run_pass: Any) -> tuple[Any, list[dict], list[di
         later = _others(work, plan.regions[index:], region)
         if region.strategy == "model":
             result = run_pass(state.mesh, state.faces_of(region.requested),
-                              state.vertices_of(later), len(state.results))
+                              state.vertices_of(later), state.faces_of(region.region),
+                              len(state.results))
             state.results.append(result)
             state.apply(result.vertex_map, result.face_source, result.mesh)
             by = "model"
@@ -549,7 +561,7 @@ def repair_auto(plan: AutoPlan, run_pass: Any) -> tuple[Any, list[dict], list[di
             for w in range(first, n_wedges):
                 try:
                     result = run_pass(state.mesh, state.wedge == w, state.vertices_of(later),
-                                      len(state.results))
+                                      state.face_source < 0, len(state.results))
                 except RegionError:
                     continue  # this wedge keeps its fan
                 state.results.append(result)
