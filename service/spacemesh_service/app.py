@@ -388,7 +388,10 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
                               "model": ReadyModel}})
     async def ready() -> JSONResponse:
         """Models loaded and a warm-up inference passed (503 otherwise)."""
-        return JSONResponse({"ready": engine.ready}, status_code=200 if engine.ready else 503)
+        body: dict[str, Any] = {"ready": engine.ready}
+        if engine.error:  # failed to load (e.g. the golden check): say why
+            body["detail"] = f"the model failed to load: {engine.error}"
+        return JSONResponse(body, status_code=200 if engine.ready else 503)
 
     def _model(name: str, version: str | None = None) -> dict[str, Any]:
         if engine.generator is None:

@@ -21,6 +21,8 @@ TYPE_BASE = "https://spacemesh.dev/problems/"
 PROBLEM_MEDIA_TYPE = "application/problem+json"
 #: Longest ``problem-extensions`` trailing metadata value (gRPC limits the metadata).
 MAX_GRPC_EXTENSIONS = 4096
+#: Path prefix of the KServe v2 routes, whose problems also carry ``error``.
+KSERVE_PREFIX = "/v2"
 
 
 @dataclass(frozen=True)
@@ -146,13 +148,20 @@ class Problem(Exception):
         self.extra = extra
 
     def to_dict(self, instance: str | None = None) -> dict[str, Any]:
-        """The problem object (``type``, ``title``, ``status``, ``detail``, ...)."""
+        """The problem object (``type``, ``title``, ``status``, ``detail``, ...).
+
+        On the KServe v2 routes (``instance`` under :data:`KSERVE_PREFIX`) it also has
+        ``error`` (``"title: detail"``), the member KServe clients such as
+        ``tritonclient`` read an error's message from (an RFC 9457 extension member).
+        """
         body: dict[str, Any] = {
             "type": self.kind.type, "title": self.kind.title, "status": self.kind.status,
             "detail": self.detail,
         }
         if instance:
             body["instance"] = instance
+            if instance == KSERVE_PREFIX or instance.startswith(KSERVE_PREFIX + "/"):
+                body["error"] = f"{self.kind.title}: {self.detail}"
         body.update(self.extra)
         return body
 
