@@ -28,6 +28,7 @@ from fastapi.responses import JSONResponse, Response
 from starlette.datastructures import UploadFile
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from spacemesh.io.limits import ReadLimits
 from spacemesh_service import problems as P
 from spacemesh_service.engine import Engine, MeshUpload, ParseFn
 from spacemesh_service.inputs import read_json, read_upload
@@ -244,12 +245,12 @@ async def _read_request(request: Request, limit: int) -> tuple[ParseFn, dict[str
             options = _form_options(form, GENERATE_ROUTE_OPTIONS)
         finally:
             await form.close()
-        return (lambda: (*read_upload(data, filename), {})), options
+        return (lambda limits: (*read_upload(data, filename, limits), {})), options
     if content_type == "application/json" or content_type.endswith("+json"):
         body = await body_request.body()
 
-        def parse() -> tuple[Any, Any, str, dict[str, Any]]:
-            points, normals, options = read_json(body)
+        def parse(limits: ReadLimits) -> tuple[Any, Any, str, dict[str, Any]]:
+            points, normals, options = read_json(body, limits)
             return points, normals, "json", options
 
         return parse, {}

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh.io.limits import ReadLimits
 from spacemesh.mesh import PolygonMesh
 from spacemesh.repair import RegionError, RepairPlan, plan_repair, repair_mesh, verify_repair
 from spacemesh.repair.region import Region
@@ -37,6 +38,8 @@ from spacemesh_service.batcher import Batcher, ProgressFn, QueueFull, ShuttingDo
 from spacemesh_service.inputs import (
     INPUT_FORMATS,
     MESH_FORMATS,
+    ParseSlots,
+    read_limits,
     read_mesh_upload,
     read_region,
     validate_cloud,
@@ -66,8 +69,9 @@ from spacemesh_service.settings import Settings
 
 log = logging.getLogger("spacemesh.service")
 
-#: ``parse() -> (points, normals, source, body_options)``, run in a worker thread.
-ParseFn = Callable[[], tuple[np.ndarray, "np.ndarray | None", str, dict[str, Any]]]
+#: ``parse(limits) -> (points, normals, source, body_options)``, run in a worker thread
+#: under :attr:`Engine.parsing`, ``limits`` being :func:`~spacemesh_service.inputs.read_limits`.
+ParseFn = Callable[[ReadLimits], tuple[np.ndarray, "np.ndarray | None", str, dict[str, Any]]]
 
 
 @dataclass(frozen=True)
@@ -177,6 +181,9 @@ class Engine:
         self.state = "loading"  # loading -> ready -> draining; or failed
         self.error: str | None = None
         self._inflight = 0  # requests inside generate()
+        #: What one upload may declare or hold, and the parses allowed at once.
+        self.read_limits = read_limits(settings)
+        self.parsing = ParseSlots(settings.max_parallel_parses)
 
     # ------------------------------------------------------------------ lifecycle
     @property
@@ -318,7 +325,7 @@ class Engine:
 
     def _decode(self, parse: ParseFn, options: dict[str, Any]
                 ) -> tuple[Any, RequestOptions]:
-        points, normals, source, body_options = parse()
+        points, normals, source, body_options = parse(self.read_limits)
         merged = {**{k: v for k, v in options.items() if v is not None}, **body_options}
         opts = resolve_request(merged, GENERATE_ROUTE_OPTIONS, self.generator.spec,
                                self.settings)
@@ -375,7 +382,7 @@ class Engine:
     async def _generate(self, parse: ParseFn, options: dict[str, Any],
                         progress: ProgressFn | None) -> Reply:
         started = time.perf_counter()
-        cloud, opts = await asyncio.to_thread(self._decode, parse, options)
+        cloud, opts = await self.parsing.run(self._decode, parse, options)
         decode_s = time.perf_counter() - started
         self.metrics.observe_stage("decode_input", decode_s)
         request = GenerateRequest(cloud.points, cloud.normals, opts.resolved)
@@ -436,8 +443,8 @@ class Engine:
                        options: dict[str, Any]) -> _RepairJob:
         opts = resolve_request(options, REPAIR_ROUTE_OPTIONS, self.generator.spec,
                                self.settings)
-        shape = read_region(region)
-        mesh, _ = read_mesh_upload(upload.data, upload.filename)
+        shape = read_region(region, self.read_limits)
+        mesh, _ = read_mesh_upload(upload.data, upload.filename, self.read_limits)
         try:
             plan = plan_repair(mesh, shape, self.generator.spec.max_vertices,
                                weld=opts.weld)
@@ -483,7 +490,7 @@ class Engine:
             raise RuntimeError("call Engine.repair inside 'with engine.admit():'")
         started = time.perf_counter()
         try:
-            job = await asyncio.to_thread(self._decode_repair, upload, region, options)
+            job = await self.parsing.run(self._decode_repair, upload, region, options)
         except Problem as problem:
             if problem.kind in P.REGION_KINDS:
                 self.metrics.repair_rejected.labels(problem.kind.slug).inc()

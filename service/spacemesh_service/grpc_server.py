@@ -84,10 +84,10 @@ def request_parser(request: pb.GenerateRequest, max_bytes: int) -> ParseFn:
         if len(data) > max_bytes:
             raise Problem(P.PAYLOAD_TOO_LARGE, f"the file has {len(data)} bytes; this server "
                           f"takes at most {max_bytes}", limit=max_bytes)
-        return lambda: (*read_upload(data, filename), {})
+        return lambda limits: (*read_upload(data, filename, limits), {})
     if which == "points":
         xyz, normals = request.points.xyz, request.points.normals
-        return lambda: (*points_from_flat(xyz, normals), "points", {})
+        return lambda limits: (*points_from_flat(xyz, normals, limits), "points", {})
     raise Problem(P.MALFORMED_INPUT, "the request has no input: set 'file' or 'points'")
 
 

@@ -9,6 +9,14 @@ same inputs. Every rejection is a :class:`~spacemesh_service.problems.Problem`:
   :func:`spacemesh.runtime.cloud.validate_cloud`, which ``spacemesh generate`` calls too;
 - request options are read and checked by :mod:`spacemesh_service.options`.
 
+Every reader is bounded before it allocates: the counts and decoded sizes a file or
+JSON body declares are checked against :func:`read_limits` (this server's
+``max_points``, ``max_mesh_vertices``, ``max_mesh_faces`` and ``max_upload_bytes``)
+while it is read, and anything over them is refused with 413 (``too-many-points`` for
+point rows, ``payload-too-large`` otherwise) by :func:`~spacemesh.io.limits.ReadLimits`.
+Parsing runs in :class:`ParseSlots`, at most ``max_parallel_parses`` at once, so the
+memory uploads take is bounded (docs/SERVICE.md, "Memory bound").
+
 Repair requests (:func:`read_mesh_upload`, :func:`read_region`): an unreadable mesh
 file, a file without faces, or a region that is not JSON: 400 ``malformed-input``;
 NaN/Inf vertices: 422 ``non-finite``; a region that is JSON but not a region: 422
@@ -17,15 +25,24 @@ NaN/Inf vertices: 422 ``non-finite``; a region that is JSON but not a region: 42
 
 from __future__ import annotations
 
-import json
+import asyncio
+import contextvars
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import PurePath
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from spacemesh.io import SUPPORTED_MESH_READ
-from spacemesh.io.errors import MeshFormatError, NonFiniteError, UnsupportedFormatError
+from spacemesh.io.errors import (
+    MeshFormatError,
+    NonFiniteError,
+    TooLargeError,
+    UnsupportedFormatError,
+)
+from spacemesh.io.limits import ReadLimits, load_json
 from spacemesh.io.points import SUPPORTED_POINTS_READ, load_points
 from spacemesh.mesh import PolygonMesh
 from spacemesh.repair.region import Region, RegionError, parse_region
@@ -40,6 +57,90 @@ from spacemesh_service.settings import Settings
 INPUT_FORMATS: tuple[str, ...] = SUPPORTED_POINTS_READ
 #: Mesh upload formats of a repair (also reported by the model metadata).
 MESH_FORMATS: tuple[str, ...] = SUPPORTED_MESH_READ
+
+T = TypeVar("T")
+
+
+def read_limits(settings: Settings) -> ReadLimits:
+    """What one upload may declare or hold: this server's request limits.
+
+    Parameters
+    ----------
+    settings : Settings
+
+    Returns
+    -------
+    ReadLimits
+        Points: ``max_points``; mesh vertices and faces: ``max_mesh_vertices`` and
+        ``max_mesh_faces``; decoded bytes (a zip member, a base64 buffer, a JSON
+        document): ``max_upload_bytes``.
+    """
+    return ReadLimits(max_points=settings.max_points, max_vertices=settings.max_mesh_vertices,
+                      max_faces=settings.max_mesh_faces, max_bytes=settings.max_upload_bytes)
+
+
+class ParseSlots:
+    """At most ``count`` request parses at once, each in a worker thread.
+
+    A slot is held until the worker thread ends, even when the request that started
+    it is cancelled (a client that disconnects cannot free its slot while its parse
+    still runs), so the parses alive at any moment never exceed ``count``.
+
+    Parameters
+    ----------
+    count : int
+        Slots (the ``max_parallel_parses`` setting).
+    """
+
+    def __init__(self, count: int) -> None:
+        self.count = count
+        self._slots = asyncio.Semaphore(count)
+        self._running = 0
+
+    @property
+    def running(self) -> int:
+        """Parses running now (holding a slot)."""
+        return self._running
+
+    async def run(self, work: Callable[..., T], *args: Any) -> T:
+        """``work(*args)`` in a worker thread once a slot is free.
+
+        Parameters
+        ----------
+        work : callable
+        *args
+            Its arguments.
+
+        Returns
+        -------
+        object
+            What ``work`` returns (its exceptions are raised here).
+        """
+        await self._slots.acquire()
+        loop = asyncio.get_running_loop()
+        self._running += 1
+
+        def release() -> None:
+            self._running -= 1
+            self._slots.release()
+
+        def in_thread() -> T:
+            try:
+                return work(*args)
+            finally:
+                try:
+                    loop.call_soon_threadsafe(release)
+                except RuntimeError:  # pragma: no cover - the loop closed meanwhile
+                    pass
+
+        call = functools.partial(contextvars.copy_context().run, in_thread)
+        try:
+            future = loop.run_in_executor(None, call)
+        except BaseException:  # pragma: no cover - the executor is shut down
+            release()
+            raise
+        # shielded: a cancelled request leaves the thread to finish and free its slot
+        return await asyncio.shield(future)
 
 
 @dataclass(frozen=True)
@@ -68,7 +169,8 @@ def _file_type(filename: str | None, formats: tuple[str, ...] = INPUT_FORMATS) -
     return suffix if suffix in formats else None
 
 
-def read_upload(data: bytes, filename: str | None) -> tuple[np.ndarray, np.ndarray | None, str]:
+def read_upload(data: bytes, filename: str | None, limits: ReadLimits | None = None
+                ) -> tuple[np.ndarray, np.ndarray | None, str]:
     """Points (and normals) of an uploaded file.
 
     The extension picks the format when it is one we read; otherwise the content is
@@ -78,6 +180,8 @@ def read_upload(data: bytes, filename: str | None) -> tuple[np.ndarray, np.ndarr
     ----------
     data : bytes
     filename : str, optional
+    limits : ReadLimits, optional
+        Checked while reading (:func:`read_limits`); 413 beyond.
 
     Returns
     -------
@@ -99,7 +203,9 @@ def read_upload(data: bytes, filename: str | None) -> tuple[np.ndarray, np.ndarr
                       f"cannot read {what}; supported: {', '.join(INPUT_FORMATS)}",
                       supported=list(INPUT_FORMATS))
     try:
-        points, normals = load_points(data, file_type=source)
+        points, normals = load_points(data, file_type=source, limits=limits)
+    except TooLargeError as error:
+        raise P.too_large_problem(error) from None
     except UnsupportedFormatError as error:
         raise Problem(P.UNSUPPORTED_FORMAT, str(error)) from None
     except NonFiniteError as error:
@@ -109,7 +215,8 @@ def read_upload(data: bytes, filename: str | None) -> tuple[np.ndarray, np.ndarr
     return points, normals, source
 
 
-def read_mesh_upload(data: bytes, filename: str | None) -> tuple[PolygonMesh, str]:
+def read_mesh_upload(data: bytes, filename: str | None, limits: ReadLimits | None = None
+                     ) -> tuple[PolygonMesh, str]:
     """The polygon mesh of an uploaded file (a repair request).
 
     The extension picks the format when it is one we read (OBJ, OFF, PLY, STL, GLB,
@@ -120,6 +227,8 @@ def read_mesh_upload(data: bytes, filename: str | None) -> tuple[PolygonMesh, st
     ----------
     data : bytes
     filename : str, optional
+    limits : ReadLimits, optional
+        Checked while reading (:func:`read_limits`); 413 beyond.
 
     Returns
     -------
@@ -139,7 +248,9 @@ def read_mesh_upload(data: bytes, filename: str | None) -> tuple[PolygonMesh, st
                       f"cannot read {what} as a mesh; supported: {', '.join(MESH_FORMATS)}",
                       supported=list(MESH_FORMATS))
     try:
-        mesh = load_mesh(data, file_type=source)
+        mesh = load_mesh(data, file_type=source, limits=limits)
+    except TooLargeError as error:
+        raise P.too_large_problem(error) from None
     except UnsupportedFormatError as error:
         raise Problem(P.UNSUPPORTED_FORMAT, str(error)) from None
     except NonFiniteError as error:
@@ -153,7 +264,7 @@ def read_mesh_upload(data: bytes, filename: str | None) -> tuple[PolygonMesh, st
     return mesh, source
 
 
-def read_region(raw: Any) -> Region:
+def read_region(raw: Any, limits: ReadLimits | None = None) -> Region:
     """A repair region from its JSON text (REST) or its JSON form (gRPC).
 
     Parameters
@@ -162,6 +273,8 @@ def read_region(raw: Any) -> Region:
         ``{"faces": [...]}``, ``{"vertices": [...]}``,
         ``{"sphere": {"center": [x, y, z], "radius": r}}`` or
         ``{"box": {"min": [x, y, z], "max": [x, y, z]}}``.
+    limits : ReadLimits, optional
+        The JSON text's length and values are checked before it is parsed.
 
     Returns
     -------
@@ -173,9 +286,11 @@ def read_region(raw: Any) -> Region:
             raise Problem(P.MALFORMED_INPUT, "the region is empty; send it as JSON, e.g. "
                           '{"faces": [0, 1]}')
         try:
-            data = json.loads(raw)
-        except (ValueError, UnicodeDecodeError, RecursionError) as error:
-            raise Problem(P.MALFORMED_INPUT, f"the region is not valid JSON ({error})") from None
+            data = load_json(raw, "the region", limits)
+        except TooLargeError as error:
+            raise P.too_large_problem(error) from None
+        except MeshFormatError as error:
+            raise Problem(P.MALFORMED_INPUT, str(error)) from None
     try:
         return parse_region(data)
     except RegionError as error:
@@ -199,12 +314,16 @@ def _number_array(value: Any, name: str) -> np.ndarray:
     return array.astype(np.float64).reshape(-1, 3)
 
 
-def read_json(body: bytes) -> tuple[np.ndarray, np.ndarray | None, dict[str, Any]]:
+def read_json(body: bytes, limits: ReadLimits | None = None
+              ) -> tuple[np.ndarray, np.ndarray | None, dict[str, Any]]:
     """Points, normals and options of a JSON body ``{"points": [[x, y, z], ...], ...}``.
 
     Parameters
     ----------
     body : bytes
+    limits : ReadLimits, optional
+        The body's length and values are checked before it is parsed
+        (:func:`spacemesh.io.limits.load_json`), the points after; 413 beyond.
 
     Returns
     -------
@@ -215,11 +334,11 @@ def read_json(body: bytes) -> tuple[np.ndarray, np.ndarray | None, dict[str, Any
         body has.
     """
     try:
-        data = json.loads(body)
-    except (ValueError, UnicodeDecodeError) as error:
-        raise Problem(P.MALFORMED_INPUT, f"the body is not valid JSON ({error})") from None
-    except RecursionError:
-        raise Problem(P.MALFORMED_INPUT, "the JSON body is nested too deeply") from None
+        data = load_json(body, "the JSON body", limits)
+    except TooLargeError as error:
+        raise P.too_large_problem(error) from None
+    except MeshFormatError as error:
+        raise Problem(P.MALFORMED_INPUT, str(error)) from None
     if not isinstance(data, dict) or "points" not in data:
         raise Problem(P.MALFORMED_INPUT, "the JSON body must be an object with 'points'")
     names = {o.name for o in GENERATE_ROUTE_OPTIONS}
@@ -232,8 +351,15 @@ def read_json(body: bytes) -> tuple[np.ndarray, np.ndarray | None, dict[str, Any
     return points, normals, options
 
 
-def points_from_flat(xyz: Any, normals: Any) -> tuple[np.ndarray, np.ndarray | None]:
-    """Points (and normals) from flat ``x0 y0 z0 x1 ...`` sequences (the gRPC form)."""
+def points_from_flat(xyz: Any, normals: Any, limits: ReadLimits | None = None
+                     ) -> tuple[np.ndarray, np.ndarray | None]:
+    """Points (and normals) from flat ``x0 y0 z0 x1 ...`` sequences (the gRPC form),
+    their count checked against ``limits`` before they are copied."""
+    if limits is not None:
+        try:
+            limits.check_points("points", max(len(xyz), len(normals)) // 3)
+        except TooLargeError as error:
+            raise P.too_large_problem(error) from None
     p = np.asarray(xyz, dtype=np.float64)
     if p.size % 3:
         raise Problem(P.MALFORMED_INPUT, f"xyz has {p.size} numbers, not a multiple of 3")

@@ -233,6 +233,14 @@ def region_problem(error: Any) -> Problem:
     return typed_problem(error, REGION_KINDS)
 
 
+def too_large_problem(error: Any) -> Problem:
+    """The problem (413) of a :class:`spacemesh.io.errors.TooLargeError`: ``too-many-points``
+    when a point cloud has more rows than allowed, else ``payload-too-large``; the
+    extension members say what was counted (``what``, ``count``, ``limit``)."""
+    kind = TOO_MANY_POINTS if error.what == "points" else PAYLOAD_TOO_LARGE
+    return Problem(kind, str(error), what=error.what, count=error.count, limit=error.limit)
+
+
 def cloud_problem(error: Any) -> Problem:
     """The problem (413 or 422) of a :class:`spacemesh.runtime.cloud.CloudError`: its
     ``kind`` is the problem's slug (one of :data:`CLOUD_KINDS`), its ``details``

@@ -53,6 +53,15 @@ class Settings(BaseModel):
                             description="Fewest points per request (422 below).")
     max_upload_bytes: int = Field(
         32 * 1024 * 1024, ge=1, description="Largest request body (413 above).")
+    max_mesh_vertices: int = Field(
+        1_000_000, ge=1, description="Most vertices of an uploaded mesh (repair), checked "
+        "while it is read (413 above).")
+    max_mesh_faces: int = Field(
+        2_000_000, ge=1, description="Most faces of an uploaded mesh (repair; triangles of "
+        "STL and glTF), checked while it is read (413 above).")
+    max_parallel_parses: int = Field(
+        2, ge=1, description="Uploads parsed at once (the others wait): bounds the memory "
+        "that parsing takes (docs/SERVICE.md, Memory bound).")
     default_steps: int | None = Field(
         None, ge=1, description="Sampler steps when a request gives none (default: the "
         "model's).")
@@ -119,6 +128,8 @@ class Settings(BaseModel):
             "min_points": self.min_points,
             "max_points": self.max_points,
             "max_upload_bytes": self.max_upload_bytes,
+            "max_mesh_vertices": self.max_mesh_vertices,
+            "max_mesh_faces": self.max_mesh_faces,
             "max_steps": self.max_steps,
             "request_timeout_s": self.request_timeout_s,
             "max_batch_size": self.max_batch_size,

@@ -156,7 +156,7 @@ def _check_counts(
 class _Tokens:
     """The whitespace-separated tokens of a text, split only as far as they are read."""
 
-    _BLOCK = 1 << 20  # characters split at a time
+    _BLOCK = 1 << 16  # characters split at a time
 
     def __init__(self, text: str) -> None:
         self.text, self.pos, self.items = text, 0, []
@@ -398,7 +398,7 @@ def parse_ply(data: bytes, limits: ReadLimits | None = None) -> PlyData:
     _check_counts(elements, encoding, len(data) - start, limits)
     found: dict[str, dict] = {}
     if encoding == "ascii":
-        tokens = _Tokens(data[start:].decode("latin-1"))
+        tokens = _Tokens(str(memoryview(data)[start:], "latin-1"))
         at = 0
         for element in elements:
             values, at = _read_ascii(tokens, at, element, limits)
