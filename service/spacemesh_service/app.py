@@ -30,7 +30,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from spacemesh.io.limits import ReadLimits
 from spacemesh_service import problems as P
-from spacemesh_service.engine import Engine, MeshUpload, ParseFn
+from spacemesh_service.engine import Engine, MeshUpload, ParseFn, Reply
 from spacemesh_service.inputs import read_json, read_upload
 from spacemesh_service.metrics import CONTENT_TYPE as METRICS_CONTENT_TYPE
 from spacemesh_service.openapi import (
@@ -55,6 +55,7 @@ from spacemesh_service.options import (
 )
 from spacemesh_service.problems import Problem
 from spacemesh_service.settings import Settings
+from spacemesh_service.streaming import stream_response, stream_responses
 
 log = logging.getLogger("spacemesh.service")
 
@@ -288,6 +289,14 @@ async def _read_repair_form(request: Request, limit: int
     return mesh, region, options
 
 
+def _generated_name(reply: Reply) -> str:
+    return f"spacemesh-{reply.seed}.{reply.mesh.format}"
+
+
+def _repaired_name(reply: Reply) -> str:
+    return f"spacemesh-repair-{reply.seed}.{reply.mesh.format}"
+
+
 # ---------------------------------------------------------------------- app
 def create_app(settings: Settings | None = None, *, engine: Engine | None = None) -> FastAPI:
     """The REST app.
@@ -339,8 +348,7 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
             options = {**query_options(request, GENERATE_ROUTE_OPTIONS), **form_options}
             reply = await unless_disconnected(request, engine.generate(parse, options))
         headers = reply.headers()
-        headers["Content-Disposition"] = (
-            f'inline; filename="spacemesh-{reply.seed}.{reply.mesh.format}"')
+        headers["Content-Disposition"] = f'inline; filename="{_generated_name(reply)}"'
         return Response(reply.mesh.body, media_type=reply.mesh.media_type, headers=headers)
 
     @app.post("/repair", tags=["repair"], response_class=Response,
@@ -370,9 +378,44 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
             options = {**query_options(request, REPAIR_ROUTE_OPTIONS), **form_options}
             reply = await unless_disconnected(request, engine.repair(upload, region, options))
         headers = reply.headers()
-        headers["Content-Disposition"] = (
-            f'inline; filename="spacemesh-repair-{reply.seed}.{reply.mesh.format}"')
+        headers["Content-Disposition"] = f'inline; filename="{_repaired_name(reply)}"'
         return Response(reply.mesh.body, media_type=reply.mesh.media_type, headers=headers)
+
+    @app.post("/generate/stream", tags=["generate"], response_class=Response,
+              summary="Generate a mesh, with progress events (Server-Sent Events)",
+              openapi_extra={"requestBody": GENERATE_REQUEST_BODY,
+                             "parameters": GENERATE_PARAMETERS},
+              responses=stream_responses(GENERATE_RESPONSES))
+    async def generate_stream(request: Request) -> Response:
+        """`POST /generate` with its progress as Server-Sent Events (`text/event-stream`).
+
+        The same body and options. Once the request is decoded and queued the answer is
+        a stream of `progress` events, then one `result` event (the mesh in base64 and
+        the headers of `/generate`) or one `problem` event (problem+json). An error
+        before that is a plain problem+json response.
+        """
+        async def work(progress: Any, stage: Any) -> Reply:
+            parse, form_options = await _read_request(request, settings.max_upload_bytes)
+            options = {**query_options(request, GENERATE_ROUTE_OPTIONS), **form_options}
+            return await engine.generate(parse, options, progress=progress, stage=stage)
+
+        return await stream_response(request, engine, work, _generated_name)
+
+    @app.post("/repair/stream", tags=["repair"], response_class=Response,
+              summary="Re-generate a region of a mesh, with progress events",
+              openapi_extra={"requestBody": REPAIR_REQUEST_BODY,
+                             "parameters": REPAIR_PARAMETERS},
+              responses=stream_responses(REPAIR_RESPONSES))
+    async def repair_stream(request: Request) -> Response:
+        """`POST /repair` with its progress as Server-Sent Events, as `/generate/stream`."""
+        async def work(progress: Any, stage: Any) -> Reply:
+            upload, region, form_options = await _read_repair_form(
+                request, settings.max_upload_bytes)
+            options = {**query_options(request, REPAIR_ROUTE_OPTIONS), **form_options}
+            return await engine.repair(upload, region, options, progress=progress,
+                                       stage=stage)
+
+        return await stream_response(request, engine, work, _repaired_name)
 
     @app.get("/v2", tags=["health"], response_model=ServerMetadata)
     async def server_metadata() -> dict[str, Any]:

@@ -33,6 +33,7 @@ from spacemesh.repair import RegionError, RepairPlan, plan_repair, repair_mesh, 
 from spacemesh.repair.region import Region
 from spacemesh.runtime.options import GenerateOptions, OptionError
 from spacemesh.runtime.pipeline import GenerateRequest, MeshGenerator
+from spacemesh.runtime.sampler import StageFn
 from spacemesh_service import problems as P
 from spacemesh_service.batcher import Batcher, ProgressFn, QueueFull, ShuttingDown
 from spacemesh_service.inputs import (
@@ -334,7 +335,8 @@ class Engine:
         return cloud, opts
 
     async def generate(self, parse: ParseFn, options: dict[str, Any], *,
-                       progress: ProgressFn | None = None) -> Reply:
+                       progress: ProgressFn | None = None,
+                       stage: StageFn | None = None) -> Reply:
         """Generate one mesh.
 
         Parameters
@@ -348,6 +350,9 @@ class Engine:
             (:func:`~spacemesh_service.options.resolve_request`).
         progress : callable, optional
             ``progress(done, total)`` after each sampler step (on the event loop).
+        stage : callable, optional
+            ``stage(name, done, total)`` as each stage begins (on the event loop):
+            ``queued``, the pipeline's stages, then ``encode_output``.
 
         Returns
         -------
@@ -361,7 +366,7 @@ class Engine:
         """
         if not self._inflight:
             raise RuntimeError("call Engine.generate inside 'with engine.admit():'")
-        return await self._generate(parse, options, progress)
+        return await self._generate(parse, options, progress, stage)
 
     @contextlib.contextmanager
     def admit(self) -> Iterator[None]:
@@ -380,14 +385,15 @@ class Engine:
             self.metrics.inflight.dec()
 
     async def _generate(self, parse: ParseFn, options: dict[str, Any],
-                        progress: ProgressFn | None) -> Reply:
+                        progress: ProgressFn | None, stage: StageFn | None = None) -> Reply:
         started = time.perf_counter()
         cloud, opts = await self.parsing.run(self._decode, parse, options)
         decode_s = time.perf_counter() - started
         self.metrics.observe_stage("decode_input", decode_s)
         request = GenerateRequest(cloud.points, cloud.normals, opts.resolved)
         outcome = await self._queued(
-            self.batcher.submit(request, key=opts.batch_key, progress=progress), decode_s)
+            self.batcher.submit(request, key=opts.batch_key, progress=progress, stage=stage),
+            decode_s)
         result = outcome.result
         self.metrics.observe_stage("queue", outcome.queue_seconds)
         self.metrics.observe_stage("extraction", result.timings.get("extraction", 0.0))
@@ -399,6 +405,8 @@ class Engine:
         fit = result.fit.to_dict() if result.fit is not None else None
         timings = {"decode_input": decode_s, "queue": outcome.queue_seconds}
         timings.update({k: v for k, v in result.timings.items() if k != "total"})
+        if stage is not None:
+            stage("encode_output", 1, 1)
         t0 = time.perf_counter()
         try:
             encoded = await asyncio.to_thread(encode_mesh, result.mesh, opts.format, info, fit)
@@ -453,7 +461,8 @@ class Engine:
         return _RepairJob(mesh, shape, plan, opts)
 
     async def repair(self, upload: MeshUpload, region: Any, options: dict[str, Any], *,
-                     progress: ProgressFn | None = None) -> Reply:
+                     progress: ProgressFn | None = None,
+                     stage: StageFn | None = None) -> Reply:
         """Re-generate a region of a mesh (:func:`spacemesh.repair.repair_mesh`).
 
         The mesh and region are read, and the region cut and planned, in a worker
@@ -474,6 +483,9 @@ class Engine:
             repaired.
         progress : callable, optional
             ``progress(done, total)`` after each sampler step (on the event loop).
+        stage : callable, optional
+            ``stage(name, done, total)`` (on the event loop): ``queued``, then
+            ``encode_output``.
 
         Returns
         -------
@@ -505,8 +517,8 @@ class Engine:
                                steps=chosen.steps, method=chosen.sampler, progress=report,
                                plan=job.plan, weld=opts.weld)
 
-        outcome = await self._queued(self.batcher.submit_call(run, progress=progress),
-                                     decode_s)
+        outcome = await self._queued(
+            self.batcher.submit_call(run, progress=progress, stage=stage), decode_s)
         result = outcome.result
         issues = verify_repair(job.plan, result)
         if issues:  # a faulty repair is refused, never returned
@@ -520,6 +532,8 @@ class Engine:
                 "repair": summary}
         timings = {"decode_input": decode_s - job.plan.seconds, "queue": outcome.queue_seconds}
         timings.update({k: v for k, v in stats.timings.items() if k != "total"})
+        if stage is not None:
+            stage("encode_output", 1, 1)
         t0 = time.perf_counter()
         encoded = await asyncio.to_thread(encode_mesh, result.mesh, opts.format, info)
         timings["encode_output"] = time.perf_counter() - t0

@@ -41,7 +41,7 @@ from spacemesh.geometry.policy import decode_changes
 from spacemesh.mesh import PolygonMesh
 from spacemesh.runtime.backend import Backend
 from spacemesh.runtime.options import GenerateOptions
-from spacemesh.runtime.sampler import ProgressFn, sample, split_tokens
+from spacemesh.runtime.sampler import ProgressFn, StageFn, sample, split_tokens
 from spacemesh.runtime.schedule import NoiseSchedule
 from spacemesh.typed import FloatArray, IntArray
 
@@ -439,6 +439,7 @@ class MeshGenerator:
         options: GenerateOptions | None = None,
         *,
         progress: ProgressFn | None = None,
+        stage: StageFn | None = None,
         **fields: Any,
     ) -> GenerateResult:
         """Generate one mesh.
@@ -454,6 +455,9 @@ class MeshGenerator:
             Default: the model's defaults with seed 0.
         progress : callable, optional
             ``progress(done, total)`` after each denoiser step.
+        stage : callable, optional
+            ``stage(name, done, total)`` as each stage begins (see
+            :meth:`generate_batch`).
         **fields
             :class:`~spacemesh.runtime.options.GenerateOptions` fields by name (e.g.
             ``seed=3, raw=True``), applied over ``options``.
@@ -471,10 +475,11 @@ class MeshGenerator:
         """
         options = replace(options or GenerateOptions(), **fields)
         request = GenerateRequest(points, normals, options)
-        return self.generate_batch([request], progress=progress)[0]
+        return self.generate_batch([request], progress=progress, stage=stage)[0]
 
     def generate_batch(
-        self, requests: Sequence[GenerateRequest], *, progress: ProgressFn | None = None
+        self, requests: Sequence[GenerateRequest], *, progress: ProgressFn | None = None,
+        stage: StageFn | None = None,
     ) -> list[GenerateResult]:
         """Generate several meshes, sharing each network call.
 
@@ -487,6 +492,12 @@ class MeshGenerator:
         requests : sequence of GenerateRequest
         progress : callable, optional
             ``progress(done, total)`` over the denoiser steps of all groups.
+        stage : callable, optional
+            ``stage(name, done, total)`` as each stage begins: ``encoder``, ``sampler``
+            (once per group, ``done`` of ``total`` groups), then ``decode``,
+            ``geometry`` (not with ``raw``) and ``report`` for the ``done``-th of
+            ``total`` meshes of the group (a request with ``samples = K`` makes K).
+            Reporting never changes a result.
 
         Returns
         -------
@@ -517,7 +528,7 @@ class MeshGenerator:
                     progress(offset + step, total)
 
             batch = self._run_group([(inputs[jobs[j][0]], jobs[j][1]) for j in members],
-                                    key, report)
+                                    key, report, stage or _no_stage)
             for j, result in zip(members, batch, strict=True):
                 outcomes[j] = result
             done += self._denoiser_steps(key)
@@ -606,15 +617,17 @@ class MeshGenerator:
 
     def _run_group(
         self, jobs: list[tuple[PreparedInput, GenerateOptions]],
-        key: tuple[int, str, str, float], progress: ProgressFn,
+        key: tuple[int, str, str, float], progress: ProgressFn, stage: StageFn,
     ) -> list[GenerateResult]:
         steps, method, start, start_time = key
+        stage("encoder", 1, 1)
         t0 = time.perf_counter()
         points = np.stack([prepared.cloud for prepared, _ in jobs])  # (B, P, C)
         volumes = self.backend.encode(points)
         t1 = time.perf_counter()
         clean = self._start_tokens(jobs) if start == "points" else None
         n_tokens = self.spec.max_vertices if clean is None else clean.shape[1]
+        stage("sampler", 1, 1)
         tokens = sample(
             lambda x, t: self.backend.denoise(x, t, volumes),
             seeds=[options.seed for _, options in jobs], n_vertices=n_tokens,
@@ -626,10 +639,12 @@ class MeshGenerator:
         alive = np.stack([drop_duplicates(p, a, spacing)
                           for p, a in zip(positions, alive, strict=True)])
         t2 = time.perf_counter()
+        stage("connectivity", 1, 1)
         emb = self.backend.connect(positions, alive, volumes)
         t3 = time.perf_counter()
         results = []
         for b, (prepared, options) in enumerate(jobs):
+            stage("decode", b + 1, len(jobs))
             e0 = time.perf_counter()
             embeddings = Embeddings(
                 np.asarray(emb.x[b], np.float64), emb.tau, np.asarray(emb.root[b], np.float64),
@@ -641,6 +656,7 @@ class MeshGenerator:
             e1 = time.perf_counter()
             geometry_stats: dict[str, Any] = {}
             if not options.raw:
+                stage("geometry", b + 1, len(jobs))
                 unit, normals = prepared.fit_points()
                 refined = refine_geometry(
                     mesh, unit, normals, self.spec.geometry,
@@ -649,6 +665,7 @@ class MeshGenerator:
                 mesh, geometry_stats = _outward(refined.mesh), refined.stats
             mesh = mesh.with_vertices(mesh.vertices * prepared.scale + prepared.centre)
             e2 = time.perf_counter()
+            stage("report", b + 1, len(jobs))
             report = fit_report(mesh, prepared.points)
             timings = {"encoder": t1 - t0, "sampler": t2 - t1, "connectivity": t3 - t2,
                        "extraction": e1 - e0, "geometry": e2 - e1,
@@ -660,6 +677,10 @@ class MeshGenerator:
                 geometry_stats=geometry_stats, fit=report,
             ))
         return results
+
+
+def _no_stage(name: str, done: int, total: int) -> None:
+    """A :data:`~spacemesh.runtime.sampler.StageFn` that reports nowhere."""
 
 
 def _outward(mesh: PolygonMesh) -> PolygonMesh:
