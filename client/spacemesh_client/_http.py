@@ -9,9 +9,10 @@ to :class:`~spacemesh_client.errors.ConnectionFailed` and
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import json
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import quote
@@ -20,7 +21,12 @@ import httpx
 
 from spacemesh_client._formats import MEDIA_TYPES
 from spacemesh_client._inputs import Arrays, Upload
-from spacemesh_client.errors import ClientTimeout, ConnectionFailed, error_from_http
+from spacemesh_client.errors import (
+    ClientTimeout,
+    ConnectionFailed,
+    error_from_http,
+    error_from_problem,
+)
 from spacemesh_client.mesh import (
     HEADER_PREFIX,
     Mesh,
@@ -77,20 +83,22 @@ def _params(fmt: str | None, options: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def generate_request(source: Upload | Arrays, fmt: str | None,
-                     options: Mapping[str, Any]) -> Call:
+                     options: Mapping[str, Any], stream: bool = False) -> Call:
     """``POST /generate``: a multipart upload, or JSON points; the format and the generate
-    options (:data:`~spacemesh_client.options.GENERATE_OPTIONS`) in the query."""
+    options (:data:`~spacemesh_client.options.GENERATE_OPTIONS`) in the query.
+    ``stream``: ``POST /generate/stream`` (Server-Sent Events, :class:`EventReader`)."""
     params = _params(fmt, options)
+    path = "/generate/stream" if stream else "/generate"
     if isinstance(source, Upload):
         files = {"file": (source.filename, source.data, "application/octet-stream")}
-        return Call("POST", "/generate", params, files=files)
+        return Call("POST", path, params, files=files)
     body: dict[str, Any] = {"points": source.points.tolist()}
     if source.normals is not None:
         body["normals"] = source.normals.tolist()
     # Python's JSON: exact floats (shortest repr), and NaN/Infinity written as such, so the
     # server, not the client, decides what is wrong with them (422 non-finite).
     content = json.dumps(body, separators=(",", ":")).encode()
-    return Call("POST", "/generate", params, content=content,
+    return Call("POST", path, params, content=content,
                 headers={"content-type": "application/json"})
 
 
@@ -157,6 +165,52 @@ def mesh_from_response(response: httpx.Response, fmt: str | None) -> Mesh:
     )
 
 
+class EventReader:
+    """Reads the Server-Sent Events of ``/generate/stream`` line by line.
+
+    ``progress(step, total)`` is called for each sampler step (as over gRPC); the
+    ``result`` event becomes the response the plain route would have given, and a
+    ``problem`` event raises its typed error.
+
+    Parameters
+    ----------
+    progress : callable
+    """
+
+    def __init__(self, progress: Callable[[int, int], None]) -> None:
+        self.progress = progress
+        self.name: str | None = None
+        self.data: list[str] = []
+        self.result: httpx.Response | None = None
+
+    def feed(self, line: str) -> None:
+        """One line of the stream (without its end of line)."""
+        if line.startswith("event:"):
+            self.name = line[6:].strip()
+        elif line.startswith("data:"):
+            self.data.append(line[5:].strip())
+        elif not line and self.name is not None:
+            name, data = self.name, json.loads("\n".join(self.data))
+            self.name, self.data = None, []
+            self._event(name, data)
+
+    def _event(self, name: str, data: dict[str, Any]) -> None:
+        if name == "progress" and data.get("stage") == "sampler" and data.get("done"):
+            self.progress(int(data["done"]), int(data["total"]))
+        elif name == "problem":
+            raise error_from_problem(data, status=int(data.get("status") or 500))
+        elif name == "result":
+            headers = {**data["headers"], "content-type": data["media_type"]}
+            self.result = httpx.Response(200, headers=headers,
+                                         content=base64.b64decode(data["body"]))
+
+    def response(self) -> httpx.Response:
+        """The result, once the stream has ended."""
+        if self.result is None:
+            raise ConnectionFailed("the event stream ended without a result")
+        return self.result
+
+
 def check(response: httpx.Response) -> httpx.Response:
     """The response, or its typed error."""
     if response.status_code >= 400:
@@ -212,8 +266,17 @@ class HttpTransport:
 
     def generate(self, source: Upload | Arrays, fmt: str | None,
                  options: Mapping[str, Any], progress: Any = None) -> Mesh:
-        call = generate_request(source, fmt, options)
-        return mesh_from_response(self.send(call), fmt)
+        call = generate_request(source, fmt, options, stream=progress is not None)
+        if progress is None:
+            return mesh_from_response(self.send(call), fmt)
+        reader = EventReader(progress)
+        with translate(self.url), self.http.stream(**call.kwargs()) as response:
+            if response.status_code >= 400:
+                check(httpx.Response(response.status_code, headers=response.headers,
+                                     content=response.read()))
+            for line in response.iter_lines():
+                reader.feed(line)
+        return mesh_from_response(reader.response(), fmt)
 
     def repair(self, mesh: Upload, region: Mapping[str, Any], fmt: str | None,
                options: Mapping[str, Any], weld: bool = False) -> Mesh:
@@ -251,8 +314,18 @@ class AsyncHttpTransport:
 
     async def generate(self, source: Upload | Arrays, fmt: str | None,
                        options: Mapping[str, Any], progress: Any = None) -> Mesh:
-        call = generate_request(source, fmt, options)
-        return mesh_from_response(await self.send(call), fmt)
+        call = generate_request(source, fmt, options, stream=progress is not None)
+        if progress is None:
+            return mesh_from_response(await self.send(call), fmt)
+        reader = EventReader(progress)
+        with translate(self.url):
+            async with self.http.stream(**call.kwargs()) as response:
+                if response.status_code >= 400:
+                    check(httpx.Response(response.status_code, headers=response.headers,
+                                         content=await response.aread()))
+                async for line in response.aiter_lines():
+                    reader.feed(line)
+        return mesh_from_response(reader.response(), fmt)
 
     async def repair(self, mesh: Upload, region: Mapping[str, Any], fmt: str | None,
                      options: Mapping[str, Any], weld: bool = False) -> Mesh:

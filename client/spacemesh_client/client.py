@@ -74,11 +74,6 @@ class _Options:
         return f"{type(self).__name__}({self.url!r})"
 
 
-def _no_progress_over_rest(progress: ProgressFn | None, url: str) -> None:
-    if progress is not None and not _is_grpc(url):
-        raise ValueError("progress reports need the gRPC transport (a grpc:// URL)")
-
-
 class Client(_Options):
     """A blocking client.
 
@@ -171,7 +166,8 @@ class Client(_Options):
         filename : str, optional
             Name sent with bytes (its extension picks the format).
         progress : callable, optional
-            ``progress(step, total)`` after each diffusion step (gRPC only).
+            ``progress(step, total)`` after each diffusion step (gRPC
+            ``GenerateStream``; over REST ``POST /generate/stream``, Server-Sent Events).
 
         Returns
         -------
@@ -185,7 +181,6 @@ class Client(_Options):
             A subclass per problem type (:mod:`spacemesh_client.errors`); an option out
             of range raises :class:`~spacemesh_client.errors.InvalidOption` (422).
         """
-        _no_progress_over_rest(progress, self.url)
         source = points_input(points, normals, filename)
         options = chosen(seed=seed, steps=steps, sampler=sampler, start=start,
                          start_time=start_time, target_vertices=target_vertices,
@@ -334,7 +329,6 @@ class AsyncClient(_Options):
                        raw: bool | None = None, filename: str | None = None,
                        progress: ProgressFn | None = None) -> Mesh:
         """See :meth:`Client.generate`."""
-        _no_progress_over_rest(progress, self.url)
         source = points_input(points, normals, filename)
         options = chosen(seed=seed, steps=steps, sampler=sampler, start=start,
                          start_time=start_time, target_vertices=target_vertices,

@@ -29,13 +29,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from spacemesh.runtime.pipeline import GenerateRequest, GenerateResult
+from spacemesh.runtime.sampler import StageFn
 from spacemesh_service.metrics import BATCH_STAGES, Metrics
 
 log = logging.getLogger("spacemesh.service")
 
 #: ``progress(done, total)``.
 ProgressFn = Callable[[int, int], None]
-#: ``run(requests, progress) -> results``: :meth:`MeshGenerator.generate_batch`.
+#: ``run(requests, progress[, stage]) -> results``: :meth:`MeshGenerator.generate_batch`
+#: (given ``stage=`` only when a request of the batch asked for stages).
 RunBatch = Callable[..., list[GenerateResult]]
 #: ``call(progress) -> result``: work run alone (:meth:`Batcher.submit_call`).
 SoloCall = Callable[[ProgressFn], Any]
@@ -85,6 +87,7 @@ class _Job:
     progress: ProgressFn | None
     call: SoloCall | None = None
     batch_key: Hashable = None
+    stage: StageFn | None = None
     enqueued: float = field(default_factory=time.perf_counter)
     queue_seconds: float = 0.0
     cancelled: bool = False
@@ -149,7 +152,8 @@ class Batcher:
         return max(1, int(batches * self._batch_seconds + 0.999))
 
     async def submit(self, request: GenerateRequest, *, key: Hashable = None,
-                     progress: ProgressFn | None = None) -> Outcome:
+                     progress: ProgressFn | None = None,
+                     stage: StageFn | None = None) -> Outcome:
         """Queue a request and wait for its result.
 
         Parameters
@@ -161,6 +165,10 @@ class Batcher:
             resolved sampler settings); default :func:`sampler_key`.
         progress : callable, optional
             ``progress(done, total)``, called on the event loop after each sampler step.
+        stage : callable, optional
+            ``stage(name, done, total)``, called on the event loop: ``queued``
+            (``done``-th of ``total`` waiting) once accepted, then as each stage of the
+            pipeline begins (:meth:`MeshGenerator.generate_batch`).
 
         Returns
         -------
@@ -171,10 +179,10 @@ class Batcher:
         QueueFull, ShuttingDown
         """
         return await self._enqueue(request, None, progress,
-                                   sampler_key(request) if key is None else key)
+                                   sampler_key(request) if key is None else key, stage)
 
-    async def submit_call(self, call: SoloCall, *,
-                          progress: ProgressFn | None = None) -> Outcome:
+    async def submit_call(self, call: SoloCall, *, progress: ProgressFn | None = None,
+                          stage: StageFn | None = None) -> Outcome:
         """Queue work that runs alone in the inference thread, and wait for its result.
 
         Parameters
@@ -185,6 +193,8 @@ class Batcher:
             work).
         progress : callable, optional
             ``progress(done, total)``, called on the event loop.
+        stage : callable, optional
+            ``stage("queued", done, total)`` once accepted (the call reports no stages).
 
         Returns
         -------
@@ -196,20 +206,24 @@ class Batcher:
         QueueFull, ShuttingDown
             And whatever ``call`` raised.
         """
-        return await self._enqueue(None, call, progress)
+        return await self._enqueue(None, call, progress, None, stage)
 
     async def _enqueue(self, request: GenerateRequest | None, call: SoloCall | None,
-                       progress: ProgressFn | None, key: Hashable = None) -> Outcome:
+                       progress: ProgressFn | None, key: Hashable = None,
+                       stage: StageFn | None = None) -> Outcome:
         if self._closing:
             raise ShuttingDown
         if len(self._pending) >= self.queue_size:
             raise QueueFull
-        job = _Job(request, asyncio.get_running_loop().create_future(), progress, call, key)
+        job = _Job(request, asyncio.get_running_loop().create_future(), progress, call, key,
+                   stage)
         self._open.add(job)
         job.future.add_done_callback(lambda _: self._open.discard(job))
         self._pending.append(job)
         self._set_depth()
         self._arrived.set()
+        if stage is not None:
+            stage("queued", len(self._pending), self.queue_size)
         try:
             return await job.future
         except asyncio.CancelledError:
@@ -354,8 +368,14 @@ class Batcher:
                 if job.progress is not None and not job.cancelled:
                     loop.call_soon_threadsafe(job.progress, done, total)
 
+        def stage(name: str, done: int, total: int) -> None:  # in the inference thread
+            for job in batch:
+                if job.stage is not None and not job.cancelled:
+                    loop.call_soon_threadsafe(job.stage, name, done, total)
+
+        staged = stage if any(job.stage is not None for job in batch) else None
         try:
-            results = await self._call(loop, [j.request for j in batch], progress)
+            results = await self._call(loop, [j.request for j in batch], progress, staged)
         except _AllCancelled:
             log.info("stopped a batch of %d cancelled requests", len(batch))
             if self.metrics is not None:
@@ -378,9 +398,11 @@ class Batcher:
             self._settle(job, Outcome(result, len(batch), job.queue_seconds))
 
     async def _call(self, loop: asyncio.AbstractEventLoop, requests: Sequence[GenerateRequest],
-                    progress: ProgressFn) -> list[GenerateResult]:
+                    progress: ProgressFn, stage: StageFn | None = None
+                    ) -> list[GenerateResult]:
+        extra = {} if stage is None else {"stage": stage}
         return await loop.run_in_executor(
-            self._executor, lambda: self._run_batch(list(requests), progress=progress))
+            self._executor, lambda: self._run_batch(list(requests), progress=progress, **extra))
 
     @staticmethod
     def _settle(job: _Job, outcome: Outcome | None = None,

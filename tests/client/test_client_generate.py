@@ -121,8 +121,11 @@ def test_progress_is_reported_over_grpc(grpc_url, rest_url, case):
     assert steps == [(i, 5) for i in range(1, 6)]
     assert mesh.data == raw_generate(rest_url, case.points, format="ply", seed=case.good_seed,
                                      steps=5, start="noise").content
-    with Client(rest_url) as client, pytest.raises(ValueError, match="gRPC"):
-        client.generate(case.points, progress=print)
+    rest_steps: list[tuple[int, int]] = []  # over REST: POST /generate/stream
+    with Client(rest_url) as client:
+        same = client.generate(case.points, seed=case.good_seed, steps=5, start="noise",
+                               progress=lambda done, total: rest_steps.append((done, total)))
+    assert rest_steps == steps and same.data == mesh.data
 
 
 def test_async_client_runs_requests_concurrently(url, case):

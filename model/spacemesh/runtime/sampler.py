@@ -20,6 +20,9 @@ from spacemesh.typed import BoolArray, FloatArray
 DenoiseFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
 #: ``progress(done, total)``, called after every denoiser step.
 ProgressFn = Callable[[int, int], None]
+#: ``stage(name, done, total)``, called as a pipeline stage begins (the ``done``-th of
+#: ``total`` times; :meth:`spacemesh.runtime.pipeline.MeshGenerator.generate_batch`).
+StageFn = Callable[[str, int, int], None]
 
 
 def sample(
