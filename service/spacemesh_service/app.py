@@ -30,6 +30,8 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from spacemesh.io.limits import ReadLimits
 from spacemesh_service import problems as P
+from spacemesh_service.access_log import RestAccessLog
+from spacemesh_service.connections import BodyTimeout
 from spacemesh_service.engine import Engine, MeshUpload, ParseFn, Reply
 from spacemesh_service.inputs import read_json, read_upload
 from spacemesh_service.metrics import CONTENT_TYPE as METRICS_CONTENT_TYPE
@@ -54,6 +56,7 @@ from spacemesh_service.options import (
     RequestOption,
 )
 from spacemesh_service.problems import Problem
+from spacemesh_service.security import Guard, RestGuard, without_paths
 from spacemesh_service.settings import Settings
 from spacemesh_service.streaming import stream_response, stream_responses
 
@@ -72,6 +75,18 @@ def problem_response_of(problem: Problem, request: Request | None = None) -> JSO
     instance = request.url.path if request is not None else None
     return JSONResponse(problem.to_dict(instance), status_code=problem.kind.status,
                         media_type=P.PROBLEM_MEDIA_TYPE, headers=problem.headers())
+
+
+async def send_problem(problem: Problem, scope: dict[str, Any], send: Callable,
+                       headers: dict[str, str]) -> None:
+    """Answer a problem from ASGI middleware (before routing), with extra ``headers``."""
+    response = problem_response_of(problem, Request(scope))
+    response.headers.update(headers)
+    await response(scope, _nothing_to_receive, send)
+
+
+async def _nothing_to_receive() -> dict[str, Any]:  # pragma: no cover - never called
+    return {"type": "http.disconnect"}
 
 
 _HTTP_KINDS = {400: P.MALFORMED_INPUT, 404: P.NOT_FOUND, 405: P.METHOD_NOT_ALLOWED,
@@ -298,7 +313,8 @@ def _repaired_name(reply: Reply) -> str:
 
 
 # ---------------------------------------------------------------------- app
-def create_app(settings: Settings | None = None, *, engine: Engine | None = None) -> FastAPI:
+def create_app(settings: Settings | None = None, *, engine: Engine | None = None,
+               guard: Guard | None = None) -> FastAPI:
     """The REST app.
 
     Parameters
@@ -308,6 +324,9 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
     engine : Engine, optional
         Shared with the gRPC server and started by its owner; without one, the app makes
         one and starts/drains it in its lifespan.
+    guard : Guard, optional
+        API keys and rate limits (shared with the gRPC server); default: from
+        ``settings``.
 
     Returns
     -------
@@ -328,7 +347,12 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
     app = FastAPI(title="SpaceMesh", version=SERVICE_VERSION, description=DESCRIPTION,
                   lifespan=lifespan)
     app.state.engine = engine
+    guard = guard or Guard.from_settings(settings)
+    app.add_middleware(BodyTimeout, seconds=settings.body_timeout_s)
+    app.add_middleware(RestGuard, guard=guard, send_problem=send_problem)
     app.add_middleware(RequestMetrics, engine=engine)
+    if settings.access_log:
+        app.add_middleware(RestAccessLog)
     _install_error_handlers(app)
 
     @app.post("/generate", tags=["generate"], response_class=Response,
@@ -445,7 +469,7 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
             wanted = name if version is None else f"{name} version {version}"
             raise Problem(P.MODEL_NOT_FOUND, f"no model {wanted}; this server has "
                           f"{engine.model_name} version {engine.model_version}")
-        return engine.metadata()
+        return without_paths(engine.metadata())
 
     model_errors = {404: problem_response("No such model", {
         "missing": (P.MODEL_NOT_FOUND, "no model foo")})}

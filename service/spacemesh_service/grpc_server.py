@@ -24,13 +24,16 @@ from grpc_health.v1 import health_pb2, health_pb2_grpc
 from grpc_health.v1.health import aio as health_aio
 
 from spacemesh_service import problems as P
+from spacemesh_service.connections import Tls, grpc_credentials, grpc_options
 from spacemesh_service.engine import Engine, MeshUpload, ParseFn, Reply
+from spacemesh_service.grpc_guard import GrpcGuard, abort_with
 from spacemesh_service.inputs import points_from_flat, read_upload
 from spacemesh_service.options import GENERATE_ROUTE_OPTIONS, REPAIR_ROUTE_OPTIONS, grpc_values
 from spacemesh_service.outputs import MeshStats
 from spacemesh_service.pb import spacemesh_pb2 as pb
 from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
 from spacemesh_service.problems import Problem
+from spacemesh_service.security import Guard
 
 log = logging.getLogger("spacemesh.service")
 
@@ -152,7 +155,7 @@ class SpaceMeshServicer(pb_grpc.SpaceMeshServicer):
                 log.exception("unhandled error in %s", method)
                 problem = Problem(P.INTERNAL, "an unexpected error occurred")
             code = problem.kind.grpc_code
-            await context.abort(code, problem.detail, trailing_metadata=problem.grpc_metadata())
+            await abort_with(context, problem)  # keeps the request id
         finally:
             self.engine.metrics.observe_request("grpc", f"/{SERVICE_NAME}/{method}", code.name,
                                                 time.perf_counter() - started)
@@ -206,15 +209,23 @@ class GrpcServer:
     Parameters
     ----------
     engine : Engine
+    guard : Guard, optional
+        API keys and rate limits (shared with the REST app); default: from the settings.
+    tls : Tls, optional
+        Serve over TLS with this certificate (plaintext without).
     """
 
-    def __init__(self, engine: Engine) -> None:
+    def __init__(self, engine: Engine, *, guard: Guard | None = None,
+                 tls: Tls | None = None) -> None:
         settings = engine.settings
         size = settings.max_upload_bytes + _MESSAGE_SLACK
-        self.server = grpc.aio.server(options=[
+        interceptors = [GrpcGuard(guard or Guard.from_settings(settings), engine.metrics)]
+        self.server = grpc.aio.server(interceptors=interceptors, options=[
             ("grpc.max_receive_message_length", size),
             ("grpc.max_send_message_length", size),
+            *grpc_options(settings),
         ])
+        self._credentials = grpc_credentials(tls)
         pb_grpc.add_SpaceMeshServicer_to_server(SpaceMeshServicer(engine), self.server)
         self.health = health_aio.HealthServicer()
         health_pb2_grpc.add_HealthServicer_to_server(self.health, self.server)
@@ -226,7 +237,9 @@ class GrpcServer:
         for service in ("", SERVICE_NAME):
             await self.health.set(service, health_pb2.HealthCheckResponse.NOT_SERVING)
         host = f"[{self._address}]" if ":" in self._address else self._address
-        self.port = self.server.add_insecure_port(f"{host}:{port}")
+        address = f"{host}:{port}"
+        self.port = (self.server.add_insecure_port(address) if self._credentials is None
+                     else self.server.add_secure_port(address, self._credentials))
         if not self.port:
             raise OSError(f"cannot listen for gRPC on {host}:{port}")
         await self.server.start()

@@ -65,6 +65,10 @@ INVALID_OPTION = _kind("invalid-option", "A generate option is invalid", 422,
 NOT_FOUND = _kind("not-found", "No such resource", 404, _C.NOT_FOUND)
 MODEL_NOT_FOUND = _kind("model-not-found", "No such model or version", 404, _C.NOT_FOUND)
 METHOD_NOT_ALLOWED = _kind("method-not-allowed", "Method not allowed", 405, _C.UNIMPLEMENTED)
+UNAUTHORIZED = _kind("unauthorized", "A valid API key is required", 401, _C.UNAUTHENTICATED)
+REQUEST_TIMEOUT = _kind("request-timeout", "The request body arrived too slowly", 408,
+                        _C.DEADLINE_EXCEEDED)
+RATE_LIMITED = _kind("rate-limited", "Too many requests", 429, _C.RESOURCE_EXHAUSTED)
 PAYLOAD_TOO_LARGE = _kind("payload-too-large", "The request body is too large", 413,
                           _C.RESOURCE_EXHAUSTED)
 TOO_MANY_POINTS = _kind("too-many-points", "The point cloud has too many points", 413,
@@ -109,7 +113,7 @@ TIMEOUT = _kind("timeout", "The request took too long", 504, _C.DEADLINE_EXCEEDE
 KINDS: dict[str, ProblemKind] = {
     k.slug: k for k in (
         MALFORMED_INPUT, INVALID_PARAMETER, INVALID_OPTION, NOT_FOUND, MODEL_NOT_FOUND,
-        METHOD_NOT_ALLOWED,
+        METHOD_NOT_ALLOWED, UNAUTHORIZED, REQUEST_TIMEOUT, RATE_LIMITED,
         PAYLOAD_TOO_LARGE, TOO_MANY_POINTS, UNSUPPORTED_FORMAT, TOO_FEW_POINTS, NON_FINITE,
         DEGENERATE_GEOMETRY, INVALID_NORMALS, NORMALS_REQUIRED, NO_SURFACE, INVALID_REGION,
         EMPTY_REGION, WHOLE_MESH_REGION, DEFECTS_OUTSIDE_REGION, REGION_TOO_LARGE, INTERNAL,

@@ -7,6 +7,12 @@ turn ready after that. A model that fails to load ends the process with exit cod
 SIGTERM (or SIGINT) drains: readiness turns false, both servers stop accepting, and
 requests already received (queued or running) finish, for up to ``drain_timeout_s``;
 then the process exits 0. A second SIGINT exits at once.
+
+Protection and connections (:mod:`spacemesh_service.security`,
+:mod:`spacemesh_service.connections`, :mod:`spacemesh_service.access_log`): one
+:class:`~spacemesh_service.security.Guard` (API keys, rate limits) and one TLS
+certificate serve both ports; settings that cannot be used (an empty key file, a key that
+is not the certificate's) stop the start-up with a one-line message and exit code 2.
 """
 
 from __future__ import annotations
@@ -23,9 +29,12 @@ from collections.abc import Iterator
 import uvicorn
 
 from spacemesh.runtime.pipeline import MeshGenerator
+from spacemesh_service.access_log import ACCESS_LOGGER
 from spacemesh_service.app import create_app
+from spacemesh_service.connections import load_tls, uvicorn_options
 from spacemesh_service.engine import Engine
 from spacemesh_service.grpc_server import GrpcServer
+from spacemesh_service.security import ConfigError, Guard
 from spacemesh_service.settings import Settings
 
 log = logging.getLogger("spacemesh.service")
@@ -55,12 +64,19 @@ class SpaceMeshServer:
     listening : threading.Event
         Set when both servers accept connections.
     exit_code : int
+
+    Raises
+    ------
+    ConfigError
+        A protection or TLS setting cannot be used (the message says why).
     """
 
     def __init__(self, settings: Settings, *, generator: MeshGenerator | None = None) -> None:
         self.settings = settings
+        self.guard = Guard.from_settings(settings)
+        self.tls = load_tls(settings.tls_cert, settings.tls_key)
         self.engine = Engine(settings, generator=generator)
-        self.app = create_app(settings, engine=self.engine)
+        self.app = create_app(settings, engine=self.engine, guard=self.guard)
         self.http_port: int | None = None
         self.grpc_port: int | None = None
         self.listening = threading.Event()
@@ -81,11 +97,12 @@ class SpaceMeshServer:
         s = self.settings
         self._loop = asyncio.get_running_loop()
         if s.grpc:
-            self._grpc = GrpcServer(self.engine)
+            self._grpc = GrpcServer(self.engine, guard=self.guard, tls=self.tls)
             self.grpc_port = await self._grpc.start(s.grpc_port)
         config = uvicorn.Config(self.app, host=s.host, port=s.port, log_level=s.log_level,
                                 lifespan="on", access_log=False,
-                                timeout_graceful_shutdown=max(1, int(s.drain_timeout_s)))
+                                timeout_graceful_shutdown=max(1, int(s.drain_timeout_s)),
+                                **uvicorn_options(s, self.tls))
         self._uvicorn = _Uvicorn(config)
         http = asyncio.ensure_future(self._uvicorn.serve())
         while not self._uvicorn.started:
@@ -98,7 +115,7 @@ class SpaceMeshServer:
         if handle_signals:
             self._loop.add_signal_handler(signal.SIGTERM, self.shutdown)
             self._loop.add_signal_handler(signal.SIGINT, self._interrupt)
-        log.info("listening: rest=http://%s:%s grpc=%s", s.host, self.http_port,
+        log.info("listening: rest=%s://%s:%s grpc=%s", self.scheme, s.host, self.http_port,
                  f"{s.host}:{self.grpc_port}" if self.grpc_port else "off")
         self.listening.set()
         try:
@@ -117,6 +134,11 @@ class SpaceMeshServer:
             for sig in (signal.SIGTERM, signal.SIGINT):
                 self._loop.remove_signal_handler(sig)
         return self.exit_code
+
+    @property
+    def scheme(self) -> str:
+        """``https`` with TLS, else ``http``."""
+        return "https" if self.tls is not None else "http"
 
     def shutdown(self) -> None:
         """Start draining (call on the server's loop; see :meth:`shutdown_threadsafe`)."""
@@ -188,8 +210,8 @@ class BackgroundServer:
 
     @property
     def url(self) -> str:
-        """``http://host:port`` of the REST server."""
-        return f"http://{self.server.settings.host}:{self.server.http_port}"
+        """``http(s)://host:port`` of the REST server."""
+        return f"{self.server.scheme}://{self.server.settings.host}:{self.server.http_port}"
 
     @property
     def grpc_target(self) -> str:
@@ -202,17 +224,31 @@ class BackgroundServer:
         self.thread.join(timeout)
 
 
-def configure_logging(level: str) -> None:
-    """Log the service's messages to stderr at ``level``."""
+def configure_logging(level: str, access_log: bool = True) -> None:
+    """Log the service's messages to stderr at ``level``, and the access lines
+    (:mod:`spacemesh_service.access_log`, JSON) to stdout at INFO unless ``access_log``
+    is False (they do not depend on ``level``)."""
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("%(levelname)s:     %(message)s"))
     logger = logging.getLogger("spacemesh.service")
     logger.handlers[:] = [handler]
     logger.setLevel(level.upper())
     logger.propagate = False
+    access = logging.StreamHandler(sys.stdout)
+    access.setFormatter(logging.Formatter("%(message)s"))
+    access_logger = logging.getLogger(ACCESS_LOGGER)
+    access_logger.handlers[:] = [access]
+    access_logger.setLevel(logging.INFO if access_log else logging.CRITICAL + 1)
+    access_logger.propagate = False
 
 
 def run(settings: Settings) -> int:
-    """Serve until SIGTERM; returns the exit code (``spacemesh serve`` calls this)."""
-    configure_logging(settings.log_level)
-    return asyncio.run(SpaceMeshServer(settings).serve())
+    """Serve until SIGTERM; returns the exit code (``spacemesh serve`` calls this): 2 with
+    a one-line message when a protection or TLS setting cannot be used."""
+    configure_logging(settings.log_level, settings.access_log)
+    try:
+        server = SpaceMeshServer(settings)
+    except ConfigError as error:
+        print(f"spacemesh serve: {error}", file=sys.stderr)
+        return 2
+    return asyncio.run(server.serve())

@@ -12,7 +12,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator
 
 from spacemesh.runtime.cloud import DEFAULT_MAX_POINTS, DEFAULT_MIN_POINTS
 
@@ -74,6 +74,65 @@ class Settings(BaseModel):
     drain_timeout_s: float = Field(
         30.0, ge=0, description="On SIGTERM, how long in-flight requests may still run.")
     log_level: str = Field("info", description="Log level (debug, info, warning, error).")
+    # connections (spacemesh_service.connections)
+    header_timeout_s: float = Field(
+        10.0, gt=0, description="REST: a connection that has not sent a request's headers "
+        "within this many seconds of connecting (or of starting them) is closed; gRPC: the "
+        "connection handshake limit.")
+    body_timeout_s: float = Field(
+        60.0, gt=0, description="REST: the whole body must arrive within this many seconds "
+        "of the headers (408 request-timeout otherwise).")
+    idle_timeout_s: float = Field(
+        5.0, gt=0, description="REST: an idle keep-alive connection is closed after this "
+        "many seconds.")
+    grpc_idle_timeout_s: float = Field(
+        300.0, gt=0, description="gRPC: a connection without calls for this many seconds "
+        "is closed (GOAWAY).")
+    grpc_max_connection_age_s: float = Field(
+        0.0, ge=0, description="gRPC: connections are closed (GOAWAY) at this age in "
+        "seconds, running calls get drain_timeout_s more (0: no limit).")
+    grpc_keepalive_s: float = Field(
+        60.0, gt=0, description="gRPC: ping a connection without traffic this often (s).")
+    grpc_keepalive_timeout_s: float = Field(
+        20.0, gt=0, description="gRPC: close a connection whose ping is not answered "
+        "within this many seconds.")
+    access_log: bool = Field(
+        True, description="One JSON line per request on the spacemesh.access logger (INFO).")
+    # protection (spacemesh_service.security; all off by default)
+    api_keys: Path | None = Field(
+        None, description="File of API keys, one a line (blank and # lines ignored): every "
+        "route but health and the web page then needs 'Authorization: Bearer KEY'.")
+    public_metrics: bool = Field(
+        False, description="With --api-keys: leave /metrics open (for a scraper inside "
+        "the cluster).")
+    rate_limit: float = Field(
+        0.0, ge=0, description="Requests a second per API key (per client address without "
+        "keys); 429 beyond (0: no limit).")
+    rate_burst: int = Field(10, ge=1, description="Requests a client may make at once "
+                            "before --rate-limit applies.")
+    trusted_proxies: str = Field(
+        "", description="Comma-separated CIDRs of proxies whose X-Forwarded-For gives the "
+        "client address (for rate limits and access logs).")
+    tls_cert: Path | None = Field(
+        None, description="TLS certificate chain (PEM) for both REST and gRPC; needs "
+        "--tls-key.")
+    tls_key: Path | None = Field(
+        None, validate_default=True, description="TLS private key (PEM); needs --tls-cert.")
+
+    @field_validator("trusted_proxies")
+    @classmethod
+    def _networks(cls, value: str) -> str:
+        from spacemesh_service.security import parse_networks
+
+        parse_networks(value)
+        return value
+
+    @field_validator("tls_key")
+    @classmethod
+    def _tls_pair(cls, value: Path | None, info: ValidationInfo) -> Path | None:
+        if (value is None) != (info.data.get("tls_cert") is None):
+            raise ValueError("--tls-cert and --tls-key go together: give both or neither")
+        return value
 
     @classmethod
     def env_name(cls, field: str) -> str:
