@@ -35,6 +35,7 @@ from spacemesh_client.mesh import (
     sample_scores_from_text,
 )
 from spacemesh_client.options import options_from_headers, query_params
+from spacemesh_client.security import Verify, http_verify
 
 _FORMAT_OF_MEDIA = {v: k for k, v in MEDIA_TYPES.items()}
 #: The model ``model_info()`` asks for when the server does not list its models.
@@ -254,9 +255,11 @@ class HttpTransport:
     """Blocking REST calls over one ``httpx.Client`` (connection pool, keep-alive)."""
 
     def __init__(self, url: str, *, timeout: float | None, connect_timeout: float,
-                 headers: Mapping[str, str] | None, transport: Any = None) -> None:
+                 headers: Mapping[str, str] | None, transport: Any = None,
+                 verify: Verify = True) -> None:
         self.url = url.rstrip("/")
         self.http = httpx.Client(base_url=self.url, headers=dict(headers or {}),
+                                 verify=http_verify(verify),
                                  timeout=timeout_of(timeout, connect_timeout),
                                  transport=transport)
 
@@ -302,9 +305,11 @@ class AsyncHttpTransport:
     """Non-blocking REST calls over one ``httpx.AsyncClient``."""
 
     def __init__(self, url: str, *, timeout: float | None, connect_timeout: float,
-                 headers: Mapping[str, str] | None, transport: Any = None) -> None:
+                 headers: Mapping[str, str] | None, transport: Any = None,
+                 verify: Verify = True) -> None:
         self.url = url.rstrip("/")
         self.http = httpx.AsyncClient(base_url=self.url, headers=dict(headers or {}),
+                                      verify=http_verify(verify),
                                       timeout=timeout_of(timeout, connect_timeout),
                                       transport=transport)
 

@@ -11,10 +11,11 @@
     spacemesh-client info
 
 The URL comes from ``--url``, else ``$SPACEMESH_URL``, else ``http://localhost:8000``;
-``grpc://host:8001`` uses gRPC. Errors are one line on stderr (usage mistakes too):
-exit code 2 for a bad request or a missing file, 1 when the server or the connection
-failed (after the retries). Region values may start with a minus sign
-(``--sphere -0.5,0,0,0.2``).
+``grpc://host:8001`` uses gRPC, ``https://`` and ``grpcs://`` TLS (``--cacert`` for a
+private CA). An API key comes from ``--api-key``, else ``$SPACEMESH_API_KEY``. Errors
+are one line on stderr (usage mistakes too): exit code 2 for a bad request or a missing
+file, 1 when the server or the connection failed (after the retries). Region values may
+start with a minus sign (``--sphere -0.5,0,0,0.2``).
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from spacemesh_client.errors import (
 from spacemesh_client.mesh import Mesh
 from spacemesh_client.options import GENERATE_OPTIONS, OPTION_NAMES, REPAIR_OPTION_NAMES
 from spacemesh_client.retry import RetryPolicy
+from spacemesh_client.security import API_KEY_ENV
 
 PROG = "spacemesh-client"
 #: Environment variable of the default URL.
@@ -179,7 +181,8 @@ def _save(mesh: Mesh, output: Path) -> None:
 def _client(args: argparse.Namespace) -> Client:
     retry = RetryPolicy(attempts=max(1, args.retries + 1))
     try:
-        return Client(args.url, timeout=args.timeout, retry=retry)
+        return Client(args.url, timeout=args.timeout, retry=retry, api_key=args.api_key,
+                      verify=args.cacert or True)
     except (ValueError, ModuleNotFoundError) as error:
         fail(str(error))
 
@@ -283,6 +286,13 @@ def build_parser() -> argparse.ArgumentParser:
                             help="seconds one attempt may take (default 300)")
     connection.add_argument("--retries", type=int, default=4,
                             help="retries on connection errors, 503 and 429 (default 4)")
+    connection.add_argument("--api-key", default=None,
+                            help=f"API key, sent as 'Authorization: Bearer KEY'; default "
+                            f"${API_KEY_ENV} (which keeps it out of the process list)")
+    connection.add_argument("--cacert", type=Path, default=None,
+                            help="PEM file of the CA (or self-signed) certificate that "
+                            "https:// and grpcs:// URLs are checked against (default: the "
+                            "system's)")
     options = argparse.ArgumentParser(add_help=False)
     options.add_argument("-o", "--output", required=True,
                          help=f"output mesh; the extension picks the format ({', '.join(WRITTEN)}"

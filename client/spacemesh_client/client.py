@@ -33,6 +33,7 @@ from spacemesh_client.errors import ConnectionFailed, SpaceMeshError
 from spacemesh_client.mesh import Mesh
 from spacemesh_client.options import chosen
 from spacemesh_client.retry import DEFAULT_RETRY, RetryPolicy
+from spacemesh_client.security import Verify, auth_headers
 
 #: Where a client connects unless told otherwise (``SPACEMESH_URL`` in the CLI).
 DEFAULT_URL = "http://localhost:8000"
@@ -59,12 +60,14 @@ class _Options:
     """What both clients keep: URL, timeouts and retry policy."""
 
     def __init__(self, url: str, timeout: float | None, connect_timeout: float,
-                 retry: RetryPolicy | None, headers: Mapping[str, str] | None) -> None:
+                 retry: RetryPolicy | None, headers: Mapping[str, str] | None,
+                 api_key: str | None = None, verify: Verify = True) -> None:
         self.url = _check_url(url)
         self.timeout = timeout
         self.connect_timeout = connect_timeout
         self.retry = retry or DEFAULT_RETRY
-        self.headers = dict(headers or {})
+        self.headers = auth_headers(headers, api_key)
+        self.verify = verify
 
     @property
     def transport_name(self) -> str:
@@ -94,20 +97,31 @@ class Client(_Options):
         Sent with every request (REST headers, gRPC metadata), e.g. an authorization.
     transport : httpx.BaseTransport, optional
         An httpx transport for REST (tests, proxies); ignored for gRPC.
+    api_key : str, optional
+        Sent as ``Authorization: Bearer KEY`` (REST header, gRPC metadata); default
+        ``$SPACEMESH_API_KEY``. A missing or wrong key raises
+        :class:`~spacemesh_client.errors.Unauthorized`.
+    verify : bool or path
+        How ``https``/``grpcs`` check the server's certificate: True (the system's CAs),
+        the path of a PEM file of CA certificates (e.g. a self-signed server
+        certificate), or False (REST only: no check).
     """
 
     def __init__(self, url: str = DEFAULT_URL, *, timeout: float | None = 300.0,
                  connect_timeout: float = 10.0, retry: RetryPolicy | None = None,
-                 headers: Mapping[str, str] | None = None, transport: Any = None) -> None:
-        super().__init__(url, timeout, connect_timeout, retry, headers)
+                 headers: Mapping[str, str] | None = None, transport: Any = None,
+                 api_key: str | None = None, verify: Verify = True) -> None:
+        super().__init__(url, timeout, connect_timeout, retry, headers, api_key, verify)
         if _is_grpc(url):
             from spacemesh_client.grpc_transport import GrpcTransport
 
-            self._transport: Any = GrpcTransport(url, timeout=timeout, metadata=self.headers)
+            self._transport: Any = GrpcTransport(url, timeout=timeout, metadata=self.headers,
+                                                 verify=verify)
         else:
             self._transport = HttpTransport(url, timeout=timeout,
                                             connect_timeout=connect_timeout,
-                                            headers=self.headers, transport=transport)
+                                            headers=self.headers, transport=transport,
+                                            verify=verify)
 
     def _retrying(self, attempt_once: Callable[[], T]) -> T:
         attempt = 1
@@ -297,17 +311,19 @@ class AsyncClient(_Options):
 
     def __init__(self, url: str = DEFAULT_URL, *, timeout: float | None = 300.0,
                  connect_timeout: float = 10.0, retry: RetryPolicy | None = None,
-                 headers: Mapping[str, str] | None = None, transport: Any = None) -> None:
-        super().__init__(url, timeout, connect_timeout, retry, headers)
+                 headers: Mapping[str, str] | None = None, transport: Any = None,
+                 api_key: str | None = None, verify: Verify = True) -> None:
+        super().__init__(url, timeout, connect_timeout, retry, headers, api_key, verify)
         if _is_grpc(url):
             from spacemesh_client.grpc_transport import AsyncGrpcTransport
 
             self._transport: Any = AsyncGrpcTransport(url, timeout=timeout,
-                                                      metadata=self.headers)
+                                                      metadata=self.headers, verify=verify)
         else:
             self._transport = AsyncHttpTransport(url, timeout=timeout,
                                                  connect_timeout=connect_timeout,
-                                                 headers=self.headers, transport=transport)
+                                                 headers=self.headers, transport=transport,
+                                                 verify=verify)
 
     async def _retrying(self, attempt_once: Callable[[], Awaitable[T]]) -> T:
         attempt = 1

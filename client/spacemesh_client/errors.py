@@ -12,14 +12,16 @@ The classes are grouped by what a caller can do about them::
     ├── InvalidRequest          fix the request (400, 404, 405, 413, 415, 422)
     │   ├── MalformedInput, InvalidParameter, InvalidOption, UnsupportedFormat,
     │   │   PayloadTooLarge, TooManyPoints, TooFewPoints, NonFinite, DegenerateGeometry,
-    │   │   InvalidNormals, NormalsRequired, NotFound (ModelNotFound), MethodNotAllowed
+    │   │   InvalidNormals, NormalsRequired, NotFound (ModelNotFound), MethodNotAllowed,
+    │   │   Unauthorized (401: no or a wrong API key), RequestTimeout (408: the body
+    │   │   arrived too slowly)
     │   └── RegionError         a repair region the server cannot use
     │       └── EmptyRegion, WholeMeshRegion, InvalidRegion, DefectsOutsideRegion,
     │           RegionTooLarge
     ├── NoSurface               try another seed or more steps (422)
     ├── ServerError             InternalError, InvalidOutput, Unimplemented, Timeout
     ├── Unavailable             retried: QueueFull, NotReady, ShuttingDown (503),
-    │                           RateLimited (429 from a proxy)
+    │                           RateLimited (429, the server's or a proxy's)
     └── TransportError          no answer: ConnectionFailed, ClientTimeout
 """
 
@@ -143,6 +145,19 @@ class MethodNotAllowed(InvalidRequest):
     """Method not allowed (405)."""
 
     slug = "method-not-allowed"
+
+
+class Unauthorized(InvalidRequest):
+    """No API key, or a wrong one (401; gRPC UNAUTHENTICATED): pass ``api_key=`` or set
+    ``SPACEMESH_API_KEY``."""
+
+    slug = "unauthorized"
+
+
+class RequestTimeout(InvalidRequest):
+    """The request body reached the server too slowly (408)."""
+
+    slug = "request-timeout"
 
 
 class PayloadTooLarge(InvalidRequest):
@@ -272,7 +287,10 @@ class ShuttingDown(Unavailable):
 
 
 class RateLimited(Unavailable):
-    """Too many requests (429), typically from a proxy in front of the service."""
+    """Too many requests (429; gRPC RESOURCE_EXHAUSTED): the server's rate limit, or a
+    proxy's; retried after ``Retry-After``."""
+
+    slug = "rate-limited"
 
 
 class ConnectionFailed(TransportError):
@@ -426,6 +444,7 @@ __all__ = [
     "RateLimited",
     "RegionError",
     "RegionTooLarge",
+    "RequestTimeout",
     "ServerError",
     "ShuttingDown",
     "SpaceMeshError",
@@ -433,6 +452,7 @@ __all__ = [
     "TooFewPoints",
     "TooManyPoints",
     "TransportError",
+    "Unauthorized",
     "Unavailable",
     "Unimplemented",
     "UnsupportedFormat",

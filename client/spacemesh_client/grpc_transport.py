@@ -39,6 +39,7 @@ from spacemesh_client.errors import (
 )
 from spacemesh_client.mesh import Mesh, MeshStats, repair_summary
 from spacemesh_client.options import OPTION_NAMES, REPAIR_OPTION_NAMES
+from spacemesh_client.security import Verify, grpc_root_certificates
 
 #: URL schemes of this transport.
 SCHEMES = ("grpc", "grpcs")
@@ -227,17 +228,19 @@ def _no_model_info(target: str) -> Unimplemented:
 
 
 class _Base:
-    def __init__(self, url: str, timeout: float | None, metadata: Mapping[str, str] | None):
+    def __init__(self, url: str, timeout: float | None, metadata: Mapping[str, str] | None,
+                 verify: Verify = True):
         self.grpc, self.pb, self.pb_grpc = _modules()
         self.url = url
         self.target, self.secure = target_of(url)
         self.timeout = timeout
         self.metadata = tuple((k.lower(), v) for k, v in (metadata or {}).items()) or None
+        self.root_certificates = grpc_root_certificates(verify) if self.secure else None
 
     def _channel_args(self) -> tuple[tuple, dict]:
         if self.secure:
-            return (self.target, self.grpc.ssl_channel_credentials()), {
-                "options": _CHANNEL_OPTIONS}
+            credentials = self.grpc.ssl_channel_credentials(self.root_certificates)
+            return (self.target, credentials), {"options": _CHANNEL_OPTIONS}
         return (self.target,), {"options": _CHANNEL_OPTIONS}
 
     def _call_kwargs(self) -> dict[str, Any]:
@@ -248,8 +251,8 @@ class GrpcTransport(_Base):
     """Blocking gRPC calls over one channel."""
 
     def __init__(self, url: str, *, timeout: float | None,
-                 metadata: Mapping[str, str] | None = None) -> None:
-        super().__init__(url, timeout, metadata)
+                 metadata: Mapping[str, str] | None = None, verify: Verify = True) -> None:
+        super().__init__(url, timeout, metadata, verify)
         args, kwargs = self._channel_args()
         make = self.grpc.secure_channel if self.secure else self.grpc.insecure_channel
         self.channel = make(*args, **kwargs)
@@ -299,8 +302,8 @@ class AsyncGrpcTransport(_Base):
     """Non-blocking gRPC calls (``grpc.aio``) over one channel."""
 
     def __init__(self, url: str, *, timeout: float | None,
-                 metadata: Mapping[str, str] | None = None) -> None:
-        super().__init__(url, timeout, metadata)
+                 metadata: Mapping[str, str] | None = None, verify: Verify = True) -> None:
+        super().__init__(url, timeout, metadata, verify)
         args, kwargs = self._channel_args()
         aio = self.grpc.aio
         make = aio.secure_channel if self.secure else aio.insecure_channel

@@ -17,7 +17,7 @@ def test_every_problem_type_of_the_service_has_its_class():
     for slug, kind in P.KINDS.items():
         cls = E.PROBLEM_TYPES[slug]
         assert cls.slug == slug and kind.type == E.TYPE_BASE + slug
-        assert cls.retryable == (kind.status == 503), slug
+        assert cls.retryable == (kind.status in (429, 503)), slug
     assert E.TYPE_BASE == P.TYPE_BASE and E.PROBLEM_MEDIA_TYPE == P.PROBLEM_MEDIA_TYPE
 
 
