@@ -334,7 +334,7 @@ def read_json(body: bytes, limits: ReadLimits | None = None
         body has.
     """
     try:
-        data = load_json(body, "the JSON body", limits)
+        data = load_json(body, "the JSON body", limits and limits.for_points())
     except TooLargeError as error:
         raise P.too_large_problem(error) from None
     except MeshFormatError as error:
