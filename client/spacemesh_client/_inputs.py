@@ -122,8 +122,15 @@ def mesh_input(mesh: MeshLike, filename: str | None = None) -> Upload:
                     "or a trimesh.Trimesh")
 
 
-def region_input(region: RegionLike) -> dict[str, Any]:
-    """The JSON form of a repair region (a list of ints means face indices)."""
+def region_input(region: RegionLike, auto: str | None = None) -> dict[str, Any]:
+    """The JSON form of a repair region (a list of ints means face indices), or the
+    automatic region ``{"auto": auto}`` (``holes``, ``defects`` or ``all``)."""
+    if auto is not None:
+        if region is not None:
+            raise TypeError("give either region or auto, not both")
+        return {"auto": str(auto)}
+    if region is None:
+        raise TypeError("give a region (or auto='holes', 'defects' or 'all')")
     if isinstance(region, Mapping):
         return {k: _plain(v) for k, v in region.items()}
     if isinstance(region, (str, bytes)):

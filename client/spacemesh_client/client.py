@@ -202,10 +202,12 @@ class Client(_Options):
         return self._retrying(
             lambda: self._transport.generate(source, format, options, progress))
 
-    def repair(self, mesh: MeshLike, region: RegionLike, *, format: str | None = DEFAULT_FORMAT,
+    def repair(self, mesh: MeshLike, region: RegionLike = None, *,
+               format: str | None = DEFAULT_FORMAT,
                seed: int | None = None, steps: int | None = None,
                sampler: str | None = None, filename: str | None = None,
-               weld: bool = False) -> Mesh:
+               weld: bool = False, auto: str | None = None,
+               max_growth: float | None = None) -> Mesh:
         """Regenerate a region of a mesh; faces outside it stay unchanged.
 
         Parameters
@@ -217,8 +219,9 @@ class Client(_Options):
         region : dict or list of int
             ``{"faces": [...]}``, ``{"vertices": [...]}``,
             ``{"sphere": {"center": [x, y, z], "radius": r}}``,
-            ``{"box": {"min": [x, y, z], "max": [x, y, z]}}`` (mesh coordinates), or
-            face indices; the same over REST and gRPC.
+            ``{"box": {"min": [x, y, z], "max": [x, y, z]}}`` (mesh coordinates),
+            ``{"auto": "holes" | "defects" | "all"}``, or face indices; the same over
+            REST and gRPC. Omitted when ``auto`` is given.
         format, seed, steps, sampler, filename
             As for :meth:`generate`.
         weld : bool
@@ -228,6 +231,15 @@ class Client(_Options):
             indices stay this file's; the result is the welded mesh repaired, so its
             vertex indices differ from the file's (``repair["welded_vertices"]`` says how
             many vertices were merged away).
+        auto : {"holes", "defects", "all"}, optional
+            Let the server find the regions: every hole (boundary loop) with the ring of
+            faces around it, every defect (non-manifold edges and vertices, degenerate
+            faces) with its neighbourhood, or both; each is repaired by a pass of its
+            own and ``repair["findings"]`` says what was found and done. Not with
+            ``region``.
+        max_growth : float, optional
+            Largest share (0 to 1) of the mesh's faces a region may grow to (the
+            server's default 0.25); beyond it ``RegionGrowthExceeded``.
 
         Returns
         -------
@@ -241,11 +253,14 @@ class Client(_Options):
             A region the server cannot use raises a
             :class:`~spacemesh_client.errors.RegionError` subclass (422):
             ``EmptyRegion``, ``WholeMeshRegion``, ``InvalidRegion``,
-            ``DefectsOutsideRegion`` (``extra["defects"]``), ``RegionTooLarge``.
+            ``DefectsOutsideRegion`` (``extra["defects"]``), ``RegionTooLarge``,
+            ``RegionGrowthExceeded``, ``NonOrientable``.
         """
         upload = mesh_input(mesh, filename)
-        shape = region_input(region)
+        shape = region_input(region, auto)
         options = chosen(seed=seed, steps=steps, sampler=sampler)
+        if max_growth is not None:
+            options["max_growth"] = float(max_growth)
         return self._retrying(
             lambda: self._transport.repair(upload, shape, format, options, weld))
 
@@ -352,14 +367,17 @@ class AsyncClient(_Options):
         return await self._retrying(
             lambda: self._transport.generate(source, format, options, progress))
 
-    async def repair(self, mesh: MeshLike, region: RegionLike, *,
+    async def repair(self, mesh: MeshLike, region: RegionLike = None, *,
                      format: str | None = DEFAULT_FORMAT, seed: int | None = None,
                      steps: int | None = None, sampler: str | None = None,
-                     filename: str | None = None, weld: bool = False) -> Mesh:
+                     filename: str | None = None, weld: bool = False,
+                     auto: str | None = None, max_growth: float | None = None) -> Mesh:
         """See :meth:`Client.repair`."""
         upload = mesh_input(mesh, filename)
-        shape = region_input(region)
+        shape = region_input(region, auto)
         options = chosen(seed=seed, steps=steps, sampler=sampler)
+        if max_growth is not None:
+            options["max_growth"] = float(max_growth)
         return await self._retrying(
             lambda: self._transport.repair(upload, shape, format, options, weld))
 

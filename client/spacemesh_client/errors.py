@@ -17,7 +17,7 @@ The classes are grouped by what a caller can do about them::
     │   │   arrived too slowly)
     │   └── RegionError         a repair region the server cannot use
     │       └── EmptyRegion, WholeMeshRegion, InvalidRegion, DefectsOutsideRegion,
-    │           RegionTooLarge
+    │           RegionTooLarge, RegionGrowthExceeded, NonOrientable
     ├── NoSurface               try another seed or more steps (422)
     ├── ServerError             InternalError, InvalidOutput, Unimplemented, Timeout
     ├── Unavailable             retried: QueueFull, NotReady, ShuttingDown (503),
@@ -244,6 +244,18 @@ class RegionTooLarge(RegionError):
     slug = "region-too-large"
 
 
+class RegionGrowthExceeded(RegionError):
+    """The region would grow beyond ``max_growth`` of the mesh's faces (``extra["share"]``)."""
+
+    slug = "region-growth-exceeded"
+
+
+class NonOrientable(RegionError):
+    """The mesh cannot be oriented (a Moebius strip): no closed oriented surface exists."""
+
+    slug = "non-orientable"
+
+
 class InternalError(ServerError):
     """Internal server error (500)."""
 
@@ -436,6 +448,7 @@ __all__ = [
     "ModelNotFound",
     "NoSurface",
     "NonFinite",
+    "NonOrientable",
     "NormalsRequired",
     "NotFound",
     "NotReady",
@@ -443,6 +456,7 @@ __all__ = [
     "QueueFull",
     "RateLimited",
     "RegionError",
+    "RegionGrowthExceeded",
     "RegionTooLarge",
     "RequestTimeout",
     "ServerError",

@@ -121,13 +121,15 @@ def region_message(pb: Any, region: Mapping[str, Any]) -> Any:
         cannot hold: not exactly one known key, or values of the wrong type. Numbers
         the message holds are checked by the server.
     """
-    forms = ("faces", "vertices", "sphere", "box")
+    forms = ("faces", "vertices", "sphere", "box", "auto")
     keys = [k for k in region if region[k] is not None]
     if len(keys) != 1 or keys[0] not in forms:
         raise InvalidRegion("the region must have exactly one of the keys "
                             + ", ".join(forms) + f", not {sorted(region)}", status=422)
     kind, value = keys[0], region[keys[0]]
     try:
+        if kind == "auto":  # the proto field's name is no keyword of any language
+            return pb.Region(auto_region=value)
         if kind in ("faces", "vertices"):
             return pb.Region(**{kind: pb.Indices(indices=[_index(i) for i in value])})
         if kind == "sphere":
@@ -148,16 +150,23 @@ def _index(value: Any) -> int:
 
 def repair_message(pb: Any, mesh: Upload, region: Mapping[str, Any], fmt: str | None,
                    options: Mapping[str, Any], weld: bool = False) -> Any:
-    """A ``RepairRequest`` (the region in any of its four forms)."""
+    """A ``RepairRequest`` (the region in any of its five forms)."""
     return _set_options(pb.RepairRequest(mesh=mesh.data, filename=mesh.filename,
                                          format=fmt or "", region=region_message(pb, region),
                                          weld=bool(weld)), options)
 
 
 def _fields(message: Any) -> dict[str, Any]:
-    """A flat message's fields by name (maps as dicts)."""
-    return {f.name: (dict(value) if hasattr(value, "items") else value)
-            for f in message.DESCRIPTOR.fields for value in [getattr(message, f.name)]}
+    """A message's fields by name (maps as dicts, repeated messages as lists of dicts)."""
+    out = {}
+    for f in message.DESCRIPTOR.fields:
+        value = getattr(message, f.name)
+        if hasattr(value, "items"):
+            value = dict(value)
+        elif f.message_type is not None and f.is_repeated:
+            value = [_fields(item) for item in value]
+        out[f.name] = value
+    return out
 
 
 def _reported_options(reply: Any) -> dict[str, Any]:

@@ -455,7 +455,7 @@ class Engine:
         mesh, _ = read_mesh_upload(upload.data, upload.filename, self.read_limits)
         try:
             plan = plan_repair(mesh, shape, self.generator.spec.max_vertices,
-                               weld=opts.weld)
+                               weld=opts.weld, max_growth=opts.max_growth)
         except RegionError as error:
             raise P.region_problem(error) from None
         return _RepairJob(mesh, shape, plan, opts)
@@ -477,7 +477,8 @@ class Engine:
             The region's JSON text (REST) or JSON form (gRPC).
         options : dict
             Values of :data:`~spacemesh_service.options.REPAIR_ROUTE_OPTIONS`: ``format``,
-            ``seed``, ``steps``, ``sampler``, ``weld`` (None: not given). With ``weld``
+            ``seed``, ``steps``, ``sampler``, ``weld``, ``max_growth`` (None: not given).
+            With ``weld``
             the mesh's vertices at equal positions are merged before the cut (the
             region's vertex indices are the file's), and the output is the welded mesh
             repaired.

@@ -104,8 +104,10 @@ def region_from_pb(region: pb.Region) -> dict[str, Any]:
                            "radius": region.sphere.radius}}
     if shape == "box":
         return {"box": {"min": list(region.box.min), "max": list(region.box.max)}}
-    raise Problem(P.MALFORMED_INPUT, "the region has no shape: set faces, vertices, sphere "
-                  "or box")
+    if shape == "auto_region":
+        return {"auto": region.auto_region}
+    raise Problem(P.MALFORMED_INPUT, "the region has no shape: set faces, vertices, sphere, "
+                  "box or auto_region")
 
 
 def repair_input(request: pb.RepairRequest, max_bytes: int) -> tuple[MeshUpload, dict]:

@@ -32,8 +32,9 @@ Point cloud in, oriented manifold polygon mesh out (SpaceMesh).
   response reports how well the mesh fits the points (`X-SpaceMesh-Fit-*`).
 * `POST /repair`: upload a mesh (multipart field `file`: OBJ, OFF, PLY, STL, GLB, glTF) and
   a region as JSON (field `region`: `{"faces": [...]}`, `{"vertices": [...]}`,
-  `{"sphere": {"center": [x, y, z], "radius": r}}` or `{"box": {"min": [...], "max": [...]}}`);
-  the region is generated again, every other face comes back unchanged.
+  `{"sphere": {"center": [x, y, z], "radius": r}}`, `{"box": {"min": [...], "max": [...]}}`,
+  or `{"auto": "holes" | "defects" | "all"}`: every hole and/or defect found, each with the
+  faces around it); the region is generated again, every other face comes back unchanged.
 * Health and metadata in the KServe v2 shape under `/v2`; Prometheus metrics at `/metrics`.
 * Every error is RFC 9457 `application/problem+json` with a stable `type`.
 """
@@ -299,6 +300,13 @@ REPAIR_RESPONSES: dict[int | str, dict[str, Any]] = {
                   "repair option weld=true (--weld) merges them first"),
         "large": (P.REGION_TOO_LARGE, "the region's boundary has 300 vertices; the model "
                                       "holds at most 248"),
+        "growth": (P.REGION_GROWTH_EXCEEDED, "the region of 101 faces grows to 160 faces (84% "
+                   "of the mesh's 190; at most 25% allowed) because the vertices around it "
+                   "are pinched: mark a region without pinched corners, or allow more with "
+                   "max_growth"),
+        "moebius": (P.NON_ORIENTABLE, "the mesh is not orientable (like a Moebius strip): its "
+                    "faces around face 0 cannot all face the same way, so no closed oriented "
+                    "surface can be made from them"),
         "nan": (P.NON_FINITE, "OBJ: vertex 3 has a NaN or infinite coordinate"),
     }, instance="/repair"),
     503: GENERATE_RESPONSES[503],
@@ -345,7 +353,9 @@ GENERATE_REQUEST_BODY: dict[str, Any] = {
 _REGION_SCHEMA = {
     "type": "string",
     "description": "The region as JSON (mesh coordinates; indices into the file's faces "
-                   "and vertices): exactly one of `faces`, `vertices`, `sphere`, `box`.",
+                   "and vertices): exactly one of `faces`, `vertices`, `sphere`, `box`, "
+                   "or `{\"auto\": \"holes\" | \"defects\" | \"all\"}` (every hole "
+                   "and/or defect found, each repaired with the ring of faces around it).",
 }
 
 REPAIR_REQUEST_BODY: dict[str, Any] = {
@@ -373,6 +383,8 @@ REPAIR_REQUEST_BODY: dict[str, Any] = {
                 "box": {"summary": "Every face with a vertex in a box",
                         "value": {"file": "(mesh.off)", "region":
                                   '{"box": {"min": [0, 0, 0], "max": [1, 1, 1]}}'}},
+                "auto": {"summary": "Every hole, closed (the regions found automatically)",
+                         "value": {"file": "(scan.ply)", "region": '{"auto": "holes"}'}},
             },
         },
     },

@@ -66,6 +66,7 @@ _CHOICES: dict[str, tuple[str, ...]] = {"sampler": METHODS, "start": START_MODES
 _RANGES: dict[str, tuple[float | None, float | None]] = {
     "seed": (0, MAX_SEED), "steps": (1, None), "start_time": (0.0, 1.0),
     "target_vertices": (MIN_TARGET_VERTICES, MAX_TARGET_VERTICES), "samples": (1, MAX_SAMPLES),
+    "max_growth": (0.0, 1.0),
 }
 _JSON_TYPES = {bool: "boolean", int: "integer", float: "number", str: "string"}
 _ROLE = re.compile(r":[a-z]+:`~?([^`]+)`")
@@ -223,11 +224,15 @@ FORMAT = RequestOption("format", str, f"One of {', '.join(OUTPUT_FORMATS)} (defa
 WELD = RequestOption("weld", bool, "Merge vertices at exactly equal positions before the "
                      "repair (meshes split at UV seams or hard edges, e.g. GLB); default "
                      "false. The output is the welded mesh repaired.")
+#: Repair only: the largest share of the mesh's faces a region may grow to.
+MAX_GROWTH = RequestOption("max_growth", float, "Largest share (0 to 1) of the mesh's faces "
+                           "a repair region may grow to (default 0.25, at most the server's "
+                           "max_repair_growth); beyond it: 422 region-growth-exceeded.")
 #: The options of ``POST /generate`` and gRPC ``Generate``.
 GENERATE_ROUTE_OPTIONS: tuple[RequestOption, ...] = (FORMAT, *GENERATE_OPTIONS)
 #: The options of ``POST /repair`` and gRPC ``Repair``.
 REPAIR_ROUTE_OPTIONS: tuple[RequestOption, ...] = (
-    FORMAT, *(o for o in GENERATE_OPTIONS if o.name not in GENERATE_ONLY), WELD)
+    FORMAT, *(o for o in GENERATE_OPTIONS if o.name not in GENERATE_ONLY), WELD, MAX_GROWTH)
 
 
 @dataclass(frozen=True)
@@ -246,12 +251,15 @@ class RequestOptions:
         ``sent`` resolved against the model (every default filled in).
     weld : bool
         Repair only.
+    max_growth : float or None
+        Repair only (None: the default, ``spacemesh.repair.DEFAULT_MAX_GROWTH``).
     """
 
     format: str
     sent: GenerateOptions
     resolved: GenerateOptions
     weld: bool = False
+    max_growth: float | None = None
 
     @property
     def batch_key(self) -> tuple[int, str, str, float]:
@@ -306,6 +314,7 @@ def resolve_request(values: Mapping[str, Any], table: tuple[RequestOption, ...],
         given = {o.name: o.parse(values.get(o.name)) for o in table}
         fmt = _output_format(given.pop("format", None))
         weld = bool(given.pop("weld", None))
+        max_growth = _max_growth(given.pop("max_growth", None), settings)
         chosen = {k: v for k, v in given.items() if v is not None}
         if chosen.get("seed") is None:
             chosen["seed"] = secrets.randbits(RANDOM_SEED_BITS)
@@ -318,7 +327,15 @@ def resolve_request(values: Mapping[str, Any], table: tuple[RequestOption, ...],
             raise OptionError("steps", f"steps must be in 1..{most}, not {resolved.steps}")
     except OptionError as error:
         raise option_problem(error) from None
-    return RequestOptions(fmt, sent, resolved, weld)
+    return RequestOptions(fmt, sent, resolved, weld, max_growth)
+
+
+def _max_growth(value: float | None, settings: Settings) -> float | None:
+    """``max_growth`` checked against 0 .. ``settings.max_repair_growth``."""
+    most = settings.max_repair_growth
+    if value is not None and not 0.0 <= value <= most:
+        raise OptionError("max_growth", f"max_growth must be in 0..{most:g}, not {value!r}")
+    return value
 
 
 def grpc_values(request: Any, table: tuple[RequestOption, ...]) -> dict[str, Any]:

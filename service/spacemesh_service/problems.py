@@ -100,6 +100,11 @@ DEFECTS_OUTSIDE_REGION = _kind("defects-outside-region",
                                _C.FAILED_PRECONDITION)
 REGION_TOO_LARGE = _kind("region-too-large", "The repair region is too large for the model",
                          422, _C.INVALID_ARGUMENT)
+REGION_GROWTH_EXCEEDED = _kind("region-growth-exceeded",
+                               "The repair region would grow beyond the allowed share of the "
+                               "mesh", 422, _C.INVALID_ARGUMENT)
+NON_ORIENTABLE = _kind("non-orientable", "The mesh is not orientable", 422,
+                       _C.FAILED_PRECONDITION)
 INTERNAL = _kind("internal-error", "Internal server error", 500, _C.INTERNAL)
 INVALID_OUTPUT = _kind("invalid-output", "The generated mesh failed validation", 500,
                        _C.INTERNAL)
@@ -116,13 +121,15 @@ KINDS: dict[str, ProblemKind] = {
         METHOD_NOT_ALLOWED, UNAUTHORIZED, REQUEST_TIMEOUT, RATE_LIMITED,
         PAYLOAD_TOO_LARGE, TOO_MANY_POINTS, UNSUPPORTED_FORMAT, TOO_FEW_POINTS, NON_FINITE,
         DEGENERATE_GEOMETRY, INVALID_NORMALS, NORMALS_REQUIRED, NO_SURFACE, INVALID_REGION,
-        EMPTY_REGION, WHOLE_MESH_REGION, DEFECTS_OUTSIDE_REGION, REGION_TOO_LARGE, INTERNAL,
+        EMPTY_REGION, WHOLE_MESH_REGION, DEFECTS_OUTSIDE_REGION, REGION_TOO_LARGE,
+        REGION_GROWTH_EXCEEDED, NON_ORIENTABLE, INTERNAL,
         INVALID_OUTPUT, NOT_IMPLEMENTED, QUEUE_FULL, NOT_READY, SHUTTING_DOWN, TIMEOUT,
     )
 }
 #: The kinds a repair region can be refused with (422).
 REGION_KINDS: tuple[ProblemKind, ...] = (INVALID_REGION, EMPTY_REGION, WHOLE_MESH_REGION,
-                                         DEFECTS_OUTSIDE_REGION, REGION_TOO_LARGE)
+                                         DEFECTS_OUTSIDE_REGION, REGION_TOO_LARGE,
+                                         REGION_GROWTH_EXCEEDED, NON_ORIENTABLE)
 #: The kinds a point cloud can be refused with (413, 422): the kinds of
 #: :data:`spacemesh.runtime.cloud.ERROR_KINDS`.
 CLOUD_KINDS: tuple[ProblemKind, ...] = (DEGENERATE_GEOMETRY, TOO_MANY_POINTS, TOO_FEW_POINTS,

@@ -68,6 +68,9 @@ class Settings(BaseModel):
     max_steps: int = Field(
         1024, ge=1, description="Most sampler steps a request may ask for (also capped by "
         "the model's timesteps).")
+    max_repair_growth: float = Field(
+        1.0, ge=0, le=1, description="Largest max_growth a repair request may ask for (the "
+        "share of the mesh's faces a region may grow to; the default is 0.25).")
     ort_threads: int = Field(
         0, ge=0, description="onnxruntime intra-op threads (0: one per available core).")
     warmup: bool = Field(True, description="Run a warm-up inference before reporting ready.")

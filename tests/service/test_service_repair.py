@@ -338,9 +338,9 @@ def test_openapi_describes_repair(http):
     repair = spec["paths"]["/repair"]["post"]
     form = repair["requestBody"]["content"]["multipart/form-data"]
     assert set(form["schema"]["required"]) == {"file", "region"}
-    assert set(form["examples"]) == {"faces", "vertices", "sphere", "box"}
+    assert set(form["examples"]) == {"faces", "vertices", "sphere", "box", "auto"}
     assert {p["name"] for p in repair["parameters"]} == {"format", "seed", "steps", "sampler",
-                                                         "weld"}
+                                                         "weld", "max_growth"}
     assert "weld" in form["schema"]["properties"]
     for status in ("200", "400", "413", "415", "422", "503"):
         assert status in repair["responses"], status

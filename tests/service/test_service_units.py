@@ -175,7 +175,7 @@ def test_new_generate_options_resolve():
 
 def test_repair_takes_no_generate_only_option():
     names = {o.name for o in REPAIR_ROUTE_OPTIONS}
-    assert names == {"format", "seed", "steps", "sampler", "weld"}
+    assert names == {"format", "seed", "steps", "sampler", "weld", "max_growth"}
     assert resolve({"start": "bogus", "samples": 0}, REPAIR_ROUTE_OPTIONS).resolved.samples == 1
 
 

@@ -165,7 +165,7 @@ class MeshReply(_message.Message):
     def __init__(self, mesh: _Optional[bytes] = ..., format: _Optional[str] = ..., media_type: _Optional[str] = ..., stats: _Optional[_Union[MeshStats, _Mapping]] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., model_name: _Optional[str] = ..., model_version: _Optional[str] = ..., timings: _Optional[_Mapping[str, float]] = ..., batch_size: _Optional[int] = ..., repair: _Optional[_Union[RepairStats, _Mapping]] = ..., start: _Optional[str] = ..., start_time: _Optional[float] = ..., target_vertices: _Optional[int] = ..., samples: _Optional[int] = ..., raw: _Optional[bool] = ..., sample_scores: _Optional[_Iterable[_Union[SampleScore, _Mapping]]] = ...) -> None: ...
 
 class RepairStats(_message.Message):
-    __slots__ = ("requested_faces", "region_faces", "grown_faces", "removed_vertices", "boundary_vertices", "loops", "new_vertices", "new_faces", "new_face_degrees", "patch_faces", "patch_rings", "known_vertices", "tokens", "candidates", "fallback", "fill", "inpaint", "flipped_orientation", "welded_vertices")
+    __slots__ = ("requested_faces", "region_faces", "grown_faces", "removed_vertices", "boundary_vertices", "loops", "new_vertices", "new_faces", "new_face_degrees", "patch_faces", "patch_rings", "known_vertices", "tokens", "candidates", "fallback", "fill", "inpaint", "flipped_orientation", "welded_vertices", "region_share", "auto_region", "passes", "reversed_faces", "flipped_mesh", "findings", "findings_total", "regions")
     class NewFaceDegreesEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -206,6 +206,14 @@ class RepairStats(_message.Message):
     INPAINT_FIELD_NUMBER: _ClassVar[int]
     FLIPPED_ORIENTATION_FIELD_NUMBER: _ClassVar[int]
     WELDED_VERTICES_FIELD_NUMBER: _ClassVar[int]
+    REGION_SHARE_FIELD_NUMBER: _ClassVar[int]
+    AUTO_REGION_FIELD_NUMBER: _ClassVar[int]
+    PASSES_FIELD_NUMBER: _ClassVar[int]
+    REVERSED_FACES_FIELD_NUMBER: _ClassVar[int]
+    FLIPPED_MESH_FIELD_NUMBER: _ClassVar[int]
+    FINDINGS_FIELD_NUMBER: _ClassVar[int]
+    FINDINGS_TOTAL_FIELD_NUMBER: _ClassVar[int]
+    REGIONS_FIELD_NUMBER: _ClassVar[int]
     requested_faces: int
     region_faces: int
     grown_faces: int
@@ -225,7 +233,53 @@ class RepairStats(_message.Message):
     inpaint: _containers.ScalarMap[str, int]
     flipped_orientation: bool
     welded_vertices: int
-    def __init__(self, requested_faces: _Optional[int] = ..., region_faces: _Optional[int] = ..., grown_faces: _Optional[int] = ..., removed_vertices: _Optional[int] = ..., boundary_vertices: _Optional[int] = ..., loops: _Optional[int] = ..., new_vertices: _Optional[int] = ..., new_faces: _Optional[int] = ..., new_face_degrees: _Optional[_Mapping[int, int]] = ..., patch_faces: _Optional[int] = ..., patch_rings: _Optional[int] = ..., known_vertices: _Optional[int] = ..., tokens: _Optional[int] = ..., candidates: _Optional[int] = ..., fallback: _Optional[str] = ..., fill: _Optional[_Mapping[str, int]] = ..., inpaint: _Optional[_Mapping[str, int]] = ..., flipped_orientation: _Optional[bool] = ..., welded_vertices: _Optional[int] = ...) -> None: ...
+    region_share: float
+    auto_region: str
+    passes: int
+    reversed_faces: int
+    flipped_mesh: bool
+    findings: _containers.RepeatedCompositeFieldContainer[RepairFinding]
+    findings_total: int
+    regions: _containers.RepeatedCompositeFieldContainer[RepairRegion]
+    def __init__(self, requested_faces: _Optional[int] = ..., region_faces: _Optional[int] = ..., grown_faces: _Optional[int] = ..., removed_vertices: _Optional[int] = ..., boundary_vertices: _Optional[int] = ..., loops: _Optional[int] = ..., new_vertices: _Optional[int] = ..., new_faces: _Optional[int] = ..., new_face_degrees: _Optional[_Mapping[int, int]] = ..., patch_faces: _Optional[int] = ..., patch_rings: _Optional[int] = ..., known_vertices: _Optional[int] = ..., tokens: _Optional[int] = ..., candidates: _Optional[int] = ..., fallback: _Optional[str] = ..., fill: _Optional[_Mapping[str, int]] = ..., inpaint: _Optional[_Mapping[str, int]] = ..., flipped_orientation: _Optional[bool] = ..., welded_vertices: _Optional[int] = ..., region_share: _Optional[float] = ..., auto_region: _Optional[str] = ..., passes: _Optional[int] = ..., reversed_faces: _Optional[int] = ..., flipped_mesh: _Optional[bool] = ..., findings: _Optional[_Iterable[_Union[RepairFinding, _Mapping]]] = ..., findings_total: _Optional[int] = ..., regions: _Optional[_Iterable[_Union[RepairRegion, _Mapping]]] = ...) -> None: ...
+
+class RepairFinding(_message.Message):
+    __slots__ = ("kind", "size", "vertex", "region", "action", "filled_by")
+    KIND_FIELD_NUMBER: _ClassVar[int]
+    SIZE_FIELD_NUMBER: _ClassVar[int]
+    VERTEX_FIELD_NUMBER: _ClassVar[int]
+    REGION_FIELD_NUMBER: _ClassVar[int]
+    ACTION_FIELD_NUMBER: _ClassVar[int]
+    FILLED_BY_FIELD_NUMBER: _ClassVar[int]
+    kind: str
+    size: int
+    vertex: int
+    region: int
+    action: str
+    filled_by: str
+    def __init__(self, kind: _Optional[str] = ..., size: _Optional[int] = ..., vertex: _Optional[int] = ..., region: _Optional[int] = ..., action: _Optional[str] = ..., filled_by: _Optional[str] = ...) -> None: ...
+
+class RepairRegion(_message.Message):
+    __slots__ = ("id", "requested_faces", "region_faces", "grown_faces", "share", "strategy", "reason", "passes", "filled_by")
+    ID_FIELD_NUMBER: _ClassVar[int]
+    REQUESTED_FACES_FIELD_NUMBER: _ClassVar[int]
+    REGION_FACES_FIELD_NUMBER: _ClassVar[int]
+    GROWN_FACES_FIELD_NUMBER: _ClassVar[int]
+    SHARE_FIELD_NUMBER: _ClassVar[int]
+    STRATEGY_FIELD_NUMBER: _ClassVar[int]
+    REASON_FIELD_NUMBER: _ClassVar[int]
+    PASSES_FIELD_NUMBER: _ClassVar[int]
+    FILLED_BY_FIELD_NUMBER: _ClassVar[int]
+    id: int
+    requested_faces: int
+    region_faces: int
+    grown_faces: int
+    share: float
+    strategy: str
+    reason: str
+    passes: int
+    filled_by: str
+    def __init__(self, id: _Optional[int] = ..., requested_faces: _Optional[int] = ..., region_faces: _Optional[int] = ..., grown_faces: _Optional[int] = ..., share: _Optional[float] = ..., strategy: _Optional[str] = ..., reason: _Optional[str] = ..., passes: _Optional[int] = ..., filled_by: _Optional[str] = ...) -> None: ...
 
 class Progress(_message.Message):
     __slots__ = ("step", "total")
@@ -244,7 +298,7 @@ class GenerateEvent(_message.Message):
     def __init__(self, progress: _Optional[_Union[Progress, _Mapping]] = ..., mesh: _Optional[_Union[MeshReply, _Mapping]] = ...) -> None: ...
 
 class RepairRequest(_message.Message):
-    __slots__ = ("mesh", "filename", "faces", "format", "seed", "steps", "region", "weld", "sampler")
+    __slots__ = ("mesh", "filename", "faces", "format", "seed", "steps", "region", "weld", "sampler", "max_growth")
     MESH_FIELD_NUMBER: _ClassVar[int]
     FILENAME_FIELD_NUMBER: _ClassVar[int]
     FACES_FIELD_NUMBER: _ClassVar[int]
@@ -254,6 +308,7 @@ class RepairRequest(_message.Message):
     REGION_FIELD_NUMBER: _ClassVar[int]
     WELD_FIELD_NUMBER: _ClassVar[int]
     SAMPLER_FIELD_NUMBER: _ClassVar[int]
+    MAX_GROWTH_FIELD_NUMBER: _ClassVar[int]
     mesh: bytes
     filename: str
     faces: _containers.RepeatedScalarFieldContainer[int]
@@ -263,19 +318,22 @@ class RepairRequest(_message.Message):
     region: Region
     weld: bool
     sampler: str
-    def __init__(self, mesh: _Optional[bytes] = ..., filename: _Optional[str] = ..., faces: _Optional[_Iterable[int]] = ..., format: _Optional[str] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., region: _Optional[_Union[Region, _Mapping]] = ..., weld: _Optional[bool] = ..., sampler: _Optional[str] = ...) -> None: ...
+    max_growth: float
+    def __init__(self, mesh: _Optional[bytes] = ..., filename: _Optional[str] = ..., faces: _Optional[_Iterable[int]] = ..., format: _Optional[str] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., region: _Optional[_Union[Region, _Mapping]] = ..., weld: _Optional[bool] = ..., sampler: _Optional[str] = ..., max_growth: _Optional[float] = ...) -> None: ...
 
 class Region(_message.Message):
-    __slots__ = ("faces", "vertices", "sphere", "box")
+    __slots__ = ("faces", "vertices", "sphere", "box", "auto_region")
     FACES_FIELD_NUMBER: _ClassVar[int]
     VERTICES_FIELD_NUMBER: _ClassVar[int]
     SPHERE_FIELD_NUMBER: _ClassVar[int]
     BOX_FIELD_NUMBER: _ClassVar[int]
+    AUTO_REGION_FIELD_NUMBER: _ClassVar[int]
     faces: Indices
     vertices: Indices
     sphere: Sphere
     box: Box
-    def __init__(self, faces: _Optional[_Union[Indices, _Mapping]] = ..., vertices: _Optional[_Union[Indices, _Mapping]] = ..., sphere: _Optional[_Union[Sphere, _Mapping]] = ..., box: _Optional[_Union[Box, _Mapping]] = ...) -> None: ...
+    auto_region: str
+    def __init__(self, faces: _Optional[_Union[Indices, _Mapping]] = ..., vertices: _Optional[_Union[Indices, _Mapping]] = ..., sphere: _Optional[_Union[Sphere, _Mapping]] = ..., box: _Optional[_Union[Box, _Mapping]] = ..., auto_region: _Optional[str] = ...) -> None: ...
 
 class Indices(_message.Message):
     __slots__ = ("indices",)

@@ -17,6 +17,8 @@ like any region (:func:`spacemesh.repair.cut.grow_region`); rings that touch are
 into one region. Each region is then repaired by its own pass of the model
 (:func:`spacemesh.repair.api.repair_mesh`), one after the other.
 
+A hole is reported as filled by the ``model``, by a ``fallback`` (the fan, or the
+splice's last resort, one polygon over the loop) or by both (``model-and-fallback``).
 A region made of holes only that the model cannot take in one pass (its boundary needs
 more vertex tokens than the model has, it would grow beyond ``max_growth`` or to the
 whole mesh) is filled by the fallback: a fan of triangles from the centroid of each
@@ -502,6 +504,19 @@ class _Passes:
         return (self.face_source >= 0) & working[np.maximum(self.face_source, 0)]
 
 
+def _polygons(result: Any) -> int:
+    """Loops a pass closed by one polygon (the splice's last resort)."""
+    return int(result.stats.fill.get("polygon_loops", 0))
+
+
+def _filled_by(by_model: int, by_fallback: int) -> str:
+    """``model``, ``fallback`` or ``model-and-fallback``, from the loops or wedges each
+    filled."""
+    if by_fallback == 0:
+        return "model"
+    return "fallback" if by_model == 0 else "model-and-fallback"
+
+
 def repair_auto(plan: AutoPlan, run_pass: Any) -> tuple[Any, list[dict], list[dict]]:
     """Repair every region of an automatic plan, one pass after the other.
 
@@ -541,7 +556,7 @@ def repair_auto(plan: AutoPlan, run_pass: Any) -> tuple[Any, list[dict], list[di
                               len(state.results))
             state.results.append(result)
             state.apply(result.vertex_map, result.face_source, result.mesh)
-            by = "model"
+            by = _filled_by(result.stats.loops - _polygons(result), _polygons(result))
         else:
             loops = [state.vertex_map[loop] for i in region.findings
                      for loop in (_loops_of(work, plan.findings[i].vertices) or [])]
@@ -566,9 +581,8 @@ def repair_auto(plan: AutoPlan, run_pass: Any) -> tuple[Any, list[dict], list[di
                     continue  # this wedge keeps its fan
                 state.results.append(result)
                 state.apply(result.vertex_map, result.face_source, result.mesh)
-                by_model += 1
-            by = ("model" if by_model == n_wedges - first else
-                  "fallback" if by_model == 0 else "model-and-fallback")
+                by_model += _polygons(result) == 0
+            by = _filled_by(by_model, n_wedges - first - by_model)
         for i in region.findings:
             outcome[i] = by
         region_reports.append({**region.report(index, work.n_faces),
