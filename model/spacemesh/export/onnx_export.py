@@ -22,6 +22,7 @@ from spacemesh.runtime.backend import (
     CONNECTIVITY_INPUTS,
     CONNECTIVITY_OUTPUTS,
     DENOISER_INPUTS,
+    DENOISER_POINTS,
     ENCODER_INPUTS,
     volume_names,
 )
@@ -59,6 +60,19 @@ class DenoiserGraph(nn.Module):
         return self.denoiser(x_t, t, list(volumes))
 
 
+class LocalDenoiserGraph(nn.Module):
+    """``x_t (B, N, 4), t (B,) int64, volumes, points (B, P, 3|6) -> eps (B, N, 4)``: a
+    local-point denoiser, whose nearest-point lookup runs inside the graph."""
+
+    def __init__(self, model: SpaceMeshModel) -> None:
+        super().__init__()
+        self.denoiser = model.denoiser
+
+    def forward(self, x_t: Tensor, t: Tensor, volumes: tuple[Tensor, ...], points: Tensor
+                ) -> Tensor:
+        return self.denoiser(x_t, t, list(volumes), points)
+
+
 class ConnectivityGraph(nn.Module):
     """``vertices (B, N, 3), valid (B, N) bool, volumes -> x, root, prev, next, tau``."""
 
@@ -86,9 +100,14 @@ def example_inputs(model: SpaceMeshModel, batch: int = 2) -> dict[str, tuple]:
     vertices = torch.rand(batch, n, 3, generator=gen) * 2 - 1
     valid = torch.ones(batch, n, dtype=torch.bool)
     valid[0, -3:] = False
+    if config.denoiser.local_points:  # enough points for the top-k
+        cloud = torch.rand(batch, config.denoiser.local_points + 29, channels, generator=gen)
+        denoiser = (x_t, t, volumes, cloud * 2 - 1)
+    else:
+        denoiser = (x_t, t, volumes)
     return {
         "encoder": (points,),
-        "denoiser": (x_t, t, volumes),
+        "denoiser": denoiser,
         "connectivity": (vertices, valid, volumes),
     }
 
@@ -165,7 +184,15 @@ def export_onnx(
             EncoderGraph(model), args["encoder"], paths["encoder"], ENCODER_INPUTS, vols,
             {"points": {0: batch, 1: points}}, opset,
         )
-    if "denoiser" in paths:
+    if "denoiser" in paths and model.config.denoiser.local_points:
+        cloud = torch.export.Dim("cloud", min=model.config.denoiser.local_points, max=1 << 20)
+        _export(
+            LocalDenoiserGraph(model), args["denoiser"], paths["denoiser"],
+            [*DENOISER_INPUTS, *vols, DENOISER_POINTS], ["eps"],
+            {"x_t": {0: batch, 1: vertices}, "t": {0: batch}, "volumes": vol_shapes,
+             "points": {0: batch, 1: cloud}}, opset,
+        )
+    elif "denoiser" in paths:
         _export(
             DenoiserGraph(model), args["denoiser"], paths["denoiser"],
             [*DENOISER_INPUTS, *vols], ["eps"],

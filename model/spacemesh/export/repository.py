@@ -64,6 +64,7 @@ from spacemesh.runtime.backend import (
     CONNECTIVITY_INPUTS,
     CONNECTIVITY_OUTPUTS,
     DENOISER_INPUTS,
+    DENOISER_POINTS,
     ENCODER_INPUTS,
     volume_names,
 )
@@ -78,14 +79,16 @@ from spacemesh.runtime.repository import (
 )
 
 
-def graph_signatures(n_volumes: int) -> dict[str, dict[str, Any]]:
-    """File, input and output names of each graph."""
+def graph_signatures(n_volumes: int, local_points: bool = False) -> dict[str, dict[str, Any]]:
+    """File, input and output names of each graph (``local_points``: the denoiser also
+    takes the points)."""
     vols = volume_names(n_volumes)
+    points = [DENOISER_POINTS] if local_points else []
     return {
         "encoder": {"file": GRAPH_FILES["encoder"], "inputs": list(ENCODER_INPUTS),
                     "outputs": vols},
-        "denoiser": {"file": GRAPH_FILES["denoiser"], "inputs": [*DENOISER_INPUTS, *vols],
-                     "outputs": ["eps"]},
+        "denoiser": {"file": GRAPH_FILES["denoiser"],
+                     "inputs": [*DENOISER_INPUTS, *vols, *points], "outputs": ["eps"]},
         "connectivity": {"file": GRAPH_FILES["connectivity"],
                          "inputs": [*CONNECTIVITY_INPUTS, *vols],
                          "outputs": list(CONNECTIVITY_OUTPUTS)},
@@ -147,7 +150,8 @@ def build_manifest(
                     **POINTS_START},
         "geometry": geometry_section(),
         "embedding": embedding,
-        "graphs": graph_signatures(len(config.encoder.resolutions)),
+        "graphs": graph_signatures(len(config.encoder.resolutions),
+                                   bool(config.denoiser.local_points)),
         "files": files,
         "onnx": {"opset": opset, "exporter": "torch.onnx.export(dynamo=True)",
                  "torch": torch.__version__.split("+")[0]},
@@ -205,7 +209,8 @@ def write_model_repository(
         Replace an existing version folder.
     base : BaseModel, optional
         A connectivity-only run's base: its encoder and denoiser graphs are copied
-        byte for byte and only the connectivity graph is exported.
+        byte for byte and only the connectivity graph is exported (a diffusion-only
+        run's: its encoder and connectivity graphs, and only the denoiser is exported).
 
     Returns
     -------
@@ -222,8 +227,10 @@ def write_model_repository(
     if base is None:
         export_onnx(model, directory, opset=opset)
     else:
-        export_onnx(model, directory, opset=opset, graphs=("connectivity",))
-        for graph in ("encoder", "denoiser"):
+        frozen = base.frozen_graphs(model.config)
+        export_onnx(model, directory, opset=opset,
+                    graphs=tuple(g for g in GRAPH_FILES if g not in frozen))
+        for graph in frozen:
             shutil.copyfile(base.graph_path(graph), directory / GRAPH_FILES[graph])
     manifest = build_manifest(model, directory, name=name, version=version, opset=opset,
                               data=data, training=training, metrics=metrics)
@@ -295,7 +302,7 @@ def run_base(state: dict[str, Any]) -> BaseModel | None:
         return None
     base = BaseModel.load(card["path"])
     now = {f: e["sha256"] for f, e in base.manifest["files"].items()}
-    for graph in ("encoder.onnx", "denoiser.onnx"):
+    for graph in (GRAPH_FILES[g] for g in base.frozen_graphs(state["config"])):
         if now.get(graph) != card["files"].get(graph):
             raise ValueError(f"the base model {base.path} changed since training ({graph})")
     return base
@@ -544,10 +551,17 @@ def export_run(
         "optimizer": f"Adam(lr={config.train.lr})",
         "parameters": sum(p.numel() for p in model.parameters()),
     }
-    if base is not None:
+    if config.train.diffusion_only:
+        training["connectivity_steps"] = 0
+        training["shapes"] = state["step"] * config.train.batch_size * training["world_size"]
+        training["parameters"] = sum(p.numel() for p in model.denoiser.parameters())
+        training["trained"] = ("denoiser only, on a frozen encoder (volumes cached for "
+                               f"{config.train.encoder_cache} augmentations per shape)")
+    elif base is not None:
         training["steps"] = 0
         training["parameters"] = sum(p.numel() for p in model.connectivity.parameters())
         training["trained"] = "connectivity network only, on the base's frozen encoder"
+    if base is not None:
         training["base"] = {k: extra["base"][k] for k in ("name", "version", "files")}
         training["base_training"] = extra["base"].get("training", {})
     decode = decode_section(extra.get("data", {}))

@@ -1,11 +1,14 @@
-"""A trained model repository as the frozen base of a connectivity-only run.
+"""A trained model repository as the frozen base of a connectivity-only (or a
+diffusion-only) run.
 
 Training the connectivity network is the slow part of SpaceMesh (the paper trains it ten
 times as often as the diffusion model). ``spacemesh train --base MODEL_REPO`` trains a
 new connectivity network on the frozen encoder of an exported model: the encoder runs
 in onnxruntime (:class:`OnnxEncoder`, a drop-in for the torch encoder that has no
 parameters), the base's denoiser is kept as it is, and export copies both ONNX graphs
-unchanged next to the new connectivity graph.
+unchanged next to the new connectivity graph. A diffusion-only run
+(``TrainConfig.diffusion_only``) on a base trains a new denoiser instead, and export keeps
+the base's encoder and connectivity graphs.
 
 :class:`BaseModel` reads and verifies the repository and says what the run inherits.
 """
@@ -77,9 +80,19 @@ class BaseModel:
 
     def merged_config(self, config: ModelConfig) -> ModelConfig:
         """``config``'s connectivity network and training settings on the base's encoder,
-        denoiser, diffusion and vertex count (the parts the run inherits)."""
+        denoiser, diffusion and vertex count (the parts the run inherits); for a
+        diffusion-only run (``config.train.diffusion_only``), ``config``'s denoiser on
+        the base's encoder, connectivity network, diffusion and vertex count."""
+        if config.train.diffusion_only:
+            return replace(self.config, name=config.name, denoiser=config.denoiser,
+                           train=config.train)
         return replace(self.config, name=config.name, connectivity=config.connectivity,
                        train=config.train)
+
+    def frozen_graphs(self, config: ModelConfig) -> tuple[str, str]:
+        """The base graphs a run on it keeps (export copies them byte for byte): the
+        encoder, and the denoiser or (diffusion-only) the connectivity network."""
+        return ("encoder", "connectivity" if config.train.diffusion_only else "denoiser")
 
     def card(self) -> dict[str, Any]:
         """What a run records about its base: where it is, which files, how it was made."""

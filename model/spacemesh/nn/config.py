@@ -1,6 +1,7 @@
 """Model configurations as data, and the one factory that builds networks from them.
 
-Three named configurations:
+Three named configurations, and two variants with the local-point denoiser
+(``tiny-local``, ``small-local``: :attr:`DenoiserConfig.local_points`):
 
 ``tiny``
     For tests: trains in seconds, exports in seconds (width 32, one block, 64 vertices).
@@ -60,12 +61,21 @@ class DenoiserConfig:
     point_voxel : tuple of (resolution, channels)
         Optional PVConv layers on the vertex tokens after the input projection (the
         paper uses the encoder's sizes; CPU configs leave them out).
+    local_points : int
+        ``K`` of the local-point attention (0: none, the volumes only): before every
+        block each vertex token attends to the ``K`` input points nearest its current
+        position (their offsets, and their normals when the encoder reads normals; see
+        :mod:`spacemesh.nn.local_points`). The denoiser then also takes the points.
+    local_width : int
+        Hidden width of the neighbour features of the local-point attention.
     """
 
     width: int = 128
     layers: int = 4
     heads: int = 4
     point_voxel: tuple[tuple[int, int], ...] = ()
+    local_points: int = 0
+    local_width: int = 32
 
 
 @dataclass(frozen=True)
@@ -182,8 +192,20 @@ class TrainConfig:
         Backpropagate the connectivity loss into the encoder (the paper trains all
         networks together; CPU configs train the encoder by the diffusion loss only and
         skip the encoder's backward pass in connectivity steps).
+    diffusion_only : bool
+        Train the denoiser alone: the encoder is frozen (a base model's, or an
+        ``--init-from`` run's) and no connectivity step is taken.
+    encoder_cache : int
+        In a diffusion-only run, augmented variants per training shape whose frozen
+        encoder volumes are cached (each computed once, when first drawn; see
+        :mod:`spacemesh.train.encoder_cache`); 0 runs the frozen encoder on freshly
+        augmented shapes every step.
     val_every, checkpoint_every : int
         In diffusion steps.
+    checkpoint_minutes : float
+        Also write ``last.pt`` when this much wall time has passed since the last
+        checkpoint (0: only every ``checkpoint_every`` steps), so that a killed run loses
+        at most that much.
     val_shapes : int
         Validation shapes evaluated each time.
     """
@@ -204,8 +226,11 @@ class TrainConfig:
     false_positive_margin: float = 0.5
     grad_clip: float = 1.0
     connectivity_trains_encoder: bool = True
+    diffusion_only: bool = False
+    encoder_cache: int = 4
     val_every: int = 100
     checkpoint_every: int = 100
+    checkpoint_minutes: float = 0.0
     val_shapes: int = 32
 
 
@@ -318,12 +343,24 @@ PAPER = ModelConfig(
                       val_every=5000, checkpoint_every=5000, val_shapes=256),
 )
 
+#: ``tiny`` with the local-point denoiser (tests).
+TINY_LOCAL = replace(TINY, name="tiny-local",
+                     denoiser=replace(TINY.denoiser, local_points=8, local_width=16))
+
+#: ``small`` with the local-point denoiser: each vertex token reads its 16 nearest input
+#: points before every block.
+SMALL_LOCAL = replace(SMALL, name="small-local",
+                      denoiser=replace(SMALL.denoiser, local_points=16))
+
 #: The named configurations.
-CONFIGS: dict[str, ModelConfig] = {c.name: c for c in (TINY, SMALL, PAPER)}
+CONFIGS: dict[str, ModelConfig] = {
+    c.name: c for c in (TINY, SMALL, PAPER, TINY_LOCAL, SMALL_LOCAL)
+}
 
 
 def get_config(name: str) -> ModelConfig:
-    """The named configuration (``tiny``, ``small`` or ``paper``).
+    """The named configuration (``tiny``, ``small``, ``paper``, ``tiny-local`` or
+    ``small-local``).
 
     Parameters
     ----------

@@ -55,7 +55,8 @@ class SpaceMeshModel(nn.Module):
         den = config.denoiser
         self.denoiser = VertexDenoiser(
             width=den.width, layers=den.layers, heads=den.heads, feature_channels=features,
-            point_voxel=den.point_voxel,
+            point_voxel=den.point_voxel, local_points=den.local_points,
+            local_width=den.local_width, normals=enc.normals,
         )
         con = config.connectivity
         self.connectivity = ConnectivityNet(
@@ -88,6 +89,7 @@ class SpaceMeshModel(nn.Module):
         adjacency: Tensor | None = None,
         table: NeighbourTable | None = None,
         generator: torch.Generator | None = None,
+        volumes: list[Tensor] | None = None,
     ) -> dict[str, Tensor]:
         """The weighted loss of one training step and its parts.
 
@@ -106,6 +108,9 @@ class SpaceMeshModel(nn.Module):
             Ground-truth neighbourhoods over the flattened ``B * N`` vertices.
         generator : torch.Generator, optional
             Draws the diffusion timesteps and noise.
+        volumes : list of tensors, optional
+            The encoder's volumes of ``points``, already computed (a frozen encoder's,
+            from a cache); the encoder is not run then.
 
         Returns
         -------
@@ -113,14 +118,19 @@ class SpaceMeshModel(nn.Module):
             ``loss`` (weighted total) and its unweighted parts.
         """
         train = self.config.train
-        if mode == "connectivity" and not train.connectivity_trains_encoder:
-            with torch.no_grad():
-                volumes = [v.detach() for v in self.encoder(points)]
-        else:
-            volumes = self.encoder(points)
+        if volumes is None:
+            if mode == "connectivity" and not train.connectivity_trains_encoder:
+                with torch.no_grad():
+                    volumes = [v.detach() for v in self.encoder(points)]
+            else:
+                volumes = self.encoder(points)
         if mode == "diffusion":
             x0 = vertex_tokens(positions, valid)
-            parts = self.diffusion.training_losses(self.denoiser, x0, volumes, generator)
+
+            def denoiser(x_t: Tensor, t: Tensor, vols: list[Tensor]) -> Tensor:
+                return self.denoiser(x_t, t, vols, points)
+
+            parts = self.diffusion.training_losses(denoiser, x0, volumes, generator)
             loss = train.epsilon_weight * parts["epsilon"] + train.mask_weight * parts["mask"]
             return {"loss": loss, **parts}
         if mode != "connectivity":
@@ -343,10 +353,13 @@ class TorchBackend:
         return [v.float().cpu().numpy() for v in self.model.encoder(self._tensor(points))]
 
     @torch.no_grad()
-    def denoise(self, x_t: np.ndarray, t: np.ndarray, volumes: list[np.ndarray]) -> np.ndarray:
-        """Predicted noise ``(B, N, 4)`` of tokens ``x_t`` at timesteps ``t`` ``(B,)``."""
+    def denoise(self, x_t: np.ndarray, t: np.ndarray, volumes: list[np.ndarray],
+                points: np.ndarray | None = None) -> np.ndarray:
+        """Predicted noise ``(B, N, 4)`` of tokens ``x_t`` at timesteps ``t`` ``(B,)``
+        (``points``: the encoder's input, read by a local-point denoiser)."""
         vols = [self._tensor(v) for v in volumes]
-        eps = self.model.denoiser(self._tensor(x_t), self._tensor(t), vols)
+        cloud = None if points is None else self._tensor(np.asarray(points, np.float32))
+        eps = self.model.denoiser(self._tensor(x_t), self._tensor(t), vols, cloud)
         return eps.float().cpu().numpy()
 
     @torch.no_grad()

@@ -10,7 +10,9 @@ Graph interface (names of the ONNX inputs and outputs):
     ``points`` (B, P, 3 or 6) float32 -> ``volume_0`` ... ``volume_{L-1}``
     (B, C_r, R_r, R_r, R_r) float32.
 ``denoiser``
-    ``x_t`` (B, N, 4) float32, ``t`` (B,) int64, ``volume_*`` -> ``eps`` (B, N, 4).
+    ``x_t`` (B, N, 4) float32, ``t`` (B,) int64, ``volume_*`` -> ``eps`` (B, N, 4);
+    a local-point denoiser (``config.denoiser.local_points > 0``) also takes ``points``
+    (B, P, 3 or 6) float32, the encoder's input.
 ``connectivity``
     ``vertices`` (B, N, 3) float32, ``valid`` (B, N) bool, ``volume_*`` ->
     ``x`` (B, N, k), ``root``, ``prev``, ``next`` (B, N, kp), ``tau`` (1,).
@@ -27,6 +29,8 @@ from spacemesh.typed import FloatArray
 
 ENCODER_INPUTS = ("points",)
 DENOISER_INPUTS = ("x_t", "t")
+#: The extra input of a local-point denoiser graph (after the volumes).
+DENOISER_POINTS = "points"
 CONNECTIVITY_INPUTS = ("vertices", "valid")
 CONNECTIVITY_OUTPUTS = ("x", "root", "prev", "next", "tau")
 
@@ -62,7 +66,8 @@ class Backend(Protocol):
         ...
 
     def denoise(self, x_t: np.ndarray, t: np.ndarray, volumes: list[np.ndarray]) -> np.ndarray:
-        """Predicted noise ``(B, N, 4)``."""
+        """Predicted noise ``(B, N, 4)`` (a local-point model's backend also takes
+        ``points``, see :func:`denoiser_fn`)."""
         ...
 
     def connect(
@@ -91,10 +96,14 @@ class OnnxBackend:
         """Feature volumes of ``points`` ``(B, P, 3 or 6)``."""
         return self.encoder.run(self._volumes, {"points": np.ascontiguousarray(points, np.float32)})
 
-    def denoise(self, x_t: np.ndarray, t: np.ndarray, volumes: list[np.ndarray]) -> np.ndarray:
-        """Predicted noise ``(B, N, 4)``."""
+    def denoise(self, x_t: np.ndarray, t: np.ndarray, volumes: list[np.ndarray],
+                points: np.ndarray | None = None) -> np.ndarray:
+        """Predicted noise ``(B, N, 4)`` (``points``: the encoder's input, for a
+        local-point denoiser graph)."""
         feeds = {"x_t": np.ascontiguousarray(x_t, np.float32), "t": np.asarray(t, np.int64)}
         feeds.update(zip(self._volumes, volumes, strict=True))
+        if points is not None:
+            feeds[DENOISER_POINTS] = np.ascontiguousarray(points, np.float32)
         return self.denoiser.run(["eps"], feeds)[0]
 
     def connect(
@@ -108,3 +117,24 @@ class OnnxBackend:
         feeds.update(zip(self._volumes, volumes, strict=True))
         x, root, prev, nxt, tau = self.connectivity.run(list(CONNECTIVITY_OUTPUTS), feeds)
         return ConnectivityOutputs(x, root, prev, nxt, tau=float(np.asarray(tau).reshape(-1)[0]))
+
+
+def denoiser_fn(backend: Backend, volumes: list[np.ndarray], points: np.ndarray | None = None):
+    """``denoise(x_t, t) -> eps`` of one batch for the sampler loop.
+
+    Parameters
+    ----------
+    backend : Backend
+    volumes : list of arrays
+        The batch's encoder volumes.
+    points : (B, P, 3 or 6) array, optional
+        The encoder's input, passed on only for a local-point denoiser (None otherwise,
+        so that backends without local points keep their three-argument ``denoise``).
+
+    Returns
+    -------
+    callable
+    """
+    if points is None:
+        return lambda x_t, t: backend.denoise(x_t, t, volumes)
+    return lambda x_t, t: backend.denoise(x_t, t, volumes, points)

@@ -39,7 +39,7 @@ from spacemesh.geometry import (
 )
 from spacemesh.geometry.policy import decode_changes
 from spacemesh.mesh import PolygonMesh
-from spacemesh.runtime.backend import Backend
+from spacemesh.runtime.backend import Backend, denoiser_fn
 from spacemesh.runtime.options import GenerateOptions
 from spacemesh.runtime.sampler import ProgressFn, StageFn, sample, split_tokens
 from spacemesh.runtime.schedule import NoiseSchedule
@@ -104,6 +104,9 @@ class ModelSpec:
         creases and corners get denser vertices (``manifest["sampler"]["feature_boost"]``).
     geometry : GeometryOptions
         The geometry stage (``manifest["geometry"]`` overrides the defaults).
+    local_points : int
+        Nearest input points a local-point denoiser reads (0: none; it then also takes
+        the encoder's input, see :func:`spacemesh.runtime.backend.denoiser_fn`).
     """
 
     n_points: int
@@ -119,6 +122,7 @@ class ModelSpec:
     vertices: int = DEFAULT_VERTICES
     feature_boost: float = 0.0
     geometry: GeometryOptions = field(default_factory=GeometryOptions)
+    local_points: int = 0
 
     @classmethod
     def from_config(cls, config: dict[str, Any], betas: Sequence[float] | None = None,
@@ -156,6 +160,7 @@ class ModelSpec:
             steps=int(diffusion["steps"]),
             decode=DecodeOptions(distance=con["distance"], n_space=int(con["n_space"]),
                                  reduction=con["reduction"], reduction_params=params),
+            local_points=int(config["denoiser"].get("local_points", 0)),
         )
 
     @classmethod
@@ -629,7 +634,7 @@ class MeshGenerator:
         n_tokens = self.spec.max_vertices if clean is None else clean.shape[1]
         stage("sampler", 1, 1)
         tokens = sample(
-            lambda x, t: self.backend.denoise(x, t, volumes),
+            denoiser_fn(self.backend, volumes, points if self.spec.local_points else None),
             seeds=[options.seed for _, options in jobs], n_vertices=n_tokens,
             steps=self.spec.schedule.respaced(steps), method=method, progress=progress,
             start=clean, start_time=start_time,

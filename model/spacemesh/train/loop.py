@@ -12,6 +12,18 @@ trains: on the base's frozen encoder, run in onnxruntime
 connectivity steps and no diffusion step, and export keeps the base's encoder and
 denoiser graphs.
 
+A *diffusion-only* run (``TrainConfig.diffusion_only``) trains the denoiser alone, on a
+frozen encoder: a base's (in onnxruntime; export then keeps the base's encoder and
+connectivity graphs) or an ``--init-from`` run's. No connectivity step is taken, and the
+encoder's volumes of each augmented shape are computed once and cached
+(:mod:`spacemesh.train.encoder_cache`).
+
+A run stops cleanly at any time: SIGINT or SIGTERM (Ctrl-C, ``kill``, a scheduler's
+time limit) finishes the current step and writes a checkpoint, as ``--max-minutes`` does;
+``TrainConfig.checkpoint_minutes`` bounds what a hard kill loses. ``--resume`` continues
+with the same random streams, so a resumed run draws the batches an uninterrupted one
+would.
+
 A run folder holds::
 
     RUN/config.json              the ModelConfig
@@ -28,6 +40,8 @@ import contextlib
 import hashlib
 import json
 import math
+import signal
+import threading
 import time
 from collections import defaultdict
 from collections.abc import Callable
@@ -60,6 +74,7 @@ from spacemesh.train.distributed import (
     setup_distributed,
     wrap_model,
 )
+from spacemesh.train.encoder_cache import EncoderCache
 from spacemesh.train.evaluate import connectivity_metrics
 from spacemesh.train.logging import MetricsLog, plot_curves
 
@@ -162,16 +177,47 @@ def _init_base(init: dict[str, Any], base_path: Path | None) -> Path | None:
 def _check_init(init: dict[str, Any], config: ModelConfig, given_base: BaseModel | None
                 ) -> None:
     """Refuse an init checkpoint whose networks differ from the config's, or that was
-    trained on other base files than ``given_base`` (a ``--base`` given with it)."""
+    trained on other base files than ``given_base`` (a ``--base`` given with it). A
+    diffusion-only run may bring its own denoiser (it starts fresh, see
+    :func:`_load_init`)."""
     stored = init["extra"].get("base")
     if given_base is not None and given_base.card()["files"] != stored["files"]:
         raise ValueError(f"--init-from {init['path']} was trained on the base "
                          f"{stored['path']}, not on {given_base.path}")
     have, want = init["config"].to_dict(), config.to_dict()
-    differ = [k for k in want if k not in ("name", "train") and have.get(k) != want[k]]
+    free = ("name", "train", "denoiser") if config.train.diffusion_only else ("name", "train")
+    differ = [k for k in want if k not in free and have.get(k) != want[k]]
     if differ:
         raise ValueError(f"--init-from {init['path']}: its {', '.join(differ)} differ from "
                          f"the {config.name} config's")
+
+
+def _load_init(model: SpaceMeshModel, init: dict[str, Any]) -> None:
+    """Load an init checkpoint's weights; a denoiser of another architecture (a
+    diffusion-only run's new denoiser) keeps its fresh weights."""
+    if "connectivity" in init:  # an exported model: its connectivity network
+        model.connectivity.load_state_dict(init["connectivity"])
+        return
+    weights = init["model"]
+    if init["config"].denoiser != model.config.denoiser:
+        weights = {k: v for k, v in weights.items() if not k.startswith("denoiser.")}
+    missing, unexpected = model.load_state_dict(weights, strict=False)
+    wrong = [k for k in missing if not k.startswith("denoiser.")] + list(unexpected)
+    if wrong:
+        raise ValueError(f"--init-from {init['path']}: weights do not fit: {', '.join(wrong)}")
+
+
+def _base_connectivity(model: SpaceMeshModel, base: BaseModel) -> None:
+    """Read the base's connectivity weights into a diffusion-only run's (frozen) network,
+    so that the run's torch model is the whole model its export will be."""
+    from spacemesh.export.onnx_import import load_connectivity
+
+    channels = 6 if model.config.encoder.normals else 3
+    points = torch.rand(1, model.config.encoder.n_points, channels,
+                        generator=torch.Generator().manual_seed(0)) * 2 - 1
+    with torch.no_grad():
+        volumes = list(model.encoder(points))
+    load_connectivity(base.graph_path("connectivity"), model.connectivity, volumes)
 
 
 def _init_card(init: dict[str, Any]) -> dict[str, Any]:
@@ -248,6 +294,36 @@ def load_samples(
     return samples
 
 
+class StopRequests:
+    """SIGINT and SIGTERM ask the loop to stop after the current step, with a checkpoint
+    (a second signal interrupts at once). Handlers are installed only in the main
+    thread and restored on exit."""
+
+    def __init__(self) -> None:
+        self.signal: int | None = None
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> StopRequests:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._previous[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def _handle(self, signum: int, _frame: Any) -> None:
+        if self.signal is not None:
+            raise KeyboardInterrupt
+        self.signal = signum
+
+    def __exit__(self, *_exc: object) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+    @property
+    def requested(self) -> bool:
+        """A stop was asked for."""
+        return self.signal is not None
+
+
 def _autocast(device: torch.device):
     if device.type == "cuda":
         return torch.autocast("cuda", dtype=torch.bfloat16)
@@ -302,6 +378,10 @@ class Trainer:
             log(f"connectivity only, on the frozen encoder of {self.base.path}")
         if init is not None:
             _check_init(init, config, self.base if options.base is not None else None)
+        self.diffusion_only = config.train.diffusion_only
+        if self.diffusion_only and state is None and init is None and self.base is None:
+            raise ValueError("diffusion-only training freezes a trained encoder: give a base "
+                             "model (--base) or a run to start from (--init-from)")
         self.config = config
         self.rng = np.random.default_rng(options.seed + 1000 * info.rank)
         self.generator = torch.Generator().manual_seed(options.seed + 1000 * info.rank)
@@ -309,6 +389,12 @@ class Trainer:
         if self.base is not None:
             self.model.encoder = OnnxEncoder(self.base.graph_path("encoder"),
                                              threads=options.threads or 0)
+        if self.diffusion_only:
+            self.model.encoder.requires_grad_(False)
+            self.model.connectivity.requires_grad_(False)
+            if self.base is not None and state is None:
+                _base_connectivity(self.model, self.base)
+        elif self.base is not None:
             self.model.denoiser.requires_grad_(False)
         trainable = [p for p in self.model.parameters() if p.requires_grad]
         self.optimizer = torch.optim.Adam(trainable, lr=config.train.lr)
@@ -325,10 +411,7 @@ class Trainer:
                 self.generator.manual_seed(options.seed + 1000 * info.rank + self.start_step)
             log(f"resumed from {latest_checkpoint(self.out)} at step {self.start_step}")
         elif init is not None:
-            if "connectivity" in init:  # an exported model: its connectivity network
-                self.model.connectivity.load_state_dict(init["connectivity"])
-            else:
-                self.model.load_state_dict(init["model"])
+            _load_init(self.model, init)
             log(f"initialised from {init['path']} (step {init['step']})")
         self.ddp = wrap_model(self.model, info)
         mv = config.max_vertices
@@ -339,6 +422,14 @@ class Trainer:
         val_dir = options.val_data or options.data
         val_split = None if options.val_data else "val"
         self.val_samples = load_samples(val_dir, val_split, mv, config.train.val_shapes, log=log)
+        self.cache = None
+        if self.diffusion_only and config.train.encoder_cache:
+            enc = config.encoder
+            self.cache = EncoderCache(
+                self.model.encoder, self.train_samples, variants=config.train.encoder_cache,
+                seed=options.seed, n_points=enc.n_points, normals=enc.normals, pad_to=mv,
+                scale_range=config.train.scale_range, device=info.device,
+            )
         self.card = data_card(options.data, mv, len(self.train_samples), len(self.val_samples))
         if self.base is not None:
             self.card["base"] = self.base.card()
@@ -383,16 +474,31 @@ class Trainer:
         )
         return batch.to(self.info.device)
 
+    def _frozen_batch(self):
+        """A diffusion batch and its frozen encoder's volumes (cached, or computed
+        without gradients)."""
+        if self.cache is not None:
+            return self.cache.batch(self._pick(True), self.rng)
+        batch = self._batch(True)
+        with torch.no_grad():
+            volumes = [v.detach() for v in self.model.encoder(batch.points)]
+        return batch, volumes
+
     def _step(self, mode: str) -> dict[str, float]:
-        batch = self._batch(mode == "diffusion")
+        volumes = None
+        if mode == "diffusion" and self.diffusion_only:
+            batch, volumes = self._frozen_batch()
+        else:
+            batch = self._batch(mode == "diffusion")
         self.optimizer.zero_grad(set_to_none=True)
         with _autocast(self.info.device):
             out = self.ddp(mode, batch.points, batch.positions, batch.valid, batch.adjacency,
-                           batch.table, self.generator)
+                           batch.table, self.generator, volumes)
         out["loss"].backward()
         clip = self.config.train.grad_clip
         if clip > 0:
-            torch.nn.utils.clip_grad_norm_(self.model.parameters(), clip)
+            torch.nn.utils.clip_grad_norm_(
+                [p for p in self.model.parameters() if p.requires_grad], clip)
         self.optimizer.step()
         return {k: float(v.detach()) for k, v in out.items()}
 
@@ -414,15 +520,18 @@ class Trainer:
                 out = model("diffusion", b.points, b.positions, b.valid, generator=gen)
                 sums["val_epsilon"].append(float(out["epsilon"]))
                 sums["val_mask"].append(float(out["mask"]))
+            if self.diffusion_only:
+                continue
             b = collate(chunk, n_points=enc.n_points, normals=enc.normals, rng=rng)
             b = b.to(self.info.device)
             out = model("connectivity", b.points, b.positions, b.valid, b.adjacency, b.table)
             sums["val_edge"].append(float(out["edge"]))
             sums["val_permutation"].append(float(out["permutation"]))
         row = {k: float(np.mean(v)) for k, v in sums.items()}
-        conn = connectivity_metrics(model, self.val_samples, batch_size=bs)
-        row.update(val_edge_f1=conn["edge_f1"], val_next_accuracy=conn["next_accuracy"],
-                   val_exact=conn["exact"])
+        if not self.diffusion_only:
+            conn = connectivity_metrics(model, self.val_samples, batch_size=bs)
+            row.update(val_edge_f1=conn["edge_f1"], val_next_accuracy=conn["next_accuracy"],
+                       val_exact=conn["exact"])
         model.train()
         return row
 
@@ -442,11 +551,35 @@ class Trainer:
         return path
 
     def run(self) -> TrainSummary:
-        """Train until ``config.train.steps`` or ``max_seconds``."""
+        """Train until ``config.train.steps``, ``max_seconds`` or a stop signal."""
+        with StopRequests() as stops:
+            return self._run(stops)
+
+    def train_step(self, step: int, running: dict[str, list[float]]) -> None:
+        """One step at the learning rate of ``step``: a diffusion step (unless the run
+        trains connectivity only), then the connectivity steps (unless diffusion only);
+        losses are appended to ``running``."""
+        for group in self.optimizer.param_groups:
+            group["lr"] = self.lr_at(step)
+        if self.base is None or self.diffusion_only:
+            for k, v in self._step("diffusion").items():
+                running[f"train_{k}" if k != "loss" else "train_diffusion_loss"].append(v)
+        for _ in range(0 if self.diffusion_only else self.config.train.connectivity_steps):
+            for k, v in self._step("connectivity").items():
+                running[f"train_{k}" if k != "loss" else "train_connectivity_loss"].append(v)
+
+    def _shapes(self, step: int) -> int:
+        """Shapes the denoiser has seen after ``step`` steps (0 if it does not train)."""
+        if self.base is not None and not self.diffusion_only:
+            return 0
+        return step * self.config.train.batch_size * self.info.world_size
+
+    def _run(self, stops: StopRequests) -> TrainSummary:
         from tqdm import tqdm
 
         train = self.config.train
         start = time.perf_counter()
+        last_save = start
         running: dict[str, list[float]] = defaultdict(list)
         bar = tqdm(total=train.steps, initial=self.start_step, unit="step",
                    disable=not (self.options.progress and self.info.is_main), dynamic_ncols=True)
@@ -455,49 +588,46 @@ class Trainer:
         last_row: dict[str, float] = {}
         self.model.train()
         while step < train.steps:
-            for group in self.optimizer.param_groups:
-                group["lr"] = self.lr_at(step)
-            if self.base is None:
-                for k, v in self._step("diffusion").items():
-                    running[f"train_{k}" if k != "loss" else "train_diffusion_loss"].append(v)
-            for _ in range(train.connectivity_steps):
-                for k, v in self._step("connectivity").items():
-                    running[f"train_{k}" if k != "loss" else "train_connectivity_loss"].append(v)
+            self.train_step(step, running)
             step += 1
-            seconds = self.elapsed_before + time.perf_counter() - start
+            now = time.perf_counter()
+            seconds = self.elapsed_before + now - start
             bar.update(1)
-            postfix = {"edge": f"{np.mean(running['train_edge'][-20:]):.4f}",
-                       "perm": f"{np.mean(running['train_permutation'][-20:]):.3f}"}
-            if self.base is None:
-                postfix["eps"] = f"{np.mean(running['train_epsilon'][-20:]):.3f}"
-            bar.set_postfix(postfix)
+            bar.set_postfix({short: f"{np.mean(running[key][-20:]):.4f}"
+                             for short, key in (("edge", "train_edge"),
+                                                ("perm", "train_permutation"),
+                                                ("eps", "train_epsilon")) if running.get(key)})
             out_of_time = self.options.max_seconds is not None and (
-                time.perf_counter() - start > self.options.max_seconds
+                now - start > self.options.max_seconds
             )
-            stop = any_rank(out_of_time, self.info) or step >= train.steps
-            if step % train.val_every == 0 or step % train.checkpoint_every == 0 or stop:
+            stop = any_rank(out_of_time or stops.requested, self.info) or step >= train.steps
+            due = any_rank(train.checkpoint_minutes > 0
+                           and now - last_save > 60.0 * train.checkpoint_minutes, self.info)
+            if step % train.val_every == 0 or step % train.checkpoint_every == 0 or stop or due:
                 if self.info.is_main:
-                    row = {"step": step, "seconds": seconds, "lr": self.lr_at(step)}
+                    row = {"step": step, "seconds": seconds, "lr": self.lr_at(step),
+                           "shapes": self._shapes(step)}
                     row.update({k: float(np.mean(v)) for k, v in running.items()})
                     running.clear()
                     if step % train.val_every == 0 or stop:
                         self.last_validation = {"step": step, **self.validate()}
                         row.update(self.last_validation)
-                        eps = row.get("val_epsilon")
-                        self.log(
-                            f"step {step}: val edge F1 {row['val_edge_f1']:.4f}, next "
-                            f"{row['val_next_accuracy']:.4f}"
-                            + ("" if eps is None else f", eps {eps:.4f}")
-                        )
+                        self.log(f"step {step}: " + ", ".join(
+                            f"{name} {row[key]:.4f}" for name, key in (
+                                ("val edge F1", "val_edge_f1"), ("next", "val_next_accuracy"),
+                                ("eps", "val_epsilon")) if key in row))
                     self.metrics.append(row)
                     plot_curves(self.metrics, self.out / "curves.png")
                     last_row = row
-                    if step % train.checkpoint_every == 0 or stop:
+                    if step % train.checkpoint_every == 0 or stop or due:
                         last_path = self.save(step, seconds)
+                        last_save = time.perf_counter()
                 barrier(self.info)
             if stop:
                 break
         bar.close()
+        if stops.requested:
+            self.log(f"stopped by signal {stops.signal} at step {step}; checkpoint {last_path}")
         seconds = self.elapsed_before + time.perf_counter() - start
         return TrainSummary(self.out, step, seconds, last_path, last_row)
 
