@@ -21,7 +21,9 @@ import io
 import os
 import re
 import struct
+import tokenize
 import zipfile
+import zlib
 from typing import BinaryIO
 
 import numpy as np
@@ -44,6 +46,22 @@ SUPPORTED_POINTS_READ: tuple[str, ...] = tuple(
     sorted({"npy", "npz", "obj", "ply", "off", "stl", "glb", "gltf", *_TEXT_TYPES})
 )
 _SEPARATORS = re.compile(r"[\s,;]+")
+#: What NumPy's and zipfile's readers raise on malformed bytes (headers are evaluated
+#: with ``ast.literal_eval`` and older ones tokenised; members are inflated with zlib).
+_ARCHIVE_ERRORS = (
+    ValueError,
+    OSError,
+    EOFError,
+    SyntaxError,
+    TypeError,
+    KeyError,
+    NotImplementedError,
+    RuntimeError,
+    struct.error,
+    tokenize.TokenError,
+    zlib.error,
+    zipfile.BadZipFile,
+)
 #: Most members an ``.npz`` archive may list (its central directory is read whole).
 MAX_NPZ_MEMBERS = 64
 
@@ -144,7 +162,7 @@ def _npy_header(stream: BinaryIO, fmt: str) -> tuple[tuple[int, ...], np.dtype]:
             shape, _, dtype = np.lib.format.read_array_header_1_0(stream)
         else:  # 2.0 and 3.0 share the layout (3.0's header is UTF-8)
             shape, _, dtype = np.lib.format.read_array_header_2_0(stream)
-    except (ValueError, OSError, EOFError, SyntaxError, TypeError, struct.error) as exc:
+    except _ARCHIVE_ERRORS as exc:
         raise MeshFormatError(f"{fmt}: not a readable NumPy array header ({exc})") from None
     return tuple(int(n) for n in shape), np.dtype(dtype)
 
@@ -189,7 +207,7 @@ def parse_npy(
     _check_npy_header(shape, dtype, "NPY", limits or UNLIMITED, len(data) - stream.tell())
     try:
         array = np.load(io.BytesIO(data), allow_pickle=False)
-    except (ValueError, OSError, EOFError) as exc:
+    except _ARCHIVE_ERRORS as exc:
         raise MeshFormatError(f"NPY: not a readable NumPy array file ({exc})") from None
     if not isinstance(array, np.ndarray):
         raise MeshFormatError("NPY: the file does not hold a single array")
@@ -268,16 +286,7 @@ def parse_npz(
             arrays = {k: _read_member(archive, members[k], "NPZ", limits) for k in wanted}
     except MeshFormatError:
         raise
-    except (
-        ValueError,
-        OSError,
-        EOFError,
-        zipfile.BadZipFile,
-        KeyError,
-        NotImplementedError,
-        RuntimeError,
-        struct.error,
-    ) as exc:
+    except _ARCHIVE_ERRORS as exc:
         raise MeshFormatError(f"NPZ: not a readable NumPy archive ({exc})") from None
     if "points" in arrays:
         points, normals = _split_normals(arrays["points"], "NPZ")

@@ -219,8 +219,9 @@ class Region:
     def vertex_mask(self, vertices: FloatArray) -> BoolArray:
         """(V,) vertices inside a sphere or box region."""
         if self.kind == "sphere":
-            d2 = np.sum((vertices - self.center) ** 2, axis=1)
-            return d2 <= self.radius**2
+            with np.errstate(over="ignore"):  # a radius past 1e154 squares to inf
+                d2 = np.sum((vertices - self.center) ** 2, axis=1)
+                return d2 <= np.float64(self.radius) ** 2
         if self.kind == "box":
             return np.all((vertices >= self.lower) & (vertices <= self.upper), axis=1)
         raise ValueError(f"a {self.kind} region has no vertex test")
