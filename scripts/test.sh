@@ -11,6 +11,11 @@ if ! command -v nginx >/dev/null 2>&1 && [ "$(id -u)" = 0 ] && command -v apt-ge
     (apt-get update -qq && apt-get install -y -qq nginx-light >/dev/null 2>&1) \
         || echo "note: nginx could not be installed; the nginx test will be skipped"
 fi
+# chromium and its driver let tests/browser drive the web page in a real headless browser
+if ! command -v chromedriver >/dev/null 2>&1 && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+    (apt-get update -qq && apt-get install -y -qq chromium chromium-driver >/dev/null 2>&1) \
+        || echo "note: chromium could not be installed; the browser tests will be skipped"
+fi
 [ -x "$VENV/bin/python" ] || "$PYTHON" -m venv "$VENV"
 "$VENV/bin/python" -m pip install -q --upgrade pip
 "$VENV/bin/python" -m pip install -q "torch==2.13.0"

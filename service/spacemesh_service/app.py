@@ -59,6 +59,7 @@ from spacemesh_service.problems import Problem
 from spacemesh_service.security import Guard, RestGuard, without_paths
 from spacemesh_service.settings import Settings
 from spacemesh_service.streaming import stream_response, stream_responses
+from spacemesh_service.ui import install_ui
 
 log = logging.getLogger("spacemesh.service")
 
@@ -498,6 +499,9 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
     async def metrics() -> Response:
         """Prometheus metrics."""
         return Response(engine.metrics.render(), media_type=METRICS_CONTENT_TYPE)
+
+    if settings.ui:  # the web page at / (spacemesh_service.ui)
+        install_ui(app, engine, _limited)
 
     def openapi() -> dict[str, Any]:
         if app.openapi_schema is None:

@@ -121,6 +121,8 @@ class Settings(BaseModel):
         "--tls-key.")
     tls_key: Path | None = Field(
         None, validate_default=True, description="TLS private key (PEM); needs --tls-cert.")
+    ui: bool = Field(True, description="Serve the web page at / (and its assets under "
+                     "/static); --no-ui turns it off.")
 
     @field_validator("trusted_proxies")
     @classmethod

@@ -51,8 +51,9 @@ def spacemesh_headers(headers) -> dict[str, str]:
             if k.lower().startswith("x-spacemesh-") and k.lower() not in VARYING}
 
 
-def test_progress_comes_before_a_result_equal_to_the_plain_route(http, case):
-    params = {"seed": case.good_seed, "format": "ply"}
+@pytest.mark.parametrize("start", ["noise", "points"])
+def test_progress_comes_before_a_result_equal_to_the_plain_route(http, case, start):
+    params = {"seed": case.good_seed, "format": "ply", "start": start, "steps": 6}
     files = {"file": ("cloud.ply", as_ply(case.points))}
     response, events = stream(http, "/generate/stream", params=params, files=files)
     assert response.status_code == 200
@@ -66,7 +67,7 @@ def test_progress_comes_before_a_result_equal_to_the_plain_route(http, case):
         assert stage in stages, stages
     assert stages[0] == "queued" and stages[-1] == "encode_output"
     assert stages.index("encoder") < stages.index("sampler") < stages.index("connectivity")
-    steps = [p for p in progress if p["stage"] == "sampler" and p["done"] > 1]
+    steps = [p for p in progress if p["stage"] == "sampler" and p["done"] >= 1]
     fractions = [p["fraction"] for p in progress]
     assert fractions == sorted(fractions) and 0 < fractions[0] and fractions[-1] < 1
 
@@ -78,9 +79,10 @@ def test_progress_comes_before_a_result_equal_to_the_plain_route(http, case):
     assert result["media_type"] == plain.headers["content-type"]
     assert f'filename="{result["filename"]}"' in plain.headers["content-disposition"]
     assert spacemesh_headers(result["headers"]) == spacemesh_headers(plain.headers)
-    total = int(plain.headers["x-spacemesh-steps"])
-    if steps:  # one event per diffusion step, counting up to the last
-        assert [p["done"] for p in steps][-1] == steps[-1]["total"] <= total
+    # the sampler begins with 0 of its steps done, then one event per diffusion step
+    begin = next(p for p in progress if p["stage"] == "sampler")
+    assert begin["done"] == 0 and begin["total"] <= int(plain.headers["x-spacemesh-steps"])
+    assert [p["done"] for p in steps] == list(range(1, begin["total"] + 1))
 
 
 class BrokenAfterStart(WrappedGenerator):

@@ -499,7 +499,7 @@ class MeshGenerator:
             ``progress(done, total)`` over the denoiser steps of all groups.
         stage : callable, optional
             ``stage(name, done, total)`` as each stage begins: ``encoder``, ``sampler``
-            (once per group, ``done`` of ``total`` groups), then ``decode``,
+            (0 of its ``total`` denoiser steps done; ``progress`` follows), then ``decode``,
             ``geometry`` (not with ``raw``) and ``report`` for the ``done``-th of
             ``total`` meshes of the group (a request with ``samples = K`` makes K).
             Reporting never changes a result.
@@ -632,7 +632,7 @@ class MeshGenerator:
         t1 = time.perf_counter()
         clean = self._start_tokens(jobs) if start == "points" else None
         n_tokens = self.spec.max_vertices if clean is None else clean.shape[1]
-        stage("sampler", 1, 1)
+        stage("sampler", 0, self._denoiser_steps(key))
         tokens = sample(
             denoiser_fn(self.backend, volumes, points if self.spec.local_points else None),
             seeds=[options.seed for _, options in jobs], n_vertices=n_tokens,
