@@ -99,7 +99,7 @@ class Client(_Options):
         An httpx transport for REST (tests, proxies); ignored for gRPC.
     api_key : str, optional
         Sent as ``Authorization: Bearer KEY`` (REST header, gRPC metadata); default
-        ``$SPACEMESH_API_KEY``. A missing or wrong key raises
+        ``$SPACEMESH_API_KEY`` (``""``: none). A missing or wrong key raises
         :class:`~spacemesh_client.errors.Unauthorized`.
     verify : bool or path
         How ``https``/``grpcs`` check the server's certificate: True (the system's CAs),

@@ -30,20 +30,19 @@ def auth_headers(headers: Mapping[str, str] | None, api_key: str | None) -> dict
     headers : mapping, optional
         The caller's headers; an ``Authorization`` among them wins.
     api_key : str, optional
-        Default ``$SPACEMESH_API_KEY``; no header without either.
+        Default ``$SPACEMESH_API_KEY``; no header without either, or with ``""``.
 
     Raises
     ------
     ValueError
-        A key with spaces or line breaks (it could not be sent as one header).
+        A key with spaces or line breaks inside (it could not be sent as one header).
     """
     out = dict(headers or {})
-    key = api_key if api_key is not None else os.environ.get(API_KEY_ENV) or None
-    if key is None or any(k.lower() == "authorization" for k in out):
+    key = (api_key if api_key is not None else os.environ.get(API_KEY_ENV) or "").strip()
+    if not key or any(k.lower() == "authorization" for k in out):
         return out
-    key = key.strip()
-    if not key or any(c.isspace() for c in key):
-        raise ValueError("an API key cannot be empty or contain spaces")
+    if any(c.isspace() for c in key):
+        raise ValueError("an API key cannot contain spaces or line breaks")
     out["Authorization"] = f"Bearer {key}"
     return out
 
