@@ -108,7 +108,6 @@ NON_ORIENTABLE = _kind("non-orientable", "The mesh is not orientable", 422,
 INTERNAL = _kind("internal-error", "Internal server error", 500, _C.INTERNAL)
 INVALID_OUTPUT = _kind("invalid-output", "The generated mesh failed validation", 500,
                        _C.INTERNAL)
-NOT_IMPLEMENTED = _kind("not-implemented", "Not implemented yet", 501, _C.UNIMPLEMENTED)
 QUEUE_FULL = _kind("queue-full", "The server is busy", 503, _C.UNAVAILABLE)
 NOT_READY = _kind("not-ready", "The model is not ready", 503, _C.UNAVAILABLE)
 SHUTTING_DOWN = _kind("shutting-down", "The server is shutting down", 503, _C.UNAVAILABLE)
@@ -123,7 +122,7 @@ KINDS: dict[str, ProblemKind] = {
         DEGENERATE_GEOMETRY, INVALID_NORMALS, NORMALS_REQUIRED, NO_SURFACE, INVALID_REGION,
         EMPTY_REGION, WHOLE_MESH_REGION, DEFECTS_OUTSIDE_REGION, REGION_TOO_LARGE,
         REGION_GROWTH_EXCEEDED, NON_ORIENTABLE, INTERNAL,
-        INVALID_OUTPUT, NOT_IMPLEMENTED, QUEUE_FULL, NOT_READY, SHUTTING_DOWN, TIMEOUT,
+        INVALID_OUTPUT, QUEUE_FULL, NOT_READY, SHUTTING_DOWN, TIMEOUT,
     )
 }
 #: The kinds a repair region can be refused with (422).
