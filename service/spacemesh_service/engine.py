@@ -94,6 +94,9 @@ class Reply:
     repair : dict, optional
         What a repair did (:func:`~spacemesh_service.outputs.repair_summary`); None for
         a generated mesh.
+    input_kind : str, optional
+        How a generation's input file was read: ``mesh`` (its surface sampled) or
+        ``points`` (``X-SpaceMesh-Input``); None for a repair.
     """
 
     mesh: EncodedMesh
@@ -104,6 +107,7 @@ class Reply:
     batch_size: int
     sample_scores: list[tuple[int, float]] = field(default_factory=list)
     repair: dict[str, Any] | None = None
+    input_kind: str | None = None
 
     @property
     def seed(self) -> int:
@@ -128,6 +132,8 @@ class Reply:
         headers.update(value_headers(self.options))
         if self.sample_scores:
             headers["X-SpaceMesh-Sample-Scores"] = sample_scores_header(self.sample_scores)
+        if self.input_kind is not None:
+            headers["X-SpaceMesh-Input"] = self.input_kind
         headers.update({
             "X-SpaceMesh-Model": f"{self.model_name}/{self.model_version}",
             "X-SpaceMesh-Batch-Size": str(self.batch_size),
@@ -418,7 +424,7 @@ class Engine:
         timings["total"] = time.perf_counter() - started
         self.metrics.observe_stage("encode_output", timings["encode_output"])
         return Reply(encoded, options, self.model_name, self.model_version, timings,
-                     outcome.batch_size, sample_scores=scores)
+                     outcome.batch_size, sample_scores=scores, input_kind=cloud.input_kind)
 
     async def _queued(self, work: Any, spent: float) -> Any:
         """Await the batcher (``submit`` or ``submit_call``) within what is left of the

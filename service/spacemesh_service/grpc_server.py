@@ -76,6 +76,8 @@ def reply_to_pb(reply: Reply) -> pb.MeshReply:
     )
     if reply.repair is not None:
         message.repair.CopyFrom(repair_stats_to_pb(reply.repair))
+    if reply.input_kind is not None:
+        message.input_kind = reply.input_kind
     return message
 
 

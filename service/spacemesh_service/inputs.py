@@ -43,7 +43,8 @@ from spacemesh.io.errors import (
     UnsupportedFormatError,
 )
 from spacemesh.io.limits import ReadLimits, load_json
-from spacemesh.io.points import SUPPORTED_POINTS_READ, load_points
+from spacemesh.io.points import SUPPORTED_POINTS_READ
+from spacemesh.io.surface import input_kind, load_cloud_input
 from spacemesh.mesh import PolygonMesh
 from spacemesh.repair.region import Region, RegionError, parse_region
 from spacemesh.runtime.cloud import CloudError
@@ -152,12 +153,18 @@ class PointCloud:
     points : (P, 3) float64
     normals : (P, 3) float64 or None
     source : str
-        ``json``, ``points`` (gRPC numbers) or the file format read.
+        ``json``, ``points`` (gRPC numbers) or the file format read (``obj-surface``:
+        points sampled on a mesh's faces).
     """
 
     points: np.ndarray
     normals: np.ndarray | None
     source: str
+
+    @property
+    def input_kind(self) -> str:
+        """``mesh`` (a mesh's surface sampled) or ``points`` (``X-SpaceMesh-Input``)."""
+        return input_kind(self.source)
 
 
 # ---------------------------------------------------------------------- reading
@@ -174,7 +181,10 @@ def read_upload(data: bytes, filename: str | None, limits: ReadLimits | None = N
     """Points (and normals) of an uploaded file.
 
     The extension picks the format when it is one we read; otherwise the content is
-    sniffed (PLY, NPY, NPZ, OBJ, number columns...).
+    sniffed (PLY, NPY, NPZ, OBJ, number columns...). A file whose reader finds faces (a
+    mesh) is sampled area-uniformly on its surface, with face normals
+    (:func:`spacemesh.io.surface.load_cloud_input`; ``source`` is then e.g.
+    ``obj-surface``).
 
     Parameters
     ----------
@@ -203,7 +213,7 @@ def read_upload(data: bytes, filename: str | None, limits: ReadLimits | None = N
                       f"cannot read {what}; supported: {', '.join(INPUT_FORMATS)}",
                       supported=list(INPUT_FORMATS))
     try:
-        points, normals = load_points(data, file_type=source, limits=limits)
+        cloud = load_cloud_input(data, file_type=source, limits=limits)
     except TooLargeError as error:
         raise P.too_large_problem(error) from None
     except UnsupportedFormatError as error:
@@ -212,7 +222,7 @@ def read_upload(data: bytes, filename: str | None, limits: ReadLimits | None = N
         raise Problem(P.NON_FINITE, str(error)) from None
     except MeshFormatError as error:
         raise Problem(P.MALFORMED_INPUT, str(error)) from None
-    return points, normals, source
+    return cloud.points, cloud.normals, cloud.source
 
 
 def read_mesh_upload(data: bytes, filename: str | None, limits: ReadLimits | None = None

@@ -118,7 +118,7 @@ class MeshStats(_message.Message):
     def __init__(self, vertices: _Optional[int] = ..., faces: _Optional[int] = ..., edges: _Optional[int] = ..., face_degrees: _Optional[_Mapping[int, int]] = ..., manifold: _Optional[bool] = ..., closed: _Optional[bool] = ..., oriented: _Optional[bool] = ..., components: _Optional[int] = ..., genus: _Optional[int] = ..., fit: _Optional[_Union[FitReport, _Mapping]] = ...) -> None: ...
 
 class MeshReply(_message.Message):
-    __slots__ = ("mesh", "format", "media_type", "stats", "seed", "steps", "sampler", "model_name", "model_version", "timings", "batch_size", "repair", "start", "start_time", "target_vertices", "samples", "raw", "sample_scores")
+    __slots__ = ("mesh", "format", "media_type", "stats", "seed", "steps", "sampler", "model_name", "model_version", "timings", "batch_size", "repair", "start", "start_time", "target_vertices", "samples", "raw", "sample_scores", "input_kind")
     class TimingsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -144,6 +144,7 @@ class MeshReply(_message.Message):
     SAMPLES_FIELD_NUMBER: _ClassVar[int]
     RAW_FIELD_NUMBER: _ClassVar[int]
     SAMPLE_SCORES_FIELD_NUMBER: _ClassVar[int]
+    INPUT_KIND_FIELD_NUMBER: _ClassVar[int]
     mesh: bytes
     format: str
     media_type: str
@@ -162,7 +163,8 @@ class MeshReply(_message.Message):
     samples: int
     raw: bool
     sample_scores: _containers.RepeatedCompositeFieldContainer[SampleScore]
-    def __init__(self, mesh: _Optional[bytes] = ..., format: _Optional[str] = ..., media_type: _Optional[str] = ..., stats: _Optional[_Union[MeshStats, _Mapping]] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., model_name: _Optional[str] = ..., model_version: _Optional[str] = ..., timings: _Optional[_Mapping[str, float]] = ..., batch_size: _Optional[int] = ..., repair: _Optional[_Union[RepairStats, _Mapping]] = ..., start: _Optional[str] = ..., start_time: _Optional[float] = ..., target_vertices: _Optional[int] = ..., samples: _Optional[int] = ..., raw: _Optional[bool] = ..., sample_scores: _Optional[_Iterable[_Union[SampleScore, _Mapping]]] = ...) -> None: ...
+    input_kind: str
+    def __init__(self, mesh: _Optional[bytes] = ..., format: _Optional[str] = ..., media_type: _Optional[str] = ..., stats: _Optional[_Union[MeshStats, _Mapping]] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., model_name: _Optional[str] = ..., model_version: _Optional[str] = ..., timings: _Optional[_Mapping[str, float]] = ..., batch_size: _Optional[int] = ..., repair: _Optional[_Union[RepairStats, _Mapping]] = ..., start: _Optional[str] = ..., start_time: _Optional[float] = ..., target_vertices: _Optional[int] = ..., samples: _Optional[int] = ..., raw: _Optional[bool] = ..., sample_scores: _Optional[_Iterable[_Union[SampleScore, _Mapping]]] = ..., input_kind: _Optional[str] = ...) -> None: ...
 
 class RepairStats(_message.Message):
     __slots__ = ("requested_faces", "region_faces", "grown_faces", "removed_vertices", "boundary_vertices", "loops", "new_vertices", "new_faces", "new_face_degrees", "patch_faces", "patch_rings", "known_vertices", "tokens", "candidates", "fallback", "fill", "inpaint", "flipped_orientation", "welded_vertices", "region_share", "auto_region", "passes", "reversed_faces", "flipped_mesh", "findings", "findings_total", "regions")

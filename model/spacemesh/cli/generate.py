@@ -26,7 +26,9 @@ MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".off")
 @app.command()
 def generate(
     points_path: Annotated[
-        Path, typer.Argument(metavar="POINTS", help="Point cloud (PLY, XYZ, NPY, NPZ ...).")
+        Path, typer.Argument(metavar="POINTS", help="Point cloud (PLY, XYZ, NPY, NPZ ...), "
+                             "or a mesh (OBJ, OFF, PLY, STL, GLB/glTF with faces), whose "
+                             "surface is sampled.")
     ],
     output: Annotated[
         Path, typer.Option("-o", "--output", help="Mesh file: .glb, .gltf, .obj, .ply or .off.")
@@ -77,7 +79,7 @@ def generate(
 
     from spacemesh.io import save_mesh
     from spacemesh.io.errors import MeshFormatError
-    from spacemesh.io.points import load_points
+    from spacemesh.io.surface import load_cloud_input
     from spacemesh.runtime import MeshGenerator, ModelRepositoryError
     from spacemesh.runtime.cloud import CloudError, validate_cloud
     from spacemesh.runtime.options import GenerateOptions, OptionError
@@ -89,13 +91,14 @@ def generate(
     if not points_path.is_file():
         fail(f"{points_path}: no such file")
     try:
-        points, normals = load_points(points_path)
-    except MeshFormatError as error:
-        fail(f"{points_path}: {error}")
-    try:
         generator = MeshGenerator.from_repository(model, intra_op_threads=threads)
     except ModelRepositoryError as error:
         fail(str(error))
+    try:  # a mesh's surface is sampled to the model's point count
+        cloud = load_cloud_input(points_path, n_points=generator.spec.n_points)
+    except MeshFormatError as error:
+        fail(f"{points_path}: {error}")
+    points, normals = cloud.points, cloud.normals
     try:
         points, normals = validate_cloud(points, normals,
                                          needs_normals=generator.spec.normals)
@@ -124,7 +127,8 @@ def generate(
         typer.echo("spacemesh: warning: the model produced an empty mesh", err=True)
     fit = result.fit.to_dict() if result.fit is not None else {}
     summary = {
-        "output": str(output), "model": generator.name, **result.options.to_dict(),
+        "output": str(output), "model": generator.name, "input": cloud.kind,
+        **result.options.to_dict(),
         "vertices": result.mesh.n_vertices, "faces": result.mesh.n_faces, "fit": fit,
         "sample_scores": [[s, score] for s, score in result.sample_scores],
         "timings": {k: round(v, 4) for k, v in result.timings.items()},
