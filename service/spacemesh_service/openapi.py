@@ -8,11 +8,15 @@ JSON field, reported header) comes from the table of :mod:`spacemesh_service.opt
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
+import numpy as np
 from pydantic import BaseModel, Field, create_model
 
+from spacemesh.examples import icosphere
 from spacemesh.geometry.report import FitReport
+from spacemesh.io import export_mesh
 from spacemesh_service import problems as P
 from spacemesh_service.options import (
     GENERATE_OPTIONS,
@@ -40,6 +44,31 @@ Point cloud in, oriented manifold polygon mesh out (SpaceMesh).
 """
 
 _TETRA = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+
+
+def _sphere_points(count: int = 48) -> list[list[float]]:
+    """``count`` points spread on an ellipsoid (Fibonacci spiral), 4 decimals: the
+    examples' point cloud, one the server accepts."""
+    i = np.arange(count) + 0.5
+    z = 1 - 2 * i / count
+    r = np.sqrt(1 - z * z)
+    phi = np.pi * (1 + 5**0.5) * i
+    points = np.stack([1.5 * r * np.cos(phi), r * np.sin(phi), 0.75 * z], axis=1)
+    return np.round(points, 4).tolist()
+
+
+#: The examples' point cloud (JSON) and the same points as an XYZ file.
+_CLOUD = _sphere_points()
+_CLOUD_XYZ = "".join(f"{x} {y} {z}\n" for x, y, z in _CLOUD)
+#: The repair examples' mesh (an icosphere: 42 vertices, 80 triangles) as OBJ, PLY and OFF
+#: text, and the same mesh with a hole (the star of vertex 0 removed) for ``auto``.
+_MESH = icosphere(1)
+_MESH_FILES = {fmt: export_mesh(_MESH, fmt, **({"encoding": "ascii"} if fmt == "ply" else {}))
+               .decode() for fmt in ("obj", "ply", "off")}
+_HOLED_OBJ = export_mesh(
+    _MESH.__class__.from_faces(_MESH.vertices, [f for f in _MESH.faces if 0 not in f]), "obj"
+).decode()
+_NEAR = _MESH.vertices[7]
 
 
 def _option_fields(table: tuple[RequestOption, ...]) -> dict[str, Any]:
@@ -313,6 +342,25 @@ REPAIR_RESPONSES: dict[int | str, dict[str, Any]] = {
     504: GENERATE_RESPONSES[504],
 }
 
+#: The error responses of ``POST /ui/preview`` (the web page's file preview).
+UI_PREVIEW_RESPONSES: dict[int | str, dict[str, Any]] = {
+    400: problem_response("The file could not be read, or `kind` is not points or mesh", {
+        "file": (P.MALFORMED_INPUT, "the multipart body has no file field 'file'"),
+        "kind": (P.INVALID_PARAMETER, "kind is one of points, mesh, not 'x'"),
+    }, instance="/ui/preview"),
+    413: problem_response("The file is larger than this server's limits", {
+        "bytes": (P.PAYLOAD_TOO_LARGE, "the body exceeds 33554432 bytes"),
+        "points": (P.TOO_MANY_POINTS, "XYZ: the file has 200001 points or more; the limit "
+                                      "is 200000"),
+    }, instance="/ui/preview"),
+    415: problem_response("Unsupported format", {
+        "format": (P.UNSUPPORTED_FORMAT, "cannot read '.docx' files; supported: ..."),
+    }, instance="/ui/preview"),
+    422: problem_response("NaN or infinite coordinates", {
+        "nan": (P.NON_FINITE, "XYZ: point 3 has a NaN or infinite coordinate"),
+    }, instance="/ui/preview"),
+}
+
 #: The query parameters of each route.
 GENERATE_PARAMETERS = [o.parameter() for o in GENERATE_ROUTE_OPTIONS]
 REPAIR_PARAMETERS = [o.parameter() for o in REPAIR_ROUTE_OPTIONS]
@@ -333,17 +381,17 @@ GENERATE_REQUEST_BODY: dict[str, Any] = {
                     **_form_properties(GENERATE_ROUTE_OPTIONS),
                 },
             },
-            "example": {"file": "(cloud.ply)", "format": "obj", "seed": 7},
+            "example": {"file": _CLOUD_XYZ, "format": "obj", "seed": 7},
         },
         "application/json": {
             "schema": {"$ref": "#/components/schemas/PointsRequest"},
             "examples": {
                 "points": {"summary": "Points only",
-                           "value": {"points": _TETRA * 8, "format": "obj", "seed": 7}},
+                           "value": {"points": _CLOUD, "format": "obj", "seed": 7}},
                 "normals": {"summary": "With normals",
-                            "value": {"points": _TETRA, "normals": _TETRA, "steps": 25}},
+                            "value": {"points": _CLOUD, "normals": _CLOUD, "steps": 25}},
                 "options": {"summary": "A vertex budget, best of 4 seeds",
-                            "value": {"points": _TETRA * 8, "start": "points",
+                            "value": {"points": _CLOUD, "start": "points",
                                       "target_vertices": 100, "samples": 4}},
             },
         },
@@ -373,18 +421,21 @@ REPAIR_REQUEST_BODY: dict[str, Any] = {
             },
             "examples": {
                 "faces": {"summary": "Face indices",
-                          "value": {"file": "(mesh.obj)", "region": '{"faces": [3, 4, 10]}',
+                          "value": {"file": _MESH_FILES["obj"], "region": '{"faces": [3, 4, 10]}',
                                     "format": "obj", "seed": 7}},
                 "vertices": {"summary": "Every face using these vertices",
-                             "value": {"file": "(mesh.obj)", "region": '{"vertices": [5]}'}},
+                             "value": {"file": _MESH_FILES["obj"],
+                                       "region": '{"vertices": [5]}'}},
                 "sphere": {"summary": "Every face with a vertex in a ball",
-                           "value": {"file": "(mesh.ply)", "region":
-                                     '{"sphere": {"center": [0, 0, 1], "radius": 0.3}}'}},
+                           "value": {"file": _MESH_FILES["ply"], "region": json.dumps(
+                               {"sphere": {"center": np.round(_NEAR, 4).tolist(),
+                                           "radius": 0.3}})}},
                 "box": {"summary": "Every face with a vertex in a box",
-                        "value": {"file": "(mesh.off)", "region":
-                                  '{"box": {"min": [0, 0, 0], "max": [1, 1, 1]}}'}},
+                        "value": {"file": _MESH_FILES["off"], "region": json.dumps(
+                            {"box": {"min": np.round(_NEAR - 0.2, 4).tolist(),
+                                     "max": np.round(_NEAR + 0.2, 4).tolist()}})}},
                 "auto": {"summary": "Every hole, closed (the regions found automatically)",
-                         "value": {"file": "(scan.ply)", "region": '{"auto": "holes"}'}},
+                         "value": {"file": _HOLED_OBJ, "region": '{"auto": "holes"}'}},
             },
         },
     },

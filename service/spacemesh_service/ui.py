@@ -38,6 +38,7 @@ from starlette.datastructures import UploadFile
 from spacemesh_service import problems as P
 from spacemesh_service.engine import Engine
 from spacemesh_service.inputs import INPUT_FORMATS, MESH_FORMATS, read_mesh_upload, read_upload
+from spacemesh_service.openapi import UI_PREVIEW_RESPONSES
 from spacemesh_service.options import GENERATE_ROUTE_OPTIONS, REPAIR_ROUTE_OPTIONS
 from spacemesh_service.outputs import OUTPUT_FORMATS
 from spacemesh_service.problems import Problem
@@ -111,7 +112,8 @@ def install_ui(app: FastAPI, engine: Engine, limited: Callable[[Request, int], R
     async def config() -> JSONResponse:
         return JSONResponse(page_config(engine), headers={"Cache-Control": "no-cache"})
 
-    @app.post("/ui/preview", tags=["ui"], summary="Read a file as the page shows it")
+    @app.post("/ui/preview", tags=["ui"], summary="Read a file as the page shows it",
+              responses=UI_PREVIEW_RESPONSES)
     async def ui_preview(request: Request) -> JSONResponse:
         """Multipart `file` and `kind` (`points` or `mesh`): the file read as `/generate`
         (points) or `/repair` (mesh) read it, as JSON, for the web page."""
