@@ -14,6 +14,7 @@ import logging
 import re
 import shutil
 import subprocess
+import textwrap
 import time
 
 import pytest
@@ -163,3 +164,28 @@ def test_tls_and_keys_end_to_end_behind_nginx(secrets, start_server, generator, 
     finally:
         process.terminate()
         process.wait(30)
+
+
+def test_the_kubernetes_notes_name_real_settings_and_open_probes(yaml):
+    from spacemesh_service.security import Guard
+    from spacemesh_service.settings import Settings
+
+    text = (ROOT / "docs" / "DEPLOY.md").read_text()
+    kubernetes = text[text.index("## Kubernetes"):text.index("## Training")]
+    documents = [d for block in re.findall(r"```yaml\n(.*?)```", kubernetes, re.S)
+                 for d in yaml.safe_load_all(textwrap.dedent(block)) if d]
+    [deployment] = [d for d in documents if d.get("kind") == "Deployment"]
+    [container] = deployment["spec"]["template"]["spec"]["containers"]
+    names = {e["name"] for e in container["env"]}
+    known = {Settings.env_name(name) for name in Settings.model_fields}
+    assert names <= known, names - known
+    assert {"SPACEMESH_API_KEYS", "SPACEMESH_TLS_CERT", "SPACEMESH_TLS_KEY",
+            "SPACEMESH_RATE_LIMIT", "SPACEMESH_TRUSTED_PROXIES"} <= names
+    mounts = {m["mountPath"] for m in container["volumeMounts"]}
+    for env in container["env"]:
+        if env["name"] in ("SPACEMESH_API_KEYS", "SPACEMESH_TLS_CERT", "SPACEMESH_TLS_KEY"):
+            assert any(env["value"].startswith(m + "/") for m in mounts), env
+    guard = Guard()
+    for probe in ("startupProbe", "readinessProbe", "livenessProbe"):
+        get = container[probe]["httpGet"]
+        assert guard.is_open(get["path"]) and get["scheme"] == "HTTPS", probe

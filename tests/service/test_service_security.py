@@ -145,8 +145,8 @@ def certificate(tmp_path_factory):
 # ---------------------------------------------------------------------- API keys
 def test_rest_needs_a_right_key_but_health_stays_open(guarded, model_name):
     with httpx.Client(base_url=guarded.url, timeout=60) as http:
-        for path in ("/v2/health/live", "/v2/health/ready"):
-            assert http.get(path).status_code == 200, path
+        for path in ("/v2/health/live", "/v2/health/ready", "/", "/static/config.json"):
+            assert http.get(path).status_code == 200, path  # health and the web page
         route = f"/v2/models/{model_name}"
         for headers in ({}, bearer("not-a-key"), {"Authorization": f"Basic {KEYS['rest']}"}):
             refused = http.get(route, headers=headers)
