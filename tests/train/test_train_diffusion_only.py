@@ -119,6 +119,7 @@ def test_local_denoiser_on_a_base_exports_and_generates(toy_model, tmp_path, one
     run = tmp_path / "local"
     train(TrainOptions(config=_config("tiny-local", diffusion_only=True), data=toy_model.data,
                        out=run, steps=2, progress=False, base=base), log=_quiet)
+    assert list(csv.DictReader(open(run / "metrics.csv")))[-1]["val_epsilon"]
     directory = export_run(run, tmp_path / "models", name="spacemesh-tiny-local", threads=1)
     for graph in ("encoder.onnx", "connectivity.onnx"):
         assert (directory / graph).read_bytes() == (base / graph).read_bytes()
@@ -191,3 +192,25 @@ def test_stop_requests_restore_the_handlers():
         os.kill(os.getpid(), signal.SIGINT)
         assert stops.requested and stops.signal == signal.SIGINT
     assert signal.getsignal(signal.SIGINT) == previous
+
+
+def test_a_run_resumes_on_its_base_moved_and_refuses_another(toy_model, tmp_path, one_thread):
+    """A run brought back from another machine names its base's new place with --base;
+    a base whose files differ is refused."""
+    base = tmp_path / "a" / "spacemesh-tiny" / "1"
+    shutil.copytree(toy_model.repository, base)
+    run = tmp_path / "run"
+    config = _config("tiny-local", diffusion_only=True)
+    train(TrainOptions(config=config, data=toy_model.data, out=run, steps=1, progress=False,
+                       base=base), log=_quiet)
+    moved = tmp_path / "b" / "spacemesh-tiny" / "1"
+    shutil.move(base, moved)
+    summary = train(TrainOptions(config=config, data=toy_model.data, out=run, steps=2,
+                                 resume=True, progress=False, base=moved), log=_quiet)
+    assert summary.steps == 2
+    assert load_checkpoint(summary.checkpoint)["extra"]["base"]["path"] == str(moved.resolve())
+    with open(moved / "connectivity.onnx", "ab") as handle:
+        handle.write(b"\0")
+    with pytest.raises(ValueError, match="connectivity.onnx|files differ|sha256"):
+        train(TrainOptions(config=config, data=toy_model.data, out=run, steps=3, resume=True,
+                           progress=False, base=moved), log=_quiet)

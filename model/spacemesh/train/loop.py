@@ -207,6 +207,18 @@ def _load_init(model: SpaceMeshModel, init: dict[str, Any]) -> None:
         raise ValueError(f"--init-from {init['path']}: weights do not fit: {', '.join(wrong)}")
 
 
+def _check_resumed_base(state: dict[str, Any], base: BaseModel | None) -> None:
+    """Refuse to resume on another base than the run's (the same files, wherever they
+    are now: ``--base`` may name the base's new place, e.g. on another machine)."""
+    stored = state["extra"].get("base")
+    if (stored is None) != (base is None):
+        raise ValueError("--resume: the run was trained " + (
+            "without a base model" if stored is None else f"on the base {stored['path']}"))
+    if base is not None and base.card()["files"] != stored["files"]:
+        raise ValueError(f"--resume: {base.path} is not the base the run was trained on "
+                         f"({stored['path']}): its files differ")
+
+
 def _base_connectivity(model: SpaceMeshModel, base: BaseModel) -> None:
     """Read the base's connectivity weights into a diffusion-only run's (frozen) network,
     so that the run's torch model is the whole model its export will be."""
@@ -215,9 +227,11 @@ def _base_connectivity(model: SpaceMeshModel, base: BaseModel) -> None:
     channels = 6 if model.config.encoder.normals else 3
     points = torch.rand(1, model.config.encoder.n_points, channels,
                         generator=torch.Generator().manual_seed(0)) * 2 - 1
+    device = next(model.connectivity.parameters()).device
     with torch.no_grad():
-        volumes = list(model.encoder(points))
-    load_connectivity(base.graph_path("connectivity"), model.connectivity, volumes)
+        volumes = [v.cpu() for v in model.encoder(points)]
+    load_connectivity(base.graph_path("connectivity"), model.connectivity.cpu(), volumes)
+    model.connectivity.to(device)
 
 
 def _init_card(init: dict[str, Any]) -> dict[str, Any]:
@@ -358,7 +372,7 @@ class Trainer:
                     connectivity_jitter=config.train.connectivity_jitter,
                 )
                 stored_base = state["extra"].get("base")
-                if stored_base is not None:
+                if stored_base is not None and options.base is None:
                     base_path = Path(stored_base["path"])
         init = None
         if state is None and options.init_from is not None:
@@ -372,10 +386,13 @@ class Trainer:
                 init["path"] = init_path
             base_path = _init_base(init, base_path)
         self.base = None if base_path is None else BaseModel.load(base_path)
+        if state is not None:  # a run moved to another machine names its base again
+            _check_resumed_base(state, self.base)
         if self.base is not None:
             if state is None:
                 config = self.base.merged_config(config)
-            log(f"connectivity only, on the frozen encoder of {self.base.path}")
+            kind = "denoiser" if config.train.diffusion_only else "connectivity"
+            log(f"{kind} only, on the frozen encoder of {self.base.path}")
         if init is not None:
             _check_init(init, config, self.base if options.base is not None else None)
         self.diffusion_only = config.train.diffusion_only
@@ -513,7 +530,7 @@ class Trainer:
         bs = self.config.train.batch_size
         for start in range(0, len(self.val_samples), bs):
             chunk = self.val_samples[start : start + bs]
-            if self.base is None:
+            if self.base is None or self.diffusion_only:
                 b = collate(chunk, n_points=enc.n_points, normals=enc.normals,
                             pad_to=self.config.max_vertices, connectivity=False, rng=rng)
                 b = b.to(self.info.device)
