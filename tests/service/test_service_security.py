@@ -41,7 +41,8 @@ pytestmark = pytest.mark.slow
 PROBLEMS = "https://spacemesh.dev/problems/"
 #: One key per test that spends rate-limit tokens, so the tests do not share buckets.
 KEYS = {name: f"key-{name}-{hashlib.sha256(name.encode()).hexdigest()[:16]}"
-        for name in ("rest", "grpc", "sdk", "log", "limit-rest", "limit-grpc", "metrics")}
+        for name in ("rest", "grpc", "sdk", "cli", "log", "limit-rest", "limit-grpc",
+                     "metrics")}
 #: A generous bound for "the server closes it" waits (not a timing assertion: it only
 #: keeps a broken server from hanging the test).
 CLOSE_WAIT_S = 20.0
@@ -195,6 +196,18 @@ def test_the_sdk_sends_its_key_over_both_transports(guarded, case, monkeypatch):
         monkeypatch.setenv("SPACEMESH_API_KEY", KEYS["sdk"])  # the environment's key
         with Client(url, retry=RetryPolicy.never()) as client:
             assert client.generate(case.points, seed=case.good_seed).stats.faces > 0
+
+
+def test_the_client_cli_takes_a_key(guarded, model_name, monkeypatch, capsys):
+    from spacemesh_client.cli import main
+
+    monkeypatch.delenv("SPACEMESH_API_KEY", raising=False)
+    with pytest.raises(SystemExit) as info:
+        main(["info", model_name, "--url", guarded.url, "--retries", "0"])
+    assert info.value.code == 2
+    assert "401" in capsys.readouterr().err.strip()
+    main(["info", model_name, "--url", guarded.url, "--api-key", KEYS["cli"]])
+    assert "limits" in json.loads(capsys.readouterr().out)
 
 
 def test_metrics_take_a_key_or_a_flag(guarded, start_server, generator, key_file):
