@@ -334,7 +334,8 @@ function statsTable(table, headers) {
     if (!key.startsWith(HEADER)) continue;
     const row = table.insertRow();
     row.insertCell().textContent = key.slice(HEADER.length);
-    row.insertCell().textContent = value;
+    // long decimals shortened for reading (the downloads keep every digit)
+    row.insertCell().textContent = /^-?\d+\.\d{5,}(e[-+]?\d+)?$/i.test(value) ? Number(value).toPrecision(4) : value;
   }
 }
 
