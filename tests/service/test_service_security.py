@@ -523,14 +523,36 @@ def test_grpc_server_options_carry_the_settings(toy_repository):
 
 
 # ---------------------------------------------------------------------- metadata
-def test_metadata_shows_no_file_system_paths(guarded, model_name):
-    raw = guarded.server.engine.metadata()
-    with httpx.Client(base_url=guarded.url) as http:
-        shown = http.get(f"/v2/models/{model_name}", headers=bearer(KEYS["rest"])).json()
+@pytest.fixture(scope="module")
+def trained_here(toy_repository, tmp_path_factory):
+    """The toy model, its manifest recording where it was trained (as real exports do:
+    the shipped one names ``runs/.../last.pt``)."""
+    import shutil
+
+    copy = tmp_path_factory.mktemp("model") / toy_repository.name
+    shutil.copytree(toy_repository, copy)
+    manifest = json.loads((copy / "manifest.json").read_text())
+    manifest["training"]["run"] = "/home/alice/spacemesh/runs/tiny"
+    manifest["data"]["init"] = {"checkpoint": "runs/tiny/checkpoints/last.pt", "steps": 4}
+    (copy / "manifest.json").write_text(json.dumps(manifest))
+    return copy
+
+
+def test_metadata_shows_no_file_system_paths(start_server, trained_here):
+    served = start_server(model=trained_here)
+    raw = served.server.engine.metadata()
+    assert {"/home/alice/spacemesh/runs/tiny", "runs/tiny/checkpoints/last.pt"} <= set(
+        walk_strings(raw))
+    name = served.server.engine.model_name
+    with httpx.Client(base_url=served.url) as http:
+        shown = http.get(f"/v2/models/{name}").json()
+        assert http.get(f"/v2/models/{name}/versions/{served.server.engine.model_version}"
+                        ).json() == shown
     assert not [s for s in walk_strings(shown) if looks_like_path(s)]
-    assert str(guarded.server.engine.generator.repository) not in json.dumps(shown)
+    assert str(trained_here) not in json.dumps(shown) and "alice" not in json.dumps(shown)
+    assert shown["data"]["init"] == {"steps": 4}  # the rest of the member stays
     assert shown["output_formats"] == raw["output_formats"]  # media types are kept
-    assert shown["limits"] == raw["limits"]
+    assert shown["limits"] == raw["limits"] and shown["training"]["steps"] == 4
 
 
 def test_the_shipped_manifest_paths_are_stripped():
