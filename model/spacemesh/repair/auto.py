@@ -209,10 +209,11 @@ def find_issues(mesh: PolygonMesh, mode: str) -> list[Finding]:
         degenerate[repeated] = True
         degenerate |= mesh.face_sizes < 3
         marks["degenerate-faces"][mesh.face_indices[degenerate[mesh.face_of_corner]]] = True
-        if mode == "defects":  # a pinched boundary vertex is part of a hole, not a defect
-            open_vertex = np.zeros(n, dtype=bool)
-            open_vertex[he[count == 1].reshape(-1)] = True
-            marks["pinched-vertices"] &= ~open_vertex
+        # a pinched boundary vertex (loops touching there) is part of a hole, whose ring
+        # covers it, not a defect of its own
+        open_vertex = np.zeros(n, dtype=bool)
+        open_vertex[he[count == 1].reshape(-1)] = True
+        marks["pinched-vertices"] &= ~open_vertex
         edges = mesh.edges
         for kind in DEFECT_KINDS:
             found += [Finding(kind, len(g), g) for g in _clusters(mesh, edges, marks[kind])]
@@ -441,7 +442,11 @@ def plan_auto(mesh: PolygonMesh, mode: str, n_tokens: int, *, weld: bool = False
                     loop is None for loop in loops):
                 detail = [{"kind": findings[i].kind, "size": findings[i].size,
                            "vertex": int(findings[i].vertices[0])} for i in region.findings]
-                raise RegionError(error.kind, f"{error} ({_name(findings, region.findings)})",
+                why = ("; its holes touch themselves at a vertex (a pinched boundary), "
+                       "which the fallback fan cannot fill" if holes_only
+                       and error.kind in FALLBACK_KINDS else "")
+                raise RegionError(error.kind,
+                                  f"{error} ({_name(findings, region.findings)}){why}",
                                   {**error.details, "findings": detail[:MAX_REPORTED]}
                                   ) from None
             region.strategy, region.reason = "fan", error.kind
