@@ -452,6 +452,9 @@ def test_a_connection_that_sends_no_headers_is_closed(impatient):
         partial.sendall(b"GET /v2/health/live HTTP/1.1\r\nHost: x\r\n")  # never ends
         assert read_until_closed(silent) == b""
         assert read_until_closed(partial) == b""
+    grpc_port = impatient.server.grpc_port
+    with socket.create_connection(("127.0.0.1", grpc_port), timeout=CLOSE_WAIT_S) as silent:
+        read_until_closed(silent)  # the server's SETTINGS, then the end (the handshake limit)
 
 
 def test_an_idle_keep_alive_connection_is_closed(impatient):
