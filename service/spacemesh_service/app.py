@@ -56,7 +56,7 @@ from spacemesh_service.options import (
     RequestOption,
 )
 from spacemesh_service.problems import Problem
-from spacemesh_service.security import Guard, RestGuard, without_paths
+from spacemesh_service.security import Guard, RestGuard, document_protection, without_paths
 from spacemesh_service.settings import Settings
 from spacemesh_service.streaming import stream_response, stream_responses
 from spacemesh_service.ui import install_ui
@@ -507,7 +507,7 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
         if app.openapi_schema is None:
             spec = get_openapi(title=app.title, version=app.version,
                                description=app.description, routes=app.routes)
-            app.openapi_schema = add_schemas(spec)
+            app.openapi_schema = document_protection(add_schemas(spec), guard)
         return app.openapi_schema
 
     app.openapi = openapi  # type: ignore[method-assign]

@@ -437,3 +437,54 @@ def without_paths(value: Any) -> Any:
     if isinstance(value, list):
         return [without_paths(v) for v in value if not (isinstance(v, str) and looks_like_path(v))]
     return value
+
+
+# ---------------------------------------------------------------------- OpenAPI
+#: Name of the bearer scheme in the OpenAPI document.
+SECURITY_SCHEME = "apiKey"
+
+
+def document_protection(spec: dict[str, Any], guard: Guard) -> dict[str, Any]:
+    """The OpenAPI document with what protection adds: 408 on routes that read a body;
+    with keys, the bearer scheme on every route but the open ones and their 401; with
+    rate limits, their 429.
+
+    Parameters
+    ----------
+    spec : dict
+        The OpenAPI document (changed in place).
+    guard : Guard
+
+    Returns
+    -------
+    dict
+        ``spec``.
+    """
+    from spacemesh_service.openapi import problem_response
+
+    if guard.keys is not None:
+        schemes = spec.setdefault("components", {}).setdefault("securitySchemes", {})
+        schemes[SECURITY_SCHEME] = {
+            "type": "http", "scheme": "bearer",
+            "description": "An API key of the server's --api-keys file."}
+    for path, operations in spec.get("paths", {}).items():
+        for method, operation in operations.items():
+            if not isinstance(operation, dict) or "responses" not in operation:
+                continue
+            responses = operation["responses"]
+            if method in ("post", "put", "patch"):
+                responses.setdefault("408", problem_response("The body arrived too slowly", {
+                    "slow": (P.REQUEST_TIMEOUT, "the request body did not arrive within "
+                             "60 s")}, instance=path))
+            if guard.is_open(path):
+                continue
+            if guard.keys is not None:
+                operation["security"] = [{SECURITY_SCHEME: []}]
+                responses.setdefault("401", problem_response("No or a wrong API key", {
+                    "missing": (P.UNAUTHORIZED, "this server needs an API key: send "
+                                "'Authorization: Bearer KEY'")}, instance=path))
+            if guard.limiter is not None:
+                responses.setdefault("429", problem_response("Rate limit reached", {
+                    "limited": (P.RATE_LIMITED, "too many requests; retry in 1 s")},
+                    retry_after=True, instance=path))
+    return spec

@@ -525,6 +525,24 @@ def test_grpc_server_options_carry_the_settings(toy_repository):
         "grpc.max_connection_age_grace_ms": 19000}
 
 
+# ---------------------------------------------------------------------- OpenAPI
+def test_openapi_documents_the_protection(guarded, impatient):
+    with httpx.Client(base_url=guarded.url) as http:
+        spec = http.get("/openapi.json", headers=bearer(KEYS["rest"])).json()
+    assert spec["components"]["securitySchemes"]["apiKey"]["scheme"] == "bearer"
+    generate = spec["paths"]["/generate"]["post"]
+    assert generate["security"] == [{"apiKey": []}]
+    assert {"401", "408", "429"} <= set(generate["responses"])
+    assert "Retry-After" in generate["responses"]["429"]["headers"]
+    ready = spec["paths"]["/v2/health/ready"]["get"]
+    assert "security" not in ready and "401" not in ready["responses"]
+    with httpx.Client(base_url=impatient.url) as http:
+        plain = http.get("/openapi.json").json()
+    assert "securitySchemes" not in plain.get("components", {})
+    responses = plain["paths"]["/generate"]["post"]["responses"]
+    assert "408" in responses and not {"401", "429"} & set(responses)
+
+
 # ---------------------------------------------------------------------- metadata
 @pytest.fixture(scope="module")
 def trained_here(toy_repository, tmp_path_factory):
