@@ -160,9 +160,11 @@ class Tls:
     key: Path
 
     def chain(self) -> bytes:
+        """The certificate chain's PEM bytes."""
         return self.cert.read_bytes()
 
     def private_key(self) -> bytes:
+        """The key's PEM bytes."""
         return self.key.read_bytes()
 
 

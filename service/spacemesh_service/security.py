@@ -354,16 +354,18 @@ class Guard:
                               f"{self.limiter.burst})", retry_after=seconds)
 
 
-#: Headers a 401 carries (RFC 6750).
+#: The challenge of a 401 (RFC 6750), and the one for a key that was sent but is wrong.
 WWW_AUTHENTICATE = 'Bearer realm="spacemesh"'
+WWW_AUTHENTICATE_INVALID = 'Bearer realm="spacemesh", error="invalid_token"'
 
 
 def asgi_header(scope: dict[str, Any], name: bytes) -> str | None:
-    """The first value of header ``name`` (lower case) of an ASGI scope."""
-    for key, value in scope.get("headers", ()):
-        if key == name:
-            return value.decode("latin-1")
-    return None
+    """Header ``name`` (lower case) of an ASGI scope, its lines joined by ``", "`` as
+    RFC 9110 combines them (a proxy may add its own ``X-Forwarded-For`` line); None when
+    absent."""
+    values = [value.decode("latin-1") for key, value in scope.get("headers", ())
+              if key == name]
+    return ", ".join(values) if values else None
 
 
 ASGIApp = Callable[[dict[str, Any], Callable, Callable], Awaitable[None]]
@@ -402,8 +404,10 @@ class RestGuard:
         try:
             self.guard.check(scope["path"], caller, authorization)
         except Problem as problem:
-            extra = {"WWW-Authenticate": WWW_AUTHENTICATE} if problem.kind is P.UNAUTHORIZED \
-                else {}
+            extra = {}
+            if problem.kind is P.UNAUTHORIZED:
+                extra["WWW-Authenticate"] = (WWW_AUTHENTICATE if bearer_token(authorization)
+                                             is None else WWW_AUTHENTICATE_INVALID)
             await self.send_problem(problem, scope, send, extra)
             return
         await self.app(scope, receive, send)

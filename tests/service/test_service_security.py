@@ -155,6 +155,8 @@ def test_rest_needs_a_right_key_but_health_stays_open(guarded, model_name):
             assert refused.headers["content-type"].startswith("application/problem+json")
             assert refused.json()["type"] == PROBLEMS + "unauthorized"
             assert refused.headers["www-authenticate"].startswith("Bearer")
+            assert ("invalid_token" in refused.headers["www-authenticate"]) == (
+                headers == bearer("not-a-key"))
         for path in ("/metrics", "/v2", "/openapi.json"):
             assert http.get(path).status_code == 401, path
         refused = http.post("/generate", json={"points": [[0, 0, 0]] * 20})
@@ -301,6 +303,9 @@ def test_rate_limits_by_forwarded_address_only_behind_a_trusted_proxy(start_serv
         forged = {"X-Forwarded-For": "198.51.100.1, 203.0.113.7"}
         assert http.get("/v2", headers=forged).status_code == 429
         assert http.get("/v2", headers={"X-Forwarded-For": "203.0.113.8"}).status_code == 200
+        # a second header line (another proxy's) counts: its address is the right-most
+        two_lines = [("X-Forwarded-For", "198.51.100.2"), ("X-Forwarded-For", "203.0.113.8")]
+        assert http.get("/v2", headers=two_lines).status_code == 429
     with httpx.Client(base_url=trusting_none.url) as http:
         assert http.get("/v2", headers={"X-Forwarded-For": "203.0.113.9"}).status_code == 200
         # the header is ignored: the same peer address, whatever it says
