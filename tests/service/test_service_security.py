@@ -517,8 +517,12 @@ def test_grpc_closes_idle_connections(impatient):
     assert seen[-1] == grpc.ChannelConnectivity.IDLE  # the server sent GOAWAY
 
 
-def test_grpc_server_options_carry_the_settings(toy_repository):
+def test_the_servers_are_configured_from_the_settings(toy_repository, impatient):
     from spacemesh_service.connections import grpc_options
+
+    config = impatient.server._uvicorn.config
+    assert config.timeout_keep_alive == 0.5 and config.http.header_timeout == 0.5
+    assert config.proxy_headers is False  # X-Forwarded-For only from --trusted-proxies
 
     options = dict(grpc_options(server_settings(
         toy_repository, header_timeout_s=3, grpc_idle_timeout_s=7, grpc_keepalive_s=11,
