@@ -124,3 +124,30 @@ def test_a_repair_round_trip(page, tmp_path):
     repaired = load_mesh(downloaded(page, ".obj"))
     assert check_topology(repaired).is_closed_oriented_manifold
     assert console_errors(page) == []
+
+
+def test_the_api_key_field(browser, start_server, generator, case, tmp_path):
+    key = "browser-test-key-0123456789"
+    keys = tmp_path / "keys.txt"
+    keys.write_text(key + "\n")
+    server = start_server(generator, api_keys=keys)
+    browser.get(server.url + "/")  # the page and its assets need no key
+    wait_for(lambda: body_state(browser, "ready") == "true", what="the page to start")
+    assert console_errors(browser) == []
+    first, second = tmp_path / "one.ply", tmp_path / "two.ply"
+    for path in (first, second):
+        path.write_bytes(as_ply(case.points))
+    element(browser, "file").send_keys(str(first))
+    error = element(browser, "error")
+    wait_for(error.is_displayed, what="the error message")
+    assert "(401)" in error.text, error.text
+    console_errors(browser)  # the refused fetch
+    element(browser, "api-key").send_keys(key)
+    element(browser, "file").send_keys(str(second))
+    wait_for(lambda: not element(browser, "error").is_displayed(), what="the key to work")
+    element(browser, "run").click()
+    wait_for(lambda: body_state(browser, "generate") in ("done", "failed"), 60, "the mesh")
+    assert body_state(browser, "generate") == "done", element(browser, "error").text
+    # kept in the page's memory only: nothing in storage or cookies
+    assert browser.execute_script("return localStorage.length + sessionStorage.length") == 0
+    assert browser.get_cookies() == []
