@@ -123,7 +123,7 @@ class Soak:
         p = inputs.points
         points_pb = pb.Points(xyz=p.ravel().tolist())
         few = pb.Points(xyz=p[:5].ravel().tolist())
-        nested = b'{"points": ' + b"[" * 100_000 + b"]" * 100_000 + b"}"
+        nested = b'{"points": ' + b"[" * 20_000 + b"]" * 20_000 + b"}"  # nesting, not size
         truncated = inputs.ply[: len(inputs.ply) // 2]
         repair_pb = pb.RepairRequest(mesh=inputs.mesh, filename="mesh.obj",
                                      faces=inputs.region["faces"], format="obj")

@@ -19,7 +19,13 @@ SERVICE_DEPENDENCIES = ("fastapi", "uvicorn", "grpc", "grpc_health", "spacemesh_
 if not all(importlib.util.find_spec(name) for name in SERVICE_DEPENDENCIES):
     collect_ignore_glob = ["test_*.py"]
 else:
-    from service_testing import SEEDS_TO_TRY, Case, make_cloud, server_settings
+    from service_testing import (
+        NO_SURFACE_OPTIONS,
+        SEEDS_TO_TRY,
+        Case,
+        make_cloud,
+        server_settings,
+    )
 
     from spacemesh_service.server import BackgroundServer
 
@@ -61,7 +67,12 @@ def case(generator) -> Case:
                     f"{SEEDS_TO_TRY} seeds: the toy model or the pipeline regressed "
                     f"(spacemesh.train.toy.build_toy_model, service_testing.make_cloud)",
                     pytrace=False)
-    return Case(points, good, empty)
+    no_surface = {"seed": empty} if empty is not None else {"seed": 0, **NO_SURFACE_OPTIONS}
+    if generator.generate(points, **no_surface).mesh.n_faces:
+        pytest.fail(f"the tiny test model made a surface with {no_surface}: the no-surface "
+                    "tests need other options (service_testing.NO_SURFACE_OPTIONS)",
+                    pytrace=False)
+    return Case(points, good, empty, no_surface)
 
 
 # ---------------------------------------------------------------------- servers

@@ -72,13 +72,24 @@ UPLOADS = {
 
 
 
+#: Options with which the tiny model makes no surface from the test cloud whatever the
+#: seed: one diffusion step from noise leaves its vertices unjoined.
+NO_SURFACE_OPTIONS = {"start": "noise", "steps": 1}
+
+
 @dataclass(frozen=True)
 class Case:
-    """The test input and seeds the tiny model turns into a surface, or into nothing."""
+    """The test input and seeds the tiny model turns into a surface, or into nothing.
+
+    ``no_surface`` always holds request options (``seed`` and, unless ``empty_seed`` was
+    found, :data:`NO_SURFACE_OPTIONS`) that the fixture checked give no surface, so
+    the ``no-surface`` tests never need to skip.
+    """
 
     points: np.ndarray
     good_seed: int
     empty_seed: int | None
+    no_surface: dict
 
 
 class WrappedGenerator:

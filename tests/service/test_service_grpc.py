@@ -108,10 +108,8 @@ def test_grpc_errors_carry_the_problem_type(stub, case):
                        grpc.StatusCode.INVALID_ARGUMENT, "degenerate-geometry")
     assert_rpc_problem(lambda: list(stub.GenerateStream(points_request(case.points[:5]))),
                        grpc.StatusCode.INVALID_ARGUMENT, "too-few-points")
-    if case.empty_seed is not None:
-        assert_rpc_problem(
-            lambda: stub.Generate(points_request(case.points, seed=case.empty_seed)),
-            grpc.StatusCode.FAILED_PRECONDITION, "no-surface")
+    assert_rpc_problem(lambda: stub.Generate(points_request(case.points, **case.no_surface)),
+                       grpc.StatusCode.FAILED_PRECONDITION, "no-surface")
 
 
 def test_repair_without_a_region_is_malformed(stub):

@@ -128,15 +128,12 @@ def test_an_error_after_the_start_is_a_problem_event(broken_http, case):
 
 
 def test_no_surface_after_the_start_is_a_problem_event(http, case):
-    if case.empty_seed is None:
-        pytest.skip("the tiny model made a surface for every seed tried")
     files = {"file": ("cloud.ply", as_ply(case.points))}
-    _, events = stream(http, "/generate/stream", params={"seed": case.empty_seed},
-                       files=files)
+    _, events = stream(http, "/generate/stream", params=case.no_surface, files=files)
     assert [name for name, _ in events][-1] == "problem"
     problem = events[-1][1]
     assert problem["type"] == "https://spacemesh.dev/problems/no-surface", problem
-    assert problem["status"] == 422 and problem["seed"] == case.empty_seed
+    assert problem["status"] == 422 and problem["seed"] == case.no_surface["seed"]
 
 
 def test_an_error_before_the_start_is_a_plain_problem(http, case):
