@@ -20,7 +20,8 @@ gRPC: the same ``header_timeout_s`` bounds the connection handshake
 ``grpc_max_connection_age_s`` when set (``grpc.max_connection_age_ms``, with the drain
 timeout as grace), and dead peers are found by keepalive pings (``grpc.keepalive_*``).
 A message is received whole before a handler sees it; its size is bounded by the upload
-limit, and its time by the client's deadline and the connection's age.
+limit. gRPC has no limit on how slowly one message may arrive: the connection's age
+(``grpc_max_connection_age_s``, off by default) bounds that time for untrusted clients.
 
 TLS: one certificate and key (``--tls-cert``/``--tls-key``, both or neither) serve both
 ports; :func:`load_tls` checks that they are readable and belong together at start-up.
