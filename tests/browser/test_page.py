@@ -126,6 +126,30 @@ def test_a_repair_round_trip(page, tmp_path):
     assert console_errors(page) == []
 
 
+def test_fill_holes_where_the_server_finds_regions(page, server, tmp_path):
+    from tests.repair.test_repair_cut import open_icosphere
+
+    auto = httpx.get(server.url + "/static/config.json").json()["auto_regions"]
+    buttons = page.find_elements("css selector", "#auto button")
+    assert [b.get_attribute("data-auto") for b in buttons] == auto
+    if "holes" not in auto:
+        pytest.skip("this server finds no repair regions by itself")
+    mesh, _ = open_icosphere()
+    path = tmp_path / "open.off"
+    path.write_bytes(mesh_file(mesh, "off"))
+    element(page, "tab-repair").click()
+    element(page, "repair-file").send_keys(str(path))
+    wait_for(lambda: "no region" in element(page, "selection").text, what="the open mesh")
+    page.find_element("css selector", "#auto button[data-auto=holes]").click()
+    assert json.loads(element(page, "selection").text.removeprefix("region: ")) == {
+        "auto": "holes"}
+    element(page, "repair-run").click()
+    wait_for(lambda: body_state(page, "repair") in ("done", "failed"), 60, "the repair")
+    assert body_state(page, "repair") == "done", element(page, "repair-error").text
+    assert "closed true" in element(page, "repair-stats").text
+    assert console_errors(page) == []
+
+
 def test_the_api_key_field(browser, start_server, generator, case, tmp_path):
     key = "browser-test-key-0123456789"
     keys = tmp_path / "keys.txt"
