@@ -146,3 +146,23 @@ def test_files_at_the_limits_are_read():
 def test_iter_lines_is_splitlines():
     for text in ("a\nb\r\nc", "a\rb\rc\n", "x\x0by\n\nz", "", "\n", "one", "a\u2028b\r\n\r\n"):
         assert list(iter_lines(text)) == text.splitlines(), repr(text)
+
+
+def test_the_cli_prints_a_too_large_file_as_one_line_and_exits_2(tmp_path):
+    """An archive of more members than any reader reads: TooLargeError, limits or not."""
+    import zipfile
+
+    from typer.testing import CliRunner
+
+    from spacemesh.cli import _register, app
+
+    _register()
+    source = tmp_path / "many.npz"
+    with zipfile.ZipFile(source, "w") as archive:
+        for i in range(100):
+            archive.writestr(f"a{i}.npy", b"")
+    result = CliRunner().invoke(app, ["generate", str(source), "-o", str(tmp_path / "m.obj"),
+                                      "--no-progress"])
+    assert result.exit_code == 2, result.output
+    message = result.output.strip()
+    assert "\n" not in message and "100 members" in message and "Traceback" not in message
