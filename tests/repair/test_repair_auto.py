@@ -76,10 +76,10 @@ def test_holes_are_filled_closed_and_the_rest_is_unchanged():
     assert [f["kind"] for f in stats.findings] == ["hole"] * 3
     assert all(f["filled_by"] == "model" and f["action"] == "filled" for f in stats.findings)
     assert sorted(f["region"] for f in stats.findings) == [0, 1, 2]
-    for region in stats.regions:
-        assert region["strategy"] == "model" and region["passes"] == 1
-        assert region["region_faces"] == region["requested_faces"] + region["grown_faces"]
-        assert 0 < region["share"] < 0.25
+    for region in stats.regions:  # filled in place: the ring is kept
+        assert region["strategy"] == "in-place" and region["passes"] == 1
+        assert region["requested_faces"] > 0 and region["region_faces"] == 0
+    assert stats.region_faces == 0 and result.mesh.n_faces > mesh.n_faces
     # the same seed gives the same mesh
     again = run(mesh, {"auto": "holes"}, seed=3)
     assert np.array_equal(again.mesh.vertices, result.mesh.vertices)
@@ -90,7 +90,7 @@ def test_a_hole_too_large_for_one_pass_is_filled_in_wedges():
     plan = plan_repair(mesh, {"auto": "holes"}, SPEC.max_vertices)
     assert isinstance(plan, AutoPlan)
     [region] = plan.regions
-    assert region.strategy == "fan" and region.reason == "region-too-large"
+    assert region.strategy == "in-place"
     result = run(mesh, {"auto": "holes"}, plan=plan)
     assert_closed_manifold(result.mesh)
     assert_outside_identical(mesh, result)
@@ -98,7 +98,8 @@ def test_a_hole_too_large_for_one_pass_is_filled_in_wedges():
     [hole] = stats.findings
     assert hole["size"] == 96 and hole["filled_by"] in ("model", "model-and-fallback")
     assert 1 <= stats.passes <= -(-96 // wedge_size(SPEC.max_vertices))
-    assert stats.region_faces == 0  # the fan leaves every input face in place
+    assert stats.region_faces == 0  # every input face stays
+    assert result.mesh.n_faces > mesh.n_faces
 
 
 def test_an_open_disk_whose_ring_is_most_of_the_mesh_is_closed():

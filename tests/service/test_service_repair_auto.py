@@ -54,8 +54,10 @@ def test_auto_holes_over_rest_and_grpc(http, stub):
     assert [f["kind"] for f in repair["findings"]] == ["hole", "hole"]
     assert all(f["filled_by"] in ("model", "fallback", "model-and-fallback")
                for f in repair["findings"])
-    assert len(repair["regions"]) == 2 and all(
-        r["grown_faces"] >= 0 and 0 < r["share"] <= 0.25 for r in repair["regions"])
+    assert len(repair["regions"]) == 2 and all(  # filled in place: no input face changes
+        r["strategy"] == "in-place" and r["requested_faces"] > 0 and r["share"] == 0
+        for r in repair["regions"])
+    assert repair["region_faces"] == 0
     out = load_mesh(response.content, file_type="obj")
     assert check_topology(out).is_closed_oriented_manifold
     kept_faces_unchanged(OPEN, out, repair["region_faces"])

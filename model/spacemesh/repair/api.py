@@ -688,10 +688,10 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
     timings = summed("timings")
     timings["cut"] = timings.get("cut", 0.0) + plan.seconds
     timings["total"] = time.perf_counter() - started
-    requested = sum(int(r.requested.sum()) for r in plan.regions)
+    requested = sum(int(r.requested.sum()) for r in plan.regions if r.strategy == "model")
     stats = RepairStats(
         requested_faces=requested, region_faces=int(removed.sum()),
-        grown_faces=sum(int(r.region.sum() - r.requested.sum()) for r in plan.regions),
+        grown_faces=sum(r.grown_faces for r in plan.regions),
         removed_vertices=work.n_vertices - len(kept_vertices),
         boundary_vertices=total("boundary_vertices"), loops=total("loops"),
         new_vertices=out.n_vertices - len(kept_vertices), new_faces=int(new.sum()),
