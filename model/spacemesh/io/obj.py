@@ -8,6 +8,7 @@ coordinates, materials, groups, smoothing groups, lines and points are ignored.
 
 from __future__ import annotations
 
+from array import array
 from collections.abc import Iterator
 from dataclasses import dataclass
 from itertools import pairwise
@@ -81,29 +82,27 @@ def parse_obj(data: bytes, limits: ReadLimits | None = None) -> ObjData:
     require_nonempty(data, "OBJ")
     limits = limits or UNLIMITED
     text = decode_text(data, "OBJ")
-    vertices: list[list[float]] = []
-    normals: list[list[float]] = []
-    indices: list[int] = []
-    sizes: list[int] = []
-    face_lines: list[int] = []
+    # compact arrays (8 bytes a number), not lists of Python objects
+    vertices, normals = array("d"), array("d")  # x y z x y z ...
+    indices, sizes, face_lines = array("q"), array("q"), array("q")
     for number, line in _logical_lines(text):
         tokens = line.split()
         if not tokens:
             continue
         key = tokens[0]
         if key == "v":
-            limits.check_vertices("OBJ", len(vertices) + 1)
-            vertices.append(_floats(tokens[1:], number, "v"))
+            limits.check_vertices("OBJ", len(vertices) // 3 + 1)
+            vertices.extend(_floats(tokens[1:], number, "v"))
         elif key == "vn":
-            limits.check_vertices("OBJ", len(normals) + 1)
-            normals.append(_floats(tokens[1:], number, "vn"))
+            limits.check_vertices("OBJ", len(normals) // 3 + 1)
+            normals.extend(_floats(tokens[1:], number, "vn"))
         elif key == "f":
             corners = tokens[1:]
             if not corners:
                 raise MeshFormatError(f"OBJ: line {number}: face has no vertices")
             limits.check_faces("OBJ", len(sizes) + 1)
             limits.check_corners("OBJ", len(indices) + len(corners))
-            n_known = len(vertices)
+            n_known = len(vertices) // 3
             for corner in corners:
                 head = corner.split("/", 1)[0]
                 try:
@@ -128,9 +127,13 @@ def parse_obj(data: bytes, limits: ReadLimits | None = None) -> ObjData:
                 indices.append(index - 1)
             sizes.append(len(corners))
             face_lines.append(number)
-    positions = check_vertices(np.array(vertices, dtype=np.float64).reshape(-1, 3), "OBJ")
-    flat = np.array(indices, dtype=np.int64)
-    offsets = np.concatenate([[0], np.cumsum(sizes, dtype=np.int64)]).astype(np.int64)
+    positions = check_vertices(
+        np.frombuffer(vertices, dtype=np.float64).reshape(-1, 3).copy(), "OBJ"
+    )
+    flat = np.frombuffer(indices, dtype=np.int64).copy()
+    offsets = np.concatenate([[0], np.cumsum(np.frombuffer(sizes, dtype=np.int64))]).astype(
+        np.int64
+    )
     bad = flat >= len(positions)
     if bad.any():
         corner = int(np.flatnonzero(bad)[0])
@@ -139,7 +142,7 @@ def parse_obj(data: bytes, limits: ReadLimits | None = None) -> ObjData:
             f"OBJ: line {face_lines[face]}: face refers to vertex {int(flat[corner]) + 1} "
             f"but the file has {len(positions)} vertices"
         )
-    normal_array = np.array(normals, dtype=np.float64).reshape(-1, 3)
+    normal_array = np.frombuffer(normals, dtype=np.float64).reshape(-1, 3).copy()
     return ObjData(positions, normal_array, flat, offsets)
 
 

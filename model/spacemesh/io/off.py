@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import itertools
 import re
-from collections.abc import Iterator
+from array import array
+from collections.abc import Iterator, Sequence
 from itertools import pairwise
 
 import numpy as np
@@ -37,22 +38,35 @@ def _int(token: str, what: str) -> int:
         raise MeshFormatError(f"OFF: {what} is not a whole number: '{token}'") from None
 
 
-def _is_int(token: str) -> bool:
-    try:
-        int(token)
-    except ValueError:
-        return False
-    return True
-
-
 class _EndOfData(Exception):
     """The token lines ran out in the middle of a record."""
+
+
+class _Lines(Sequence[list[str]]):
+    """The non-empty lines of a file, comments cut, kept as text and split when read.
+
+    A line's tokens are made only when a record reads it (the last line split is
+    cached), so the file is held as one string per line rather than one string per
+    token: about a quarter of the memory.
+    """
+
+    def __init__(self, lines: list[str]) -> None:
+        self._lines = lines
+        self._at, self._tokens = -1, []
+
+    def __len__(self) -> int:
+        return len(self._lines)
+
+    def __getitem__(self, index: int) -> list[str]:  # type: ignore[override]
+        if index != self._at:
+            self._at, self._tokens = index, self._lines[index].split()
+        return self._tokens
 
 
 class _Cursor:
     """A position in a list of token lines; records may wrap onto following lines."""
 
-    def __init__(self, lines: list[list[str]], line: int = 0, token: int = 0) -> None:
+    def __init__(self, lines: Sequence[list[str]], line: int = 0, token: int = 0) -> None:
         self.lines, self.line, self.token = lines, line, token
 
     def take(self, count: int) -> list[str]:
@@ -87,7 +101,7 @@ class _Cursor:
             self.line, self.token = self.line + 1, 0
 
 
-def _read_header(lines: list[list[str]]) -> tuple[str, int, int, _Cursor]:
+def _read_header(lines: Sequence[list[str]]) -> tuple[str, int, int, _Cursor]:
     """The header keyword, the vertex and face counts, and where the data starts."""
     first = lines[0]
     keyword = ""
@@ -114,23 +128,32 @@ def _read_header(lines: list[list[str]]) -> tuple[str, int, int, _Cursor]:
     return keyword, n_vertices, n_faces, _Cursor(lines, cursor.line + 1)
 
 
-def _to_floats(tokens: list[str], n_vertices: int) -> np.ndarray:
-    try:
-        return np.array(tokens, dtype=np.float64).reshape(n_vertices, 3)
-    except ValueError:
-        for i, token in enumerate(tokens):
+class _Numbers:
+    """Tokens converted as they are read into a compact array (8 bytes each); the first
+    token that does not convert is remembered and reported once all are read."""
+
+    def __init__(self, kind: str) -> None:
+        self.values = array(kind)
+        self.convert = float if kind == "d" else int
+        self.bad: tuple[int, str] | None = None  # (position, token)
+        self.overflow = False
+
+    def extend(self, tokens: list[str]) -> None:
+        for token in tokens:
             try:
-                float(token)
+                self.values.append(self.convert(token))
             except ValueError:
-                raise MeshFormatError(
-                    f"OFF: vertex {i // 3} has a coordinate that is not a number: '{token}'"
-                ) from None
-        raise
+                if self.bad is None:
+                    self.bad = (len(self.values), token)
+                self.values.append(0)
+            except OverflowError:
+                self.overflow = True
+                self.values.append(0)
 
 
 def _read_faces(cursor: _Cursor, n_faces: int, by_line: bool) -> tuple[np.ndarray, np.ndarray]:
-    indices: list[str] = []
-    sizes: list[int] = []
+    indices = _Numbers("q")
+    sizes = array("q")
     f = 0
     try:
         for f in range(n_faces):
@@ -153,25 +176,25 @@ def _read_faces(cursor: _Cursor, n_faces: int, by_line: bool) -> tuple[np.ndarra
         raise MeshFormatError(
             f"OFF: file ends early: expected {n_faces} faces, found {f}"
         ) from None
-    try:
-        flat = np.array([int(t) for t in indices], dtype=np.int64)
-    except ValueError:
-        bad = next(t for t in indices if not _is_int(t))
-        raise MeshFormatError(f"OFF: a face index is not a whole number: '{bad}'") from None
-    except OverflowError:
-        raise MeshFormatError("OFF: a face index is too large") from None
-    offsets = np.concatenate([[0], np.cumsum(sizes, dtype=np.int64)]).astype(np.int64)
+    if indices.bad is not None:
+        raise MeshFormatError(f"OFF: a face index is not a whole number: '{indices.bad[1]}'")
+    if indices.overflow:
+        raise MeshFormatError("OFF: a face index is too large")
+    flat = np.frombuffer(indices.values, dtype=np.int64).copy()
+    offsets = np.concatenate([[0], np.cumsum(np.frombuffer(sizes, dtype=np.int64))]).astype(
+        np.int64
+    )
     return flat, offsets
 
 
-def _parse(lines: list[list[str]], by_line: bool) -> PolygonMesh:
+def _parse(lines: Sequence[list[str]], by_line: bool) -> PolygonMesh:
     keyword, n_vertices, n_faces, cursor = _read_header(lines)
     width = 3
     if not by_line:  # one token stream: vertex records have a fixed width
         if "C" in keyword:
             raise MeshFormatError("OFF: coloured vertices must each start a new line")
         width = 3 + 3 * ("N" in keyword) + 2 * ("ST" in keyword)
-    coordinates: list[str] = []
+    coordinates = _Numbers("d")
     v = 0
     try:
         for v in range(n_vertices):  # noqa: B007 - v is reported on error
@@ -180,10 +203,24 @@ def _parse(lines: list[list[str]], by_line: bool) -> PolygonMesh:
         raise MeshFormatError(
             f"OFF: file ends early: expected {n_vertices} vertices, found {v}"
         ) from None
-    vertices = check_vertices(_to_floats(coordinates, n_vertices), "OFF")
+    if coordinates.bad is not None:
+        at, token = coordinates.bad
+        raise MeshFormatError(
+            f"OFF: vertex {at // 3} has a coordinate that is not a number: '{token}'"
+        )
+    positions = np.frombuffer(coordinates.values, dtype=np.float64).reshape(n_vertices, 3)
+    vertices = check_vertices(positions.copy(), "OFF")
     flat, offsets = _read_faces(cursor, n_faces, by_line)
     check_face_indices(flat, offsets, n_vertices, "OFF")
     return PolygonMesh(vertices, flat, offsets)
+
+
+def _comment_free_lines(text: str) -> Iterator[str]:
+    """The lines of ``text`` with comments cut, those with a token, read one at a time."""
+    for raw in iter_lines(text):
+        line = raw.split("#", 1)[0]
+        if not line.isspace() and line:
+            yield line
 
 
 def _token_lines(text: str) -> Iterator[list[str]]:
@@ -230,7 +267,7 @@ def load_off(data: bytes, limits: ReadLimits | None = None) -> PolygonMesh:
     require_nonempty(data, "OFF")
     text = decode_text(data, "OFF")
     _check_header(text, len(data), limits or UNLIMITED)
-    lines = list(_token_lines(text))
+    lines = _Lines(list(_comment_free_lines(text)))
     try:
         return _parse(lines, by_line=True)
     except MeshFormatError as by_line_error:
