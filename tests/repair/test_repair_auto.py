@@ -27,7 +27,7 @@ from spacemesh.repair import (
     verify_repair,
 )
 from spacemesh.repair.auto import AutoPlan, find_issues, orient_faces, reverse_faces, wedge_size
-from spacemesh.repair.cut import defect_vertices
+from spacemesh.repair.cut import FaceSubset, defect_vertices
 from spacemesh.topology import check_topology
 
 SPEC = make_spec()
@@ -107,6 +107,24 @@ def test_an_open_disk_whose_ring_is_most_of_the_mesh_is_closed():
     result = run(mesh, {"auto": "holes"})
     assert_closed_manifold(result.mesh)
     assert_outside_identical(mesh, result)
+
+
+def test_a_hole_at_a_vertex_with_a_closed_fan_is_rebuilt_with_its_ring():
+    """Filling the loop alone would leave the vertex pinched (the closed fan of the
+    other sphere stays): it is a finding of its own, and its region gets the model."""
+    mesh = pinched_spheres()
+    [shared] = np.flatnonzero(FaceSubset.of(mesh, np.arange(mesh.n_faces))
+                              .fan_counts(mesh.n_vertices) > 1)
+    drop = np.zeros(mesh.n_faces, dtype=bool)
+    drop[mesh.face_of_corner[mesh.face_indices == shared][0]] = True
+    from auto_meshes import without_faces
+
+    opened = without_faces(mesh, drop)
+    kinds = {f.kind for f in find_issues(opened, "holes")}
+    assert kinds == {"hole", "pinched-vertices"}
+    result = run(opened, {"auto": "holes"})
+    assert_closed_manifold(result.mesh)
+    assert [r["strategy"] for r in result.stats.regions] == ["model"]
 
 
 def test_a_closed_mesh_has_nothing_to_repair():

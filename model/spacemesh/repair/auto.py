@@ -182,22 +182,30 @@ def find_issues(mesh: PolygonMesh, mode: str) -> list[Finding]:
     """The holes (``mode`` ``holes`` or ``all``) and defects (``defects`` or ``all``).
 
     A hole is a connected set of open edges (a boundary loop; loops touching at a
-    vertex are one). A defect is a connected set of vertices of one kind.
+    vertex are one). A defect is a connected set of vertices of one kind. A vertex of a
+    hole that also has a closed fan of faces (it stays pinched whatever fills the hole)
+    is a ``pinched-vertices`` finding in every mode.
     """
     sub = FaceSubset.of(mesh, np.arange(mesh.n_faces))
     he, count = sub.halfedges, sub.edge_count[sub.edge]
     n = mesh.n_vertices
     found: list[Finding] = []
+    fans = sub.fan_counts(n)
+    open_fans = np.bincount(he[count == 1][:, 0], minlength=n)
     if mode in ("holes", "all"):
         open_he = he[count == 1]
         marked = np.zeros(n, dtype=bool)
         marked[open_he.reshape(-1)] = True
         found += [Finding("hole", len(g), g) for g in _clusters(mesh, open_he, marked)]
+    if mode == "holes":
+        stuck = (open_fans > 0) & (fans > open_fans)
+        found += [Finding("pinched-vertices", len(g), g)
+                  for g in _clusters(mesh, mesh.edges, stuck)]
     if mode in ("defects", "all"):
         marks = {k: np.zeros(n, dtype=bool) for k in DEFECT_KINDS}
         marks["non-manifold-edges"][he[count > 2].reshape(-1)] = True
         marks["misoriented-edges"][he[(count == 2) & (sub.twin < 0)].reshape(-1)] = True
-        marks["pinched-vertices"][sub.fan_counts(n) > 1] = True
+        marks["pinched-vertices"][fans > 1] = True
         nn = max(n, 1)
         fv = np.sort(sub.face * nn + he[:, 0])
         repeated = np.unique(fv[1:][fv[1:] == fv[:-1]] // nn)
@@ -205,11 +213,9 @@ def find_issues(mesh: PolygonMesh, mode: str) -> list[Finding]:
         degenerate[repeated] = True
         degenerate |= mesh.face_sizes < 3
         marks["degenerate-faces"][mesh.face_indices[degenerate[mesh.face_of_corner]]] = True
-        # a pinched boundary vertex (loops touching there) is part of a hole, whose ring
-        # covers it, not a defect of its own
-        open_vertex = np.zeros(n, dtype=bool)
-        open_vertex[he[count == 1].reshape(-1)] = True
-        marks["pinched-vertices"] &= ~open_vertex
+        # a vertex pinched only by loops touching there (all its fans open) is part
+        # of a hole; one with a closed fan besides stays pinched whatever fills the hole
+        marks["pinched-vertices"] &= ~((open_fans > 0) & (open_fans == fans))
         edges = mesh.edges
         for kind in DEFECT_KINDS:
             found += [Finding(kind, len(g), g) for g in _clusters(mesh, edges, marks[kind])]

@@ -1,0 +1,331 @@
+"""Evaluate automatic hole filling (issue 19): ``{"auto": "holes"}`` against MeshFix,
+PyMeshLab's close-holes and trimesh's fill-holes.
+
+Two sets of inputs from ../shared/meshes (never copied into the repository):
+
+``punched``
+    The closed meshes of the test split (experiments/real_meshes_split.csv, at most
+    ``--max-vertices`` vertices), each with ``--holes`` holes punched in known places: a
+    sphere around a random vertex (seeded per mesh) holding about 2 % of the vertices (at
+    most 30); the faces with a vertex inside are removed. The intact mesh is the
+    reference.
+``open``
+    The open meshes of the ``repair`` category (boundary edges in the manifest, at most
+    ``--max-vertices`` vertices): no intact mesh is known, so their CD is measured
+    against the input's own surface (how far a method strays from what it was given).
+
+Methods, all given the same open mesh: ``ours`` (:func:`spacemesh.repair.repair_mesh`
+with ``{"auto": "holes"}``; ``all`` for the open set, whose meshes also have
+non-manifold spots), ``meshfix`` (pymeshfix), ``meshlab`` (PyMeshLab
+``meshing_close_holes``, holes of any size), ``trimesh`` (``trimesh.repair.fill_holes``)
+and ``hole`` (the open mesh as it is, for scale).
+
+Metrics, in the intact mesh's [-1, 1] frame: Chamfer distance and F1 against the intact
+mesh (punched) or the input (open), the region metrics of experiments/eval_repair.py
+(punched), ``outside`` (the share of the open mesh's faces that come back identical:
+same positions, same polygon), and the manifold, watertight and valid (closed oriented
+manifold) rates. For ours, which holes the model filled and which the fallback.
+
+Writes ``docs/results/repair_holes.md``, ``repair_holes.json`` and a gallery
+``repair_holes.png``. Usage::
+
+    python experiments/eval_repair_holes.py [--model DIR] [--steps N] [--threads 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from eval_repair import (
+    MESHES,
+    ROOT,
+    _shown,
+    cut_mesh,
+    face_keys,
+    find_model,
+    fmt,
+    mean,
+    prepare_reference,
+    random_region,
+    render,
+    score,
+    timed,
+)
+
+from spacemesh.repair.patch import sub_mesh
+
+METHODS = ("ours", "meshfix", "meshlab", "trimesh", "hole")
+SPLIT = ROOT / "experiments" / "real_meshes_split.csv"
+
+
+# ---------------------------------------------------------------------- baselines
+def close_holes_meshlab(mesh):
+    """PyMeshLab's close-holes filter (every hole, whatever its size) on the triangles."""
+    import pymeshlab
+
+    from spacemesh.data.validate import triangles_of
+    from spacemesh.mesh import PolygonMesh
+
+    tri, _ = triangles_of(mesh)
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(mesh.vertices, np.asarray(tri, np.int32)))
+    ms.meshing_close_holes(maxholesize=1_000_000)
+    out = ms.current_mesh()
+    return PolygonMesh.from_faces(out.vertex_matrix(), out.face_matrix().astype(np.int64))
+
+
+def baselines(mesh) -> dict[str, Any]:
+    from spacemesh.baselines.repair import fill_holes_trimesh, meshfix
+
+    return {"meshfix": timed(lambda: meshfix(mesh)),
+            "meshlab": timed(lambda: close_holes_meshlab(mesh)),
+            "trimesh": timed(lambda: fill_holes_trimesh(mesh))}
+
+
+# ---------------------------------------------------------------------- cases
+def punched_cases(seed: int, holes: int, max_vertices: int):
+    """(name, intact mesh, punched region mask) of the closed test meshes."""
+    from spacemesh.io import load_mesh
+    from spacemesh.repair import Region
+    from spacemesh.topology import check_topology
+
+    with open(SPLIT) as handle:
+        rows = [r for r in csv.DictReader(handle) if r["split"] == "test"]
+    for i, r in enumerate(rows):
+        path = MESHES / r["file"]
+        if not path.is_file() or int(r["n_vertices"]) > max_vertices:
+            continue
+        mesh = load_mesh(path)
+        if not check_topology(mesh).is_closed_oriented_manifold:
+            continue
+        rng = np.random.default_rng([seed, i])
+        region = np.zeros(mesh.n_faces, dtype=bool)
+        for _ in range(holes):
+            region |= Region.sphere(**{k: v for k, v in random_region(
+                mesh, rng, 0.02, 30)["sphere"].items()}).face_mask(mesh)
+        if region.all() or not region.any():
+            continue
+        yield r["file"], r["category"], mesh, region
+
+
+def open_cases(max_vertices: int):
+    """(name, open mesh) of the repair category with boundary edges."""
+    from spacemesh.io import load_mesh
+
+    with open(MESHES / "manifest.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    for r in rows:
+        path = MESHES / r["file"]
+        if (r["category"] != "repair" or int(r["boundary_edges"] or 0) == 0
+                or int(r["n_vertices"]) > max_vertices or not path.is_file()):
+            continue
+        yield r["file"], load_mesh(path)
+
+
+# ---------------------------------------------------------------------- one case
+def run_ours(mesh, mode: str, generator, seed: int, steps: int | None):
+    from spacemesh.repair import repair_mesh
+
+    result, status, seconds = timed(lambda: repair_mesh(mesh, {"auto": mode}, generator,
+                                                        seed=seed, steps=steps))
+    if result is None:
+        return (None, status, seconds), {}
+    s = result.stats
+    holes = [f for f in s.findings if f["kind"] == "hole"]
+    extra = {"passes": s.passes, "findings": s.findings_total,
+             "holes_model": sum(f["filled_by"] == "model" for f in holes),
+             "holes_fallback": sum(f["filled_by"] != "model" for f in holes),
+             "grown_faces": s.grown_faces, "fallback": s.fallback}
+    return (result.mesh, status, seconds), extra
+
+
+def evaluate_punched(name: str, group: str, mesh, region, generator, seed: int,
+                     steps: int | None) -> tuple[list[dict], dict]:
+    holed = cut_mesh(mesh, region)
+    reference, centre, scale = prepare_reference(mesh, region, seed)
+    kept_keys = set(face_keys(sub_mesh(mesh, np.flatnonzero(~region))))
+    ours, extra = run_ours(holed, "holes", generator, seed, steps)
+    runs = {"ours": ours, **baselines(holed), "hole": (holed, "ok", 0.0)}
+    base = {"shape": name, "set": "punched", "category": group, "faces": mesh.n_faces,
+            "region_faces": int(region.sum())}
+    rows, outputs = [], {"gt": mesh, "_unit": (centre, scale)}
+    outputs["_region_centre"] = mesh.vertices[
+        mesh.face_indices[region[mesh.face_of_corner]]].mean(axis=0)
+    for method in METHODS:
+        pred, status, seconds = runs[method]
+        row = {**base, "method": method, "status": status, "seconds": seconds,
+               **(extra if method == "ours" else {})}
+        if pred is not None:
+            row.update(score(pred, mesh, region, kept_keys, reference, centre, scale,
+                             seed + 1))
+            outputs[method] = pred
+        rows.append(row)
+    return rows, outputs
+
+
+def evaluate_open(name: str, mesh, generator, seed: int, steps: int | None) -> list[dict]:
+    none = np.zeros(mesh.n_faces, dtype=bool)
+    none[0] = True  # region metrics are not used here; prepare_reference needs faces
+    reference, centre, scale = prepare_reference(mesh, none, seed)
+    kept_keys = set(face_keys(mesh))
+    ours, extra = run_ours(mesh, "all", generator, seed, steps)
+    runs = {"ours": ours, **baselines(mesh), "hole": (mesh, "ok", 0.0)}
+    rows = []
+    for method in METHODS:
+        pred, status, seconds = runs[method]
+        row = {"shape": name, "set": "open", "category": "repair", "faces": mesh.n_faces,
+               "method": method, "status": status, "seconds": seconds,
+               **(extra if method == "ours" else {})}
+        if pred is not None:
+            scored = score(pred, mesh, none, kept_keys, reference, centre, scale, seed + 1)
+            row.update({k: v for k, v in scored.items() if not k.startswith("region")})
+        rows.append(row)
+    return rows
+
+
+# ---------------------------------------------------------------------- report
+def summarise(rows: list[dict]) -> list[dict]:
+    out = []
+    for group in ("punched", "open"):
+        for method in METHODS:
+            sel = [r for r in rows if r["set"] == group and r["method"] == method]
+            if not sel:
+                continue
+            ok = [r for r in sel if "cd" in r]
+            out.append({
+                "set": group, "method": method, "cases": len(sel), "scored": len(ok),
+                "cd": mean([r["cd"] for r in ok]),
+                "cd_median": float(np.nanmedian([r["cd"] for r in ok])) if ok else math.nan,
+                "f1": mean([r["f1"] for r in ok]),
+                "region_cd": mean([r.get("region_cd", math.nan) for r in ok]),
+                "outside": mean([r["outside"] for r in ok]),
+                "manifold": mean([float(r["manifold"]) for r in ok]),
+                "watertight": mean([float(r["watertight"]) for r in ok]),
+                "valid": mean([float(r["valid"]) for r in ok]),
+                "seconds": mean([r["seconds"] for r in sel]),
+            })
+    return out
+
+
+def write_report(rows: list[dict], config: dict, out: Path, gallery: Path | None) -> Path:
+    table = summarise(rows)
+    lines = [
+        "# Automatic hole filling (issue 19)",
+        "",
+        "Written by `experiments/eval_repair_holes.py` (docs/REPAIR.md, Automatic regions). "
+        f"Model `{config['model_label']}`, {config['steps']} sampler steps, seed "
+        f"{config['seed']}, {config['threads']} thread(s), {config['seconds']} s in all.",
+        "",
+        f"- `punched`: closed test-split meshes of ../shared/meshes (at most "
+        f"{config['max_vertices']} vertices) with {config['holes']} holes punched (about 2 % "
+        "of the vertices each); CD, F1 (whole surface) and region CD against the intact "
+        "mesh (x1e-3, the [-1, 1] frame).",
+        "- `open`: the open meshes of the `repair` category; CD and F1 against the input "
+        "itself (no intact mesh is known); ours with `{\"auto\": \"all\"}`.",
+        "- `outside`: share of the open mesh's faces that come back identical; `valid`: "
+        "closed, oriented, manifold.",
+        "",
+        "| set | method | cases (scored) | CD mean | CD median | F1 | region CD | outside "
+        "| manifold | watertight | valid | seconds |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for t in table:
+        lines.append(
+            f"| {t['set']} | {t['method']} | {t['cases']} ({t['scored']}) | "
+            f"{fmt(t['cd'] * 1e3, 2)} | {fmt(t['cd_median'] * 1e3, 2)} | {fmt(t['f1'])} | "
+            f"{fmt(t['region_cd'] * 1e3, 2)} | {fmt(t['outside'])} | {fmt(t['manifold'], 2)} | "
+            f"{fmt(t['watertight'], 2)} | {fmt(t['valid'], 2)} | {fmt(t['seconds'], 2)} |")
+    ours = [r for r in rows if r["method"] == "ours"]
+    model = sum(r.get("holes_model", 0) for r in ours)
+    fallback = sum(r.get("holes_fallback", 0) for r in ours)
+    refused = [f"{r['shape']} ({r['status']})" for r in ours if r["status"] != "ok"]
+    lines += [
+        "",
+        f"Holes filled by the model: {model}; by a fallback (the fan, or one polygon over "
+        f"the loop) at least in part: {fallback} "
+        f"(fallback share {fallback / max(model + fallback, 1):.2f}).",
+        f"Refused or failed: {', '.join(refused) if refused else 'none'}.",
+        "",
+        "Per mesh (CD x1e-3; ours / MeshFix):",
+        "",
+        "| set | mesh | faces | ours CD | MeshFix CD | ours valid | ours outside | passes |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in ours:
+        fix = next((m for m in rows if m["shape"] == r["shape"] and m["set"] == r["set"]
+                    and m["method"] == "meshfix"), {})
+        lines.append(f"| {r['set']} | {r['shape'][:48]} | {r['faces']} | "
+                     f"{fmt(r.get('cd', math.nan) * 1e3, 2)} | "
+                     f"{fmt(fix.get('cd', math.nan) * 1e3, 2)} | {r.get('valid', '-')} | "
+                     f"{fmt(r.get('outside', math.nan))} | {r.get('passes', '-')} |")
+    if gallery is not None:
+        lines += ["", f"![gallery]({gallery.name})", "",
+                  "Punched meshes turned so that a hole faces the camera: the open mesh, ours, "
+                  "MeshFix, the intact mesh."]
+    lines += ["", "Re-run: `python experiments/eval_repair_holes.py --threads 1` "
+              "(needs ../shared/meshes, pymeshfix, pymeshlab, trimesh).", ""]
+    path = out / "repair_holes.md"
+    path.write_text("\n".join(lines))
+    return path
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--model", default=None)
+    parser.add_argument("--steps", type=int, default=None)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--holes", type=int, default=2)
+    parser.add_argument("--max-vertices", type=int, default=3000)
+    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--out", default=str(ROOT / "docs" / "results"))
+    args = parser.parse_args()
+    if not MESHES.is_dir():
+        sys.exit(f"{MESHES}: absent; this evaluation needs ../shared/meshes")
+    from spacemesh.evaluate.runner import pin_threads
+
+    pin_threads(args.threads)
+    from spacemesh.runtime import MeshGenerator
+
+    model, label = find_model(args.model)
+    generator = MeshGenerator.from_repository(model, intra_op_threads=args.threads)
+    steps = args.steps or generator.spec.steps
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    rows: list[dict] = []
+    examples: list[tuple[str, dict]] = []
+    for name, group, mesh, region in punched_cases(args.seed, args.holes, args.max_vertices):
+        case_rows, outputs = evaluate_punched(name, group, mesh, region, generator, args.seed,
+                                              steps)
+        rows += case_rows
+        if len(examples) < 4 and "ours" in outputs:
+            examples.append((name.split("__")[-1], outputs))
+        print(f"punched {name}: {case_rows[0]['status']} cd="
+              f"{case_rows[0].get('cd', math.nan) * 1e3:.2f}e-3 valid="
+              f"{case_rows[0].get('valid')} ({time.perf_counter() - start:.0f} s)", flush=True)
+    for name, mesh in open_cases(args.max_vertices):
+        case_rows = evaluate_open(name, mesh, generator, args.seed, steps)
+        rows += case_rows
+        print(f"open {name}: {case_rows[0]['status']} valid={case_rows[0].get('valid')} "
+              f"({time.perf_counter() - start:.0f} s)", flush=True)
+    gallery = render(examples, out / "repair_holes.png")
+    config = {"model": _shown(model), "model_label": label, "steps": steps, "seed": args.seed,
+              "holes": args.holes, "max_vertices": args.max_vertices, "threads": args.threads,
+              "seconds": round(time.perf_counter() - start, 1)}
+    (out / "repair_holes.json").write_text(json.dumps({"config": config, "rows": rows},
+                                                      indent=1, default=float))
+    print(write_report(rows, config, out, gallery))
+
+
+if __name__ == "__main__":
+    main()
