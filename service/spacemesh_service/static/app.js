@@ -512,7 +512,8 @@ function showSelection() {
   if (repair.sphere) highlighted = sphereFaces(new THREE.Vector3(...repair.sphere.center), repair.sphere.radius);
   const faceColours = repair.mesh.faces.map((_, f) => (highlighted.has(f) ? HIGHLIGHT : BASE));
   before.setMesh(repair.mesh, "shaded", { faceColours });
-  $("selection").textContent = region ? `region: ${JSON.stringify(region).slice(0, 120)}` : "no region selected";
+  const shown = JSON.stringify(region, (_, v) => (typeof v === "number" && !Number.isInteger(v) ? Number(v.toPrecision(4)) : v));
+  $("selection").textContent = region ? `region: ${shown.length > 160 ? `${shown.slice(0, 157)}...` : shown}` : "no region selected";
   $("repair-run").disabled = !region;
 }
 
