@@ -93,6 +93,16 @@ def baselines(mesh) -> dict[str, Any]:
 
 
 # ---------------------------------------------------------------------- cases
+def permissive(name: str) -> bool:
+    """Whether the manifest gives the file's repository an MIT licence (only those are
+    shown in the gallery; the others' licences are unclear or the creator's)."""
+    with open(MESHES / "manifest.csv") as handle:
+        for r in csv.DictReader(handle):
+            if r["file"] == name:
+                return r["license"].lstrip('"').startswith("repo MIT")
+    return False
+
+
 def punched_cases(seed: int, holes: int, max_vertices: int):
     """(name, intact mesh, punched region mask) of the closed test meshes."""
     from spacemesh.io import load_mesh
@@ -270,12 +280,24 @@ def write_report(rows: list[dict], config: dict, out: Path, gallery: Path | None
                      f"{fmt(r.get('outside', math.nan))} | {r.get('passes', '-')} |")
     if gallery is not None:
         lines += ["", f"![gallery]({gallery.name})", "",
-                  "Punched meshes turned so that a hole faces the camera: the open mesh, ours, "
-                  "MeshFix, the intact mesh."]
+                  "Punched meshes (MIT-licensed ones only) turned so that a hole faces the "
+                  "camera: the open mesh, ours, MeshFix, the intact mesh."]
     lines += ["", "Re-run: `python experiments/eval_repair_holes.py --threads 1` "
               "(needs ../shared/meshes, pymeshfix, pymeshlab, trimesh).", ""]
     path = out / "repair_holes.md"
     path.write_text("\n".join(lines))
+    return path
+
+
+def shrink(path: Path | None, size: int = 800) -> Path | None:
+    """The gallery at most ``size`` pixels wide, in 128 colours (a small file)."""
+    if path is None:
+        return None
+    from PIL import Image
+
+    image = Image.open(path).convert("RGB")
+    image.thumbnail((size, size))
+    image.quantize(colors=128).save(path, optimize=True)
     return path
 
 
@@ -308,7 +330,7 @@ def main() -> None:
         case_rows, outputs = evaluate_punched(name, group, mesh, region, generator, args.seed,
                                               steps)
         rows += case_rows
-        if len(examples) < 4 and "ours" in outputs:
+        if len(examples) < 4 and "ours" in outputs and permissive(name):
             examples.append((name.split("__")[-1], outputs))
         print(f"punched {name}: {case_rows[0]['status']} cd="
               f"{case_rows[0].get('cd', math.nan) * 1e3:.2f}e-3 valid="
@@ -318,7 +340,7 @@ def main() -> None:
         rows += case_rows
         print(f"open {name}: {case_rows[0]['status']} valid={case_rows[0].get('valid')} "
               f"({time.perf_counter() - start:.0f} s)", flush=True)
-    gallery = render(examples, out / "repair_holes.png")
+    gallery = shrink(render(examples, out / "repair_holes.png"))
     config = {"model": _shown(model), "model_label": label, "steps": steps, "seed": args.seed,
               "holes": args.holes, "max_vertices": args.max_vertices, "threads": args.threads,
               "seconds": round(time.perf_counter() - start, 1)}
