@@ -18,7 +18,7 @@ import time
 import torch
 
 from spacemesh.examples import icosphere, torus_grid
-from spacemesh.fit import FitConfig, fit_mesh
+from spacemesh.fitting import FitConfig, fit_mesh
 from spacemesh.io import load_mesh
 
 

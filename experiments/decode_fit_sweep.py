@@ -26,7 +26,7 @@ import numpy as np
 from tqdm import tqdm
 
 from spacemesh.decode import DecodeOptions, decode
-from spacemesh.fit import edge_f1_score, next_accuracy
+from spacemesh.metrics.connectivity import edge_f1_score, next_accuracy
 from spacemesh.runtime.pipeline import MeshGenerator
 from spacemesh.train.batching import Sample
 from spacemesh.train.evaluate import repository_embeddings

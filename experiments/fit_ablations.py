@@ -27,7 +27,7 @@ import matplotlib.pyplot as plt
 import torch
 
 from spacemesh.examples import torus_grid
-from spacemesh.fit import FitConfig, fit_mesh
+from spacemesh.fitting import FitConfig, fit_mesh
 from spacemesh.io import load_mesh
 
 ROOT = Path(__file__).resolve().parents[1]

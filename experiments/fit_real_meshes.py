@@ -20,7 +20,7 @@ from pathlib import Path
 
 import torch
 
-from spacemesh.fit import FitConfig, fit_mesh
+from spacemesh.fitting import FitConfig, fit_mesh
 from spacemesh.io import load_mesh
 from spacemesh.topology import check_topology
 

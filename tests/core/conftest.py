@@ -9,7 +9,7 @@ import pytest
 def fitted():
     """An icosphere (subdivision 2) and embeddings fitted to it exactly."""
     from spacemesh.examples import icosphere
-    from spacemesh.fit import FitConfig, fit_mesh
+    from spacemesh.fitting import FitConfig, fit_mesh
 
     mesh = icosphere(2)
     result = fit_mesh(mesh, FitConfig(max_iters=400, threads=1))

@@ -9,7 +9,8 @@ import pytest
 from spacemesh.decode import DecodeOptions, decode, pinched_face_edges
 from spacemesh.encode import encode_connectivity
 from spacemesh.examples import icosphere, torus_grid
-from spacemesh.fit import FitConfig, edge_f1_score, fit_mesh
+from spacemesh.fitting import FitConfig, fit_mesh
+from spacemesh.metrics.connectivity import edge_f1_score
 from spacemesh.spacetime import pairwise_distance
 
 

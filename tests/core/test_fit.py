@@ -3,7 +3,7 @@ import pytest
 pytest.importorskip("torch")
 
 from spacemesh.decode import decode
-from spacemesh.fit import FitConfig, fit_mesh
+from spacemesh.fitting import FitConfig, fit_mesh
 from spacemesh.halfedge import HalfedgeMesh
 from tests.factories import cube_quads, icosphere, prism, torus_grid
 

@@ -12,10 +12,10 @@ from spacemesh.connectivity import Connectivity
 from spacemesh.decode import DecodeOptions, decode
 from spacemesh.encode import encode_connectivity
 from spacemesh.examples import icosphere
-from spacemesh.fit import edge_f1_score, next_accuracy
 from spacemesh.geometry import refinement
 from spacemesh.geometry.refinement import flip_diagonals, reinsert_vertices
 from spacemesh.mesh import PolygonMesh
+from spacemesh.metrics.connectivity import edge_f1_score, next_accuracy
 from spacemesh.spacetime import distance_operands
 from spacemesh.topology import check_topology, edge_keys
 

@@ -12,7 +12,7 @@ pytest.importorskip("torch")
 from spacemesh.decode import DecodeOptions
 from spacemesh.encode import encode_connectivity
 from spacemesh.examples import icosphere
-from spacemesh.fit import FitConfig, fit_mesh
+from spacemesh.fitting import FitConfig, fit_mesh
 from spacemesh.spacetime import pairwise_distance
 from spacemesh.train.batching import Sample
 from spacemesh.train.evaluate import (

@@ -78,7 +78,7 @@ def fit(
         fail(f"{mesh_path}: {error}")
 
     try:
-        from spacemesh.fit import FitConfig, fit_mesh
+        from spacemesh.fitting import FitConfig, fit_mesh
     except ModuleNotFoundError as error:
         fail(
             f"fitting needs the training extra ({error.name} is missing): "

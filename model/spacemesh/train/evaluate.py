@@ -2,7 +2,8 @@
 
 Connectivity on ground-truth vertices (the paper's training setting): edge F1 of the
 pairs whose distance is below the threshold, and ``next`` accuracy of the mesh the decode
-(:func:`spacemesh.decode.decode`) builds, both as :mod:`spacemesh.fit` measures them.
+(:func:`spacemesh.decode.decode`) builds, both as :mod:`spacemesh.metrics.connectivity`
+measures them.
 
 Full pipeline (diffusion, then connectivity): the share of outputs that are valid closed
 oriented manifolds (:func:`spacemesh.topology.check_topology`), and the Chamfer distance
@@ -20,8 +21,8 @@ import numpy as np
 import torch
 
 from spacemesh.decode import DecodeOptions, Embeddings, decode
-from spacemesh.fit import edge_f1_score, next_accuracy
 from spacemesh.mesh import PolygonMesh
+from spacemesh.metrics.connectivity import edge_f1_score, next_accuracy
 from spacemesh.nn.model import SpaceMeshModel
 from spacemesh.spacetime import edges_below_threshold
 from spacemesh.topology import check_topology
@@ -119,9 +120,10 @@ def decoded_scores(
     Returns
     -------
     dict of lists
-        ``edge_f1`` (the pairs below the threshold, as :mod:`spacemesh.fit` measures
-        it), ``decoded_edge_f1`` (the edges the decode keeps), ``next_accuracy`` (of the
-        decoded mesh) and ``exact`` (1.0 where the decode equals the truth).
+        ``edge_f1`` (the pairs below the threshold, as
+        :mod:`spacemesh.metrics.connectivity` measures it), ``decoded_edge_f1`` (the
+        edges the decode keeps), ``next_accuracy`` (of the decoded mesh) and ``exact``
+        (1.0 where the decode equals the truth).
     """
     scores: dict[str, list[float]] = {k: [] for k in SCORES}
     for s, emb in zip(samples, embeddings, strict=True):

@@ -1,5 +1,7 @@
 """Fitting SpaceMesh embeddings to one mesh by direct optimisation (paper Sec. 4.1).
 
+The torch side of ``spacemesh fit`` (the training extra); the numpy core never imports it.
+
 Per-vertex embeddings ``x`` (k = 16: 8 space + 8 time), ``y_root``, ``y_prev``,
 ``y_next`` (k_p = 6) and the threshold ``tau`` are optimised with Adam (lr 0.1) on the
 losses of Eq. 3 and Eq. 5 until the numpy decode reproduces the input's faces exactly.
@@ -23,6 +25,7 @@ from spacemesh.connectivity import Connectivity
 from spacemesh.decode import MAX_DEGREE, DecodeOptions, DecodeResult, Embeddings, decode
 from spacemesh.encode import encode_connectivity, require_closed_manifold
 from spacemesh.mesh import PolygonMesh
+from spacemesh.metrics.connectivity import edge_f1_score, next_accuracy
 from spacemesh.nn.losses import (
     PermutationReduction,
     degree_groups,
@@ -102,26 +105,6 @@ class FitResult:
             "edge_f1": round(self.edge_f1, 6),
             "next_accuracy": round(self.next_accuracy, 6),
         }
-
-
-def edge_f1_score(predicted: np.ndarray, truth: np.ndarray, n_vertices: int) -> float:
-    """F1 of two undirected edge sets given as (E, 2) arrays with ``i < j``."""
-    key_p = predicted[:, 0].astype(np.int64) * n_vertices + predicted[:, 1]
-    key_t = truth[:, 0].astype(np.int64) * n_vertices + truth[:, 1]
-    tp = np.isin(key_p, key_t).sum()
-    if len(key_p) + len(key_t) == 0:
-        return 1.0
-    return float(2 * tp / (len(key_p) + len(key_t)))
-
-
-def next_accuracy(decoded: Connectivity, truth: Connectivity) -> float:
-    """Fraction of ground-truth ``next`` relations ``(i, j, k)`` present in the decode."""
-    n = truth.n_vertices
-    t = truth.next_triplets()
-    d = decoded.next_triplets()
-    key_t = (t[:, 0] * n + t[:, 1]) * n + t[:, 2]
-    key_d = (d[:, 0] * n + d[:, 1]) * n + d[:, 2]
-    return float(np.isin(key_t, key_d).mean()) if len(key_t) else 1.0
 
 
 #: With ``init="positions"``: the threshold's start, in squared mean edge lengths (edges
