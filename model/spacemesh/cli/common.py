@@ -1,13 +1,16 @@
-"""Shared pieces of the command line: the typer app and one-line error reporting."""
+"""Shared pieces of the command line: the typer app, one-line error reporting and the
+``--threads`` option that every command with threads shares."""
 
 from __future__ import annotations
 
 import sys
 from collections.abc import Callable
 from functools import wraps
-from typing import NoReturn, ParamSpec, TypeVar
+from typing import Annotated, NoReturn, ParamSpec, TypeVar
 
 import typer
+
+from spacemesh.threads import default_threads, limit_threads
 
 app = typer.Typer(
     name="spacemesh",
@@ -16,6 +19,17 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+#: ``--threads`` of every command (one meaning: :mod:`spacemesh.threads`).
+Threads = Annotated[
+    int,
+    typer.Option(
+        "--threads",
+        min=0,
+        help="CPU threads of torch, onnxruntime and BLAS: exactly N; 0 means one per core "
+        f"this process may use ({default_threads()} here). Idle threads sleep, never spin.",
+    ),
+]
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -68,3 +82,15 @@ def user_errors(*error_types: type[BaseException]) -> Callable[[Callable[P, R]],
         return wrapper
 
     return decorate
+
+
+def use_threads(threads: int) -> int:
+    """Apply a ``--threads`` value (:func:`spacemesh.threads.limit_threads`); call it
+    before the command loads torch, onnxruntime or pymeshlab.
+
+    Returns
+    -------
+    int
+        The thread count in force, to pass on (onnxruntime's ``intra_op_threads``).
+    """
+    return limit_threads(threads)

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from spacemesh.cli.common import UserError, app, user_errors
+from spacemesh.cli.common import Threads, UserError, app, use_threads, user_errors
 
 
 def parse_baselines(text: str) -> list[str]:
@@ -59,12 +59,7 @@ def evaluate(
         int | None, typer.Option("--steps", min=1, help="Sampler steps (default: the model's).")
     ] = None,
     gallery: Annotated[int, typer.Option("--gallery", min=0, help="Shapes in the gallery.")] = 4,
-    threads: Annotated[
-        int,
-        typer.Option(
-            "--threads", min=1, help="Threads of every method (BLAS, Poisson, onnxruntime)."
-        ),
-    ] = 1,
+    threads: Threads = 1,  # 1 by default: every method's timing on one core
     psr_star_target: Annotated[
         str, typer.Option("--psr-star-target", help="PSR* vertex count: ours (per shape) or gt.")
     ] = "ours",
@@ -92,9 +87,7 @@ def evaluate(
 
     Also histograms.png (Fig. 9) and gallery.png (points, ours, PSR*, ground truth).
     """
-    from spacemesh.evaluate.runner import pin_threads
-
-    pin_threads(threads)  # before pymeshlab and onnxruntime load
+    threads = use_threads(threads)  # before pymeshlab and onnxruntime load
     from spacemesh.evaluate.runner import (
         load_shapes,
         parse_modes,

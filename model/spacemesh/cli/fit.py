@@ -9,7 +9,7 @@ from typing import Annotated
 
 import typer
 
-from spacemesh.cli.common import app, fail
+from spacemesh.cli.common import Threads, app, fail, use_threads
 from spacemesh.errors import SpaceMeshError
 
 
@@ -57,7 +57,7 @@ def fit(
     ] = InitChoice.random,
     max_iters: Annotated[int, typer.Option(min=1, help="Iteration budget.")] = 1000,
     seed: Annotated[int, typer.Option(help="Random seed of the initial embeddings.")] = 0,
-    threads: Annotated[int, typer.Option(min=0, help="Torch threads (0: torch's default).")] = 0,
+    threads: Threads = 0,
 ) -> None:
     """Fit SpaceMesh embeddings to MESH until they decode to it exactly.
 
@@ -77,6 +77,7 @@ def fit(
     except MeshFormatError as error:
         fail(f"{mesh_path}: {error}")
 
+    threads = use_threads(threads)  # before torch loads
     try:
         from spacemesh.fitting import FitConfig, fit_mesh
     except ModuleNotFoundError as error:
@@ -97,7 +98,7 @@ def fit(
         reduction=reduction.value,
         max_iters=max_iters,
         seed=seed,
-        threads=threads or None,
+        threads=threads,
         init=init.value,
     )
     bar = tqdm(total=max_iters, desc="fit", unit="it", disable=as_json, leave=False)

@@ -18,7 +18,7 @@ from typing import Annotated
 
 import typer
 
-from spacemesh.cli.common import app, fail
+from spacemesh.cli.common import Threads, app, fail, use_threads
 
 MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".off")
 
@@ -66,9 +66,7 @@ def generate(
     raw: Annotated[
         bool, typer.Option("--raw", help="The networks' mesh without the geometry stage.")
     ] = False,
-    threads: Annotated[
-        int, typer.Option("--threads", min=0, help="onnxruntime threads (0: all).")
-    ] = 0,
+    threads: Threads = 0,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
     progress: Annotated[
         bool, typer.Option("--progress/--no-progress", help="Progress bar.")
@@ -91,7 +89,7 @@ def generate(
     if not points_path.is_file():
         fail(f"{points_path}: no such file")
     try:
-        generator = MeshGenerator.from_repository(model, intra_op_threads=threads)
+        generator = MeshGenerator.from_repository(model, intra_op_threads=use_threads(threads))
     except ModelRepositoryError as error:
         fail(str(error))
     try:  # a mesh's surface is sampled to the model's point count

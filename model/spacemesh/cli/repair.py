@@ -8,7 +8,7 @@ from typing import Annotated, Any
 
 import typer
 
-from spacemesh.cli.common import app, fail
+from spacemesh.cli.common import Threads, app, fail, use_threads
 
 MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".off")
 
@@ -114,8 +114,7 @@ def repair(
         "--steps", min=1, help="Sampler steps (default: the model's).")] = None,
     sampler: Annotated[str | None, typer.Option(
         "--sampler", help="ddim or ddpm (default: the model's).")] = None,
-    threads: Annotated[int, typer.Option(
-        "--threads", min=0, help="onnxruntime threads (0: all).")] = 0,
+    threads: Threads = 0,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
     progress: Annotated[bool, typer.Option(
         "--progress/--no-progress", help="Progress bar.")] = True,
@@ -141,7 +140,7 @@ def repair(
     except MeshFormatError as error:
         fail(f"{mesh_path}: {error}")
     try:
-        generator = MeshGenerator.from_repository(model, intra_op_threads=threads)
+        generator = MeshGenerator.from_repository(model, intra_op_threads=use_threads(threads))
     except ModelRepositoryError as error:
         fail(str(error))
     try:

@@ -11,7 +11,7 @@ from typing import Annotated
 
 import typer
 
-from spacemesh.cli.common import app, fail, require_extra
+from spacemesh.cli.common import Threads, app, fail, require_extra, use_threads
 
 
 def _require_torch() -> None:
@@ -55,9 +55,7 @@ def train(
     device: Annotated[
         str | None, typer.Option("--device", help="cpu or cuda (default: cuda if available).")
     ] = None,
-    threads: Annotated[
-        int, typer.Option("--threads", min=0, help="Torch CPU threads (0: default).")
-    ] = 0,
+    threads: Threads = 0,
     seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
     max_minutes: Annotated[
         float | None,
@@ -107,7 +105,7 @@ def train(
         fail(f"{val_data}: not a dataset folder (no manifest.json)")
     options = TrainOptions(
         config=model_config, data=data, out=out, resume=resume, steps=steps, val_data=val_data,
-        device=device, threads=threads or None, seed=seed,
+        device=device, threads=use_threads(threads), seed=seed,
         max_seconds=None if max_minutes is None else max_minutes * 60, progress=progress,
         base=base, init_from=init_from,
     )
@@ -143,9 +141,7 @@ def export_(
     pipeline_shapes: Annotated[
         int, typer.Option("--pipeline-shapes", min=1, help="Shapes for full-pipeline metrics.")
     ] = 16,
-    threads: Annotated[
-        int, typer.Option("--threads", min=0, help="Torch and onnxruntime threads.")
-    ] = 0,
+    threads: Threads = 0,
 ) -> None:
     """Export a run as a model repository: OUT/NAME/VERSION/{*.onnx, manifest.json}.
 
@@ -153,12 +149,9 @@ def export_(
     byte for byte as a new version with the decode of this release, measured again.
     """
     _require_torch()
-    import torch
-
     from spacemesh.export.repository import export_run, repackage_repository
 
-    if threads:
-        torch.set_num_threads(threads)
+    threads = use_threads(threads)
     if not run.exists():
         fail(f"{run}: no such run folder or checkpoint")
     for folder in (eval_data, calibrate_data):

@@ -24,7 +24,6 @@ from __future__ import annotations
 import contextlib
 import json
 import math
-import os
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -45,16 +44,9 @@ from spacemesh.metrics.report import (
     write_csv,
 )
 from spacemesh.metrics.sampling import apply_normalisation, normalisation
+from spacemesh.threads import limit_threads
 from spacemesh.typed import FloatArray
 
-#: Environment variables that cap BLAS/OpenMP thread pools (read when a library loads).
-THREAD_VARIABLES = (
-    "OMP_NUM_THREADS",
-    "OPENBLAS_NUM_THREADS",
-    "MKL_NUM_THREADS",
-    "VECLIB_MAXIMUM_THREADS",
-    "NUMEXPR_NUM_THREADS",
-)
 #: Baselines the runner knows, in table order (``psr_star_gt``: PSR decimated to the
 #: ground truth's vertex count).
 BASELINES = ("psr", "psr_star", "psr_star_gt", "bpa")
@@ -77,23 +69,16 @@ N_POINTS = 2048
 
 
 def pin_threads(threads: int) -> None:
-    """Cap BLAS/OpenMP threads (call before pymeshlab/onnxruntime are imported).
-
-    Sets the variables of :data:`THREAD_VARIABLES` and, when threadpoolctl is
-    installed, also limits the pools of libraries that are already loaded.
+    """Cap BLAS/OpenMP, torch and onnxruntime threads (call before pymeshlab/onnxruntime
+    are imported): :func:`spacemesh.threads.limit_threads`, the one meaning of
+    ``--threads``.
 
     Parameters
     ----------
     threads : int
-        At least 1.
+        At least 1 (0: one per core).
     """
-    for name in THREAD_VARIABLES:
-        os.environ[name] = str(threads)
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        return
-    threadpool_limits(threads)
+    limit_threads(threads)
 
 
 @dataclass(frozen=True)

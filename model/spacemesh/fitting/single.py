@@ -37,6 +37,7 @@ from spacemesh.nn.losses import (
 )
 from spacemesh.permutation import SINKHORN_ITERS
 from spacemesh.spacetime import count_pairs_below_threshold, edges_below_threshold
+from spacemesh.threads import limit_threads
 
 
 @dataclass(frozen=True)
@@ -60,7 +61,7 @@ class FitConfig:
     random_negatives: int = 4  # per edge, in sparse mode
     max_hard: int = 8  # mined non-edges kept per edge, in sparse mode
     false_positive_weight: float | None = 1.0  # non-edges below tau; None: lambda for all (paper)
-    threads: int | None = None
+    threads: int | None = None  # None: as the process is; else spacemesh.threads.limit_threads
     # non-edges keep the false-positive weight until d > tau + margin (hysteresis)
     false_positive_margin: float = 0.5
     init: str = "random"  # or "positions": space coordinates start at the vertex positions
@@ -255,8 +256,8 @@ def fit_mesh(
         raise ValueError(f"unknown init {config.init!r}; expected one of {INITS}")
     if config.init == "positions" and config.distance == "dot":
         raise ValueError("init='positions' needs a distance with space coordinates, not 'dot'")
-    if config.threads:
-        torch.set_num_threads(config.threads)
+    if config.threads is not None:
+        limit_threads(config.threads)
     require_closed_manifold(mesh)
     mesh, _ = mesh.remove_unreferenced_vertices()
     truth = encode_connectivity(mesh, check=False)
