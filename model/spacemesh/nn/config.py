@@ -208,6 +208,10 @@ class TrainConfig:
         at most that much.
     val_shapes : int
         Validation shapes evaluated each time.
+    augment : str
+        Conditioning-cloud augmentation preset (:data:`spacemesh.data.augment.PRESETS`):
+        ``none`` (the clean samples) or ``realistic`` (noise, uneven density, missing
+        regions and outliers); the ground-truth mesh stays the clean one.
     """
 
     batch_size: int = 8
@@ -232,6 +236,7 @@ class TrainConfig:
     checkpoint_every: int = 100
     checkpoint_minutes: float = 0.0
     val_shapes: int = 32
+    augment: str = "none"
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,9 @@ neighbour table the permutation loss takes (:class:`spacemesh.nn.model.Neighbour
 Augmentation: each shape is scaled by an independent random factor per axis and then
 renormalised (bounding-box centre at the origin, longest axis spanning [-1, 1]), the
 normalisation the generator applies to its inputs. Normals follow the inverse transpose.
+An :class:`spacemesh.data.augment.AugmentConfig` then makes the conditioning cloud
+realistic (noise, uneven density, missing regions, outliers); the positions, adjacency
+and neighbour table stay those of the clean mesh.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import numpy as np
 import torch
 
 from spacemesh.connectivity import Connectivity
+from spacemesh.data.augment import AugmentConfig, augment_cloud
 from spacemesh.data.shards import MeshRecord
 from spacemesh.encode import encode_connectivity
 from spacemesh.nn.model import NeighbourTable
@@ -170,6 +174,7 @@ def collate(
     rng: np.random.Generator | None = None,
     scale_range: tuple[float, float] | None = None,
     jitter: float = 0.0,
+    augment: AugmentConfig | None = None,
 ) -> Batch:
     """Pad samples into a :class:`Batch`.
 
@@ -191,6 +196,9 @@ def collate(
     jitter : float
         Standard deviation of Gaussian noise added to the vertex positions after
         scaling (the adjacency and the neighbour table are those of the exact mesh).
+    augment : AugmentConfig, optional
+        Conditioning-cloud augmentation after the scaling (none when None or identity:
+        the points are then a plain random subset, as before).
 
     Returns
     -------
@@ -211,10 +219,14 @@ def collate(
         if scale_range is not None:
             scale = rng.uniform(scale_range[0], scale_range[1], size=3)
             v, p, nrm = random_scaling(v, p, nrm, scale)
-        pick = choose_points(len(p), n_points, rng)
-        points[i, :, :3] = p[pick]
+        if augment is not None and not augment.is_identity:
+            p, nrm, _ = augment_cloud(p, nrm, augment, rng, n_points)
+        else:
+            pick = choose_points(len(p), n_points, rng)
+            p, nrm = p[pick], nrm[pick]
+        points[i, :, :3] = p
         if normals:
-            points[i, :, 3:] = nrm[pick]
+            points[i, :, 3:] = nrm
         if jitter > 0:
             v = v + rng.normal(scale=jitter, size=v.shape)  # (n_i, 3)
         positions[i, : s.n_vertices] = v

@@ -1,12 +1,14 @@
 """A frozen encoder's volumes, computed once per augmented training shape.
 
 In a diffusion-only run (``TrainConfig.diffusion_only``) the encoder does not train, so
-its output for a shape depends only on the shape's augmentation (the per-axis scaling
-and the subset of conditioning points). Each training shape gets ``variants`` fixed
-augmentations, drawn from a generator seeded by ``(seed, shape, variant)``; a variant's
-volumes are computed the first time a batch draws it and kept (float16, on the
-training device), so the encoder's forward pass, about half of a diffusion step on a
-CPU, is paid once per variant instead of once per step.
+its output for a shape depends only on the shape's augmentation (the per-axis scaling,
+the subset of conditioning points and, with ``TrainConfig.augment``, the realistic
+cloud of :mod:`spacemesh.data.augment`: noise, drops, outliers). A cache variant is one
+such augmentation: each training shape gets ``variants`` fixed augmentations, drawn
+from a generator seeded by ``(seed, shape, variant)``; a variant's volumes are computed
+the first time a batch draws it and kept (float16, on the training device), so the
+encoder's forward pass, about half of a diffusion step on a CPU, is paid once per
+variant instead of once per step.
 
 Memory: ``shapes * variants * sum(C_r R_r^3) * 2`` bytes, 0.33 MB per variant for the
 ``small`` encoder (4,000 shapes with 4 variants: 5.2 GB); the positions and points of a
@@ -21,6 +23,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from spacemesh.data.augment import AugmentConfig
 from spacemesh.train.batching import Batch, Sample, collate
 
 
@@ -32,6 +35,7 @@ def variant_seed(seed: int, shape: int, variant: int) -> np.random.Generator:
 def collate_variants(
     samples: Sequence[Sample], keys: Sequence[tuple[int, int]], *, seed: int, n_points: int,
     normals: bool, pad_to: int, scale_range: tuple[float, float] | None,
+    augment: AugmentConfig | None = None,
 ) -> Batch:
     """A diffusion batch of fixed augmentation variants (no connectivity).
 
@@ -41,7 +45,7 @@ def collate_variants(
         All training shapes.
     keys : sequence of (shape index, variant)
     seed : int
-    n_points, normals, pad_to, scale_range
+    n_points, normals, pad_to, scale_range, augment
         As in :func:`spacemesh.train.batching.collate`.
 
     Returns
@@ -51,7 +55,8 @@ def collate_variants(
     """
     rows = [
         collate([samples[i]], n_points=n_points, normals=normals, pad_to=pad_to,
-                connectivity=False, rng=variant_seed(seed, i, v), scale_range=scale_range)
+                connectivity=False, rng=variant_seed(seed, i, v), scale_range=scale_range,
+                augment=augment)
         for i, v in keys
     ]
     return Batch(torch.cat([r.points for r in rows]), torch.cat([r.positions for r in rows]),
@@ -71,8 +76,9 @@ class EncoderCache:
     variants : int
         Augmentation variants per shape.
     seed : int
-    n_points, normals, pad_to, scale_range
-        How batches are made (see :func:`collate_variants`).
+    n_points, normals, pad_to, scale_range, augment
+        How batches are made (see :func:`collate_variants`); the cached volumes are
+        those of the augmented clouds, so a cache serves one augmentation setting.
     device : torch.device
         Where volumes are computed and stored.
     """
@@ -81,6 +87,7 @@ class EncoderCache:
         self, encoder: Callable[[Tensor], list[Tensor]], samples: Sequence[Sample], *,
         variants: int, seed: int, n_points: int, normals: bool, pad_to: int,
         scale_range: tuple[float, float] | None, device: torch.device,
+        augment: AugmentConfig | None = None,
     ) -> None:
         if variants < 1:
             raise ValueError("the encoder cache needs at least one variant per shape")
@@ -90,7 +97,7 @@ class EncoderCache:
         self.seed = seed
         self.device = device
         self.batch_options = {"n_points": n_points, "normals": normals, "pad_to": pad_to,
-                              "scale_range": scale_range}
+                              "scale_range": scale_range, "augment": augment}
         self.store: dict[tuple[int, int], list[Tensor]] = {}
         self.misses = 0
 

@@ -52,6 +52,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from spacemesh.data.augment import get_augment
 from spacemesh.data.shards import MANIFEST, open_dataset
 from spacemesh.nn.base_model import BaseModel, OnnxEncoder
 from spacemesh.nn.config import ModelConfig, TrainConfig, model_from_config
@@ -127,6 +128,9 @@ class TrainOptions:
     base : Path, optional
         A model repository: train only a new connectivity network (``config``'s) on its
         frozen encoder; the encoder, denoiser, diffusion and vertex count are the base's.
+    mix : tuple of Path
+        More datasets whose ``train`` splits join ``data``'s (a mix of generator styles;
+        validation stays on ``data``'s ``val`` split or ``val_data``).
     init_from : Path, optional
         A run folder, checkpoint or exported connectivity-only model version folder
         (:func:`spacemesh.export.onnx_import.init_from_repository`) to start from
@@ -149,6 +153,7 @@ class TrainOptions:
     progress: bool = True
     base: Path | None = None
     init_from: Path | None = None
+    mix: tuple[Path, ...] = ()
 
 
 @dataclass
@@ -370,6 +375,7 @@ class Trainer:
                 config = state["config"].with_train(
                     steps=config.train.steps, final_lr_ratio=config.train.final_lr_ratio,
                     connectivity_jitter=config.train.connectivity_jitter,
+                    checkpoint_minutes=config.train.checkpoint_minutes,
                 )
                 stored_base = state["extra"].get("base")
                 if stored_base is not None and options.base is None:
@@ -400,6 +406,7 @@ class Trainer:
             raise ValueError("diffusion-only training freezes a trained encoder: give a base "
                              "model (--base) or a run to start from (--init-from)")
         self.config = config
+        self.augment = get_augment(config.train.augment)
         self.rng = np.random.default_rng(options.seed + 1000 * info.rank)
         self.generator = torch.Generator().manual_seed(options.seed + 1000 * info.rank)
         self.model: SpaceMeshModel = model_from_config(config).to(info.device)
@@ -433,6 +440,9 @@ class Trainer:
         self.ddp = wrap_model(self.model, info)
         mv = config.max_vertices
         self.train_samples = load_samples(options.data, "train", mv, log=log)
+        mixed = [load_samples(extra, "train", mv, log=log) for extra in options.mix]
+        for extra in mixed:
+            self.train_samples.extend(extra)
         if not self.train_samples:
             raise ValueError(f"no training shapes with at most {mv} vertices in {options.data}")
         self.by_size = np.argsort([s.n_vertices for s in self.train_samples], kind="stable")
@@ -446,8 +456,13 @@ class Trainer:
                 self.model.encoder, self.train_samples, variants=config.train.encoder_cache,
                 seed=options.seed, n_points=enc.n_points, normals=enc.normals, pad_to=mv,
                 scale_range=config.train.scale_range, device=info.device,
+                augment=self.augment,
             )
         self.card = data_card(options.data, mv, len(self.train_samples), len(self.val_samples))
+        if options.mix:
+            self.card["mix"] = [data_card(extra, mv, len(samples), 0)
+                                for extra, samples in zip(options.mix, mixed, strict=True)]
+        self.card["augment"] = config.train.augment
         if self.base is not None:
             self.card["base"] = self.base.card()
         if init is not None:
@@ -487,7 +502,7 @@ class Trainer:
             samples, n_points=enc.n_points, normals=enc.normals,
             pad_to=self.config.max_vertices if diffusion else None,
             connectivity=not diffusion, rng=self.rng, scale_range=train.scale_range,
-            jitter=0.0 if diffusion else train.connectivity_jitter,
+            jitter=0.0 if diffusion else train.connectivity_jitter, augment=self.augment,
         )
         return batch.to(self.info.device)
 
@@ -521,11 +536,15 @@ class Trainer:
 
     @torch.no_grad()
     def validate(self) -> dict[str, float]:
-        """Held-out diffusion loss and connectivity metrics (on rank 0's model)."""
+        """Held-out diffusion loss and connectivity metrics (on rank 0's model); with an
+        augmentation, also the diffusion loss on augmented clouds (``val_epsilon_augmented``,
+        the same shapes, timesteps and noise)."""
         model = self.model.eval()
         enc = self.config.encoder
         rng = np.random.default_rng(1234)
         gen = torch.Generator().manual_seed(1234)
+        augment_rng = np.random.default_rng(4321)  # own streams: val_epsilon stays
+        augment_gen = torch.Generator().manual_seed(1234)  # comparable across runs
         sums: dict[str, list[float]] = defaultdict(list)
         bs = self.config.train.batch_size
         for start in range(0, len(self.val_samples), bs):
@@ -537,6 +556,13 @@ class Trainer:
                 out = model("diffusion", b.points, b.positions, b.valid, generator=gen)
                 sums["val_epsilon"].append(float(out["epsilon"]))
                 sums["val_mask"].append(float(out["mask"]))
+                if not self.augment.is_identity:  # also on the run's realistic clouds
+                    b = collate(chunk, n_points=enc.n_points, normals=enc.normals,
+                                pad_to=self.config.max_vertices, connectivity=False,
+                                rng=augment_rng, augment=self.augment).to(self.info.device)
+                    out = model("diffusion", b.points, b.positions, b.valid,
+                                generator=augment_gen)
+                    sums["val_epsilon_augmented"].append(float(out["epsilon"]))
             if self.diffusion_only:
                 continue
             b = collate(chunk, n_points=enc.n_points, normals=enc.normals, rng=rng)
