@@ -18,9 +18,38 @@ def _require_torch() -> None:
     require_extra("train", "training", "torch")
 
 
+def _mode_options(model_config, *, resume: bool, diffusion_only: bool,
+                  encoder_cache: int | None, augment: str | None,
+                  checkpoint_minutes: float | None):
+    """``model_config`` with the diffusion-only, cache, augmentation and checkpoint-timer
+    options applied (a one-line exit for those a resumed run cannot change)."""
+    from spacemesh.data.augment import get_augment
+
+    if resume and (diffusion_only or encoder_cache is not None or augment is not None):
+        fail("--diffusion-only, --encoder-cache and --augment apply to new runs (a resumed "
+             "run keeps its own)")
+    if diffusion_only:
+        model_config = model_config.with_train(diffusion_only=True)
+    if encoder_cache is not None:
+        if not diffusion_only:
+            fail("--encoder-cache applies to --diffusion-only runs")
+        model_config = model_config.with_train(encoder_cache=encoder_cache)
+    if augment is not None:
+        try:
+            get_augment(augment)
+        except ValueError as error:
+            fail(str(error))
+        model_config = model_config.with_train(augment=augment)
+    if checkpoint_minutes is not None:
+        model_config = model_config.with_train(checkpoint_minutes=checkpoint_minutes)
+    return model_config
+
+
 @app.command()
 def train(
-    config: Annotated[str, typer.Option("--config", help="tiny, small or paper.")] = "small",
+    config: Annotated[
+        str, typer.Option("--config", help="tiny, small, paper, tiny-local or small-local.")
+    ] = "small",
     data: Annotated[Path, typer.Option("--data", help="Dataset folder (its train split).")] = Path(
         "data"
     ),
@@ -66,8 +95,9 @@ def train(
     ] = True,
     base: Annotated[
         Path | None,
-        typer.Option("--base", help="A model repository: train only the config's connectivity "
-                     "network, on its frozen encoder (its encoder and denoiser are kept)."),
+        typer.Option("--base", help="A model version folder: train only the config's "
+                     "connectivity network (with --diffusion-only: its denoiser) on the "
+                     "base's frozen encoder; the base's other graphs are kept."),
     ] = None,
     init_from: Annotated[
         Path | None,
@@ -75,6 +105,34 @@ def train(
                      "or exported connectivity-only model version folder's) weights, with a "
                      "new optimiser and schedule (a connectivity-only run's base is "
                      "inherited)."),
+    ] = None,
+    diffusion_only: Annotated[
+        bool,
+        typer.Option("--diffusion-only", help="Train the denoiser alone on a frozen encoder "
+                     "(--base's, or --init-from's); no connectivity step is taken."),
+    ] = False,
+    encoder_cache: Annotated[
+        int | None,
+        typer.Option("--encoder-cache", min=0, help="With --diffusion-only: augmented "
+                     "variants per training shape whose frozen-encoder volumes are cached "
+                     "(0: no cache; default: the config's, 4)."),
+    ] = None,
+    augment: Annotated[
+        str | None,
+        typer.Option("--augment", help="Conditioning-cloud augmentation: none (the clean "
+                     "samples) or realistic (noise, uneven density, missing regions, "
+                     "outliers); default: the config's, none."),
+    ] = None,
+    mix: Annotated[
+        list[Path] | None,
+        typer.Option("--mix", help="Another dataset whose train split joins --data's "
+                     "(repeatable; e.g. other generator styles)."),
+    ] = None,
+    checkpoint_minutes: Annotated[
+        float | None,
+        typer.Option("--checkpoint-minutes", min=0.0, help="Also write a checkpoint every "
+                     "this many minutes (0: only every checkpoint_every steps; applies on "
+                     "--resume too)."),
     ] = None,
 ) -> None:
     """Train the encoder, denoiser and connectivity network on a dataset."""
@@ -99,15 +157,23 @@ def train(
         if resume:
             fail("--lr applies to new runs (a resumed run keeps its learning rate)")
         model_config = model_config.with_train(lr=lr)
+    model_config = _mode_options(model_config, resume=resume, diffusion_only=diffusion_only,
+                                 encoder_cache=encoder_cache, augment=augment,
+                                 checkpoint_minutes=checkpoint_minutes)
+    if diffusion_only and not resume and base is None and init_from is None:
+        fail("--diffusion-only freezes a trained encoder: give --base or --init-from")
     if not (data / "manifest.json").is_file():
         fail(f"{data}: not a dataset folder (no manifest.json)")
+    for folder in mix or ():
+        if not (folder / "manifest.json").is_file():
+            fail(f"{folder}: not a dataset folder (no manifest.json)")
     if val_data is not None and not (val_data / "manifest.json").is_file():
         fail(f"{val_data}: not a dataset folder (no manifest.json)")
     options = TrainOptions(
         config=model_config, data=data, out=out, resume=resume, steps=steps, val_data=val_data,
         device=device, threads=use_threads(threads), seed=seed,
         max_seconds=None if max_minutes is None else max_minutes * 60, progress=progress,
-        base=base, init_from=init_from,
+        base=base, init_from=init_from, mix=tuple(mix or ()),
     )
     try:
         summary = run_training(options, log=lambda m: typer.echo(m, err=True))
