@@ -1,4 +1,5 @@
-"""Fixtures of the training tests: a toy dataset made in well under a second."""
+"""Fixtures of the training tests: a toy dataset made in well under a second, and a tiny
+local-point denoiser trained on the toy model and exported beside it."""
 
 from __future__ import annotations
 
@@ -13,3 +14,32 @@ def toy_data(tmp_path_factory):
 
 
 from tests.export.conftest import toy_model  # noqa: E402, F401  (one toy model per session)
+
+
+@pytest.fixture(scope="session")
+def local_model(toy_model, tmp_path_factory):  # noqa: F811  (the imported fixture)
+    """A 2-step diffusion-only ``tiny-local`` run on a copy of the toy model (``base``),
+    exported as a model version (``directory``): its ``denoiser.onnx`` takes ``points``."""
+    import shutil
+    from types import SimpleNamespace
+
+    torch = pytest.importorskip("torch")
+    from spacemesh.export.repository import export_run
+    from spacemesh.nn.config import get_config
+    from spacemesh.train.loop import TrainOptions, train
+
+    folder = tmp_path_factory.mktemp("local-model")
+    base = folder / "models" / "spacemesh-tiny" / "1"
+    shutil.copytree(toy_model.repository, base)
+    config = get_config("tiny-local").with_train(
+        diffusion_only=True, val_every=2, checkpoint_every=2, val_shapes=2, batch_size=3)
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        run = folder / "local"
+        train(TrainOptions(config=config, data=toy_model.data, out=run, steps=2,
+                           progress=False, base=base), log=lambda _m: None)
+        directory = export_run(run, folder / "models", name="spacemesh-tiny-local", threads=1)
+    finally:
+        torch.set_num_threads(before)
+    return SimpleNamespace(base=base, run=run, directory=directory, data=toy_model.data)

@@ -104,23 +104,19 @@ def test_local_denoiser_trains_alone_on_a_frozen_encoder(full_run, toy_data, tmp
     assert "train_edge" not in rows[-1] and float(rows[-1]["shapes"]) == 9
 
 
-def test_local_denoiser_on_a_base_exports_and_generates(toy_model, tmp_path, one_thread):
-    """On a base model: only the denoiser graph is exported (the lookup of the nearest
-    points inside it), the base's encoder and connectivity graphs are kept, and the
-    onnxruntime pipeline generates a valid mesh with it."""
-    from spacemesh.export.repository import export_run, load_trained_model
+def test_local_denoiser_on_a_base_exports_and_generates(local_model, one_thread):
+    """On a base model (the ``local_model`` fixture: 2 diffusion-only steps of
+    ``tiny-local``, exported): only the denoiser graph is exported (the lookup of the
+    nearest points inside it), the base's encoder and connectivity graphs are kept, and
+    the onnxruntime pipeline generates a valid mesh with it."""
+    from spacemesh.export.repository import load_trained_model
     from spacemesh.nn.model import TorchBackend
     from spacemesh.runtime.pipeline import MeshGenerator
     from spacemesh.runtime.repository import ModelRepository
     from spacemesh.topology import check_topology
 
-    base = tmp_path / "models" / "spacemesh-tiny" / "1"
-    shutil.copytree(toy_model.repository, base)
-    run = tmp_path / "local"
-    train(TrainOptions(config=_config("tiny-local", diffusion_only=True), data=toy_model.data,
-                       out=run, steps=2, progress=False, base=base), log=_quiet)
+    base, run, directory = local_model.base, local_model.run, local_model.directory
     assert list(csv.DictReader(open(run / "metrics.csv")))[-1]["val_epsilon"]
-    directory = export_run(run, tmp_path / "models", name="spacemesh-tiny-local", threads=1)
     for graph in ("encoder.onnx", "connectivity.onnx"):
         assert (directory / graph).read_bytes() == (base / graph).read_bytes()
     repo = ModelRepository.load(directory, intra_op_threads=1)

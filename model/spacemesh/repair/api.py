@@ -592,7 +592,8 @@ def repair_mesh(
     t0 = time.perf_counter()
     result = inpaint_tokens(backend, volumes, known_unit, samples.hole[:n_pad],
                             spec.schedule.respaced(steps), method=method, rng=rng,
-                            progress=progress)
+                            progress=progress,
+                            points=samples.condition[None] if spec.local_points else None)
     positions = result.tokens[:, :3].astype(np.float64)  # (N, 3)
     candidates, valid, dropped = select_new_vertices(result, samples, patch.expected_new)
     timings["sampler"] = time.perf_counter() - t0

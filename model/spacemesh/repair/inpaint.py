@@ -31,7 +31,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from spacemesh.permutation import log_sinkhorn
-from spacemesh.runtime.backend import Backend
+from spacemesh.runtime.backend import Backend, denoiser_fn
 from spacemesh.runtime.sampler import ProgressFn, reverse_step
 from spacemesh.runtime.schedule import METHODS, SamplingSteps
 from spacemesh.typed import BoolArray, FloatArray, IntArray
@@ -103,13 +103,14 @@ def inpaint_tokens(
     method: str,
     rng: np.random.Generator,
     progress: ProgressFn | None = None,
+    points: FloatArray | None = None,
 ) -> InpaintResult:
     """Run the inpainting sampler (algorithm in the module docstring).
 
     Parameters
     ----------
     backend : Backend
-        ``denoise(x_t (1, N, 4), t (1,), volumes) -> eps (1, N, 4)``.
+        ``denoise(x_t (1, N, 4), t (1,), volumes[, points]) -> eps (1, N, 4)``.
     volumes : list of arrays
         Encoder output for the conditioning points (batch of one).
     known : (K, 3) float
@@ -122,6 +123,9 @@ def inpaint_tokens(
     rng : numpy.random.Generator
     progress : callable, optional
         ``progress(done, total)`` after each denoiser step.
+    points : (1, P, 3 or 6) float, optional
+        The conditioning points (the encoder's input), for a local-point denoiser
+        (``ModelSpec.local_points > 0``); None for one that reads the volumes only.
 
     Returns
     -------
@@ -135,6 +139,7 @@ def inpaint_tokens(
     n = len(targets)
     known_x0 = np.concatenate([known, np.ones((n_known, 1))], axis=1)  # (K, 4)
     x = rng.standard_normal((n, 4))  # (N, 4)
+    denoise = denoiser_fn(backend, volumes, points)
     total = len(steps)
     for done, i in enumerate(reversed(range(total)), start=1):
         abar = float(steps.alphas_cumprod[i])
@@ -142,8 +147,7 @@ def inpaint_tokens(
         noise = rng.standard_normal((n_known, 4))
         x[token] = math.sqrt(abar) * known_x0 + math.sqrt(1.0 - abar) * noise
         t = np.full(1, steps.timesteps[i], dtype=np.int64)
-        eps = np.asarray(backend.denoise(x[None].astype(np.float32), t, volumes),
-                         np.float64)[0]  # (N, 4)
+        eps = np.asarray(denoise(x[None].astype(np.float32), t), np.float64)[0]  # (N, 4)
         x = reverse_step(steps, i, x, eps, method, lambda: rng.standard_normal((n, 4)))
         if progress is not None:
             progress(done, total)
