@@ -22,6 +22,14 @@ def test_missing_data_base_and_budget_are_refused_before_training(tmp_path, caps
     assert not (tmp_path / "out" / "summary.json").exists()
 
 
+def test_a_missing_mix_and_an_unknown_augmentation_are_refused(tmp_path, capsys):
+    status = session.main(["--data", str(tmp_path / "none"), "--out", str(tmp_path / "out"),
+                           "--mix", str(tmp_path / "other"), "--augment", "wild"])
+    err = capsys.readouterr().err
+    assert status == 2 and f"--mix {tmp_path / 'other'}: no dataset there" in err
+    assert "--augment wild: choose from none, realistic" in err
+
+
 def test_missing_modules_and_checkpoint_are_named(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(session, "REQUIRED_MODULES", ("numpy", "no_such_module_22"))
     status = session.main(["--data", str(tmp_path), "--out", str(tmp_path / "out"),

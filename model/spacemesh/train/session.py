@@ -67,6 +67,10 @@ def _parser() -> argparse.ArgumentParser:
                         help="step budget (the learning rate decays over it; default: "
                              "until the time is spent, at a constant rate)")
     parser.add_argument("--cache", type=int, default=4, help="augmentations cached per shape")
+    parser.add_argument("--augment", default="none",
+                        help="conditioning-cloud augmentation: none or realistic")
+    parser.add_argument("--mix", type=Path, action="append", default=[],
+                        help="another dataset whose train split joins --data's (repeatable)")
     parser.add_argument("--val-every", type=int, default=500, help="validate every N steps")
     parser.add_argument("--threads", type=int, default=0, help="CPU threads (0: default)")
     parser.add_argument("--version", type=int, default=8, help="version of the export")
@@ -95,6 +99,13 @@ def preflight(args: argparse.Namespace) -> list[str]:
                         "in .whl/, see scripts/gpu_train.sh)")
     if not (args.data / "manifest.json").is_file():
         problems.append(f"--data {args.data}: no dataset there (no manifest.json)")
+    for folder in args.mix:
+        if not (folder / "manifest.json").is_file():
+            problems.append(f"--mix {folder}: no dataset there (no manifest.json)")
+    from spacemesh.data.augment import PRESETS
+
+    if args.augment not in PRESETS:
+        problems.append(f"--augment {args.augment}: choose from {', '.join(PRESETS)}")
     if not (args.base / "manifest.json").is_file():
         problems.append(f"--base {args.base}: no model version there (no manifest.json)")
     if args.minutes * 60.0 <= args.export_reserve + 30.0:
@@ -177,6 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     train_changes: dict[str, Any] = {
         "diffusion_only": True, "encoder_cache": args.cache, "checkpoint_minutes": 2.0,
         "val_every": args.val_every, "checkpoint_every": args.val_every,
+        "augment": args.augment,
         "steps": args.steps or 10**7, "final_lr_ratio": 0.1 if args.steps else 1.0,
     }
     if args.batch:
@@ -188,12 +200,13 @@ def main(argv: list[str] | None = None) -> int:
     summary_run = train(TrainOptions(
         config=config, data=args.data, out=run, resume=args.resume, device=args.device,
         threads=args.threads or None, max_seconds=budget, progress=False, base=args.base,
-        steps=config.train.steps,
+        steps=config.train.steps, mix=tuple(args.mix),
     ), log=lambda message: print(message, flush=True))
     summary: dict[str, Any] = {
         "steps": summary_run.steps, "train_seconds": round(summary_run.seconds, 1),
         "shapes": summary_run.metrics.get("shapes"), "device": args.device,
         "config": args.config, "base": str(args.base), "data": str(args.data),
+        "mix": [str(m) for m in args.mix], "augment": args.augment,
         "validation": {k: v for k, v in summary_run.metrics.items() if k.startswith("val_")},
     }
     version_dir = None
