@@ -103,14 +103,14 @@ def permissive(name: str) -> bool:
     return False
 
 
-def punched_cases(seed: int, holes: int, max_vertices: int):
-    """(name, intact mesh, punched region mask) of the closed test meshes."""
+def punched_cases(seed: int, holes: int, max_vertices: int, split: str = "test"):
+    """(name, intact mesh, punched region mask) of the closed meshes of ``split``."""
     from spacemesh.io import load_mesh
     from spacemesh.repair import Region
     from spacemesh.topology import check_topology
 
     with open(SPLIT) as handle:
-        rows = [r for r in csv.DictReader(handle) if r["split"] == "test"]
+        rows = [r for r in csv.DictReader(handle) if r["split"] == split]
     for i, r in enumerate(rows):
         path = MESHES / r["file"]
         if not path.is_file() or int(r["n_vertices"]) > max_vertices:
@@ -308,6 +308,11 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--holes", type=int, default=2)
     parser.add_argument("--max-vertices", type=int, default=3000)
+    parser.add_argument("--split", choices=("dev", "test"), default="test",
+                        help="the split of experiments/real_meshes_split.csv punched "
+                        "(tune on dev, report test)")
+    parser.add_argument("--no-open", action="store_true",
+                        help="skip the open meshes of the repair category")
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--out", default=str(ROOT / "docs" / "results"))
     args = parser.parse_args()
@@ -326,7 +331,8 @@ def main() -> None:
     start = time.perf_counter()
     rows: list[dict] = []
     examples: list[tuple[str, dict]] = []
-    for name, group, mesh, region in punched_cases(args.seed, args.holes, args.max_vertices):
+    for name, group, mesh, region in punched_cases(args.seed, args.holes, args.max_vertices,
+                                                      args.split):
         case_rows, outputs = evaluate_punched(name, group, mesh, region, generator, args.seed,
                                               steps)
         rows += case_rows
@@ -335,7 +341,7 @@ def main() -> None:
         print(f"punched {name}: {case_rows[0]['status']} cd="
               f"{case_rows[0].get('cd', math.nan) * 1e3:.2f}e-3 valid="
               f"{case_rows[0].get('valid')} ({time.perf_counter() - start:.0f} s)", flush=True)
-    for name, mesh in open_cases(args.max_vertices):
+    for name, mesh in ([] if args.no_open else open_cases(args.max_vertices)):
         case_rows = evaluate_open(name, mesh, generator, args.seed, steps)
         rows += case_rows
         print(f"open {name}: {case_rows[0]['status']} valid={case_rows[0].get('valid')} "

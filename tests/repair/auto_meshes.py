@@ -76,3 +76,21 @@ def grid_disk(n: int = 6) -> PolygonMesh:
     faces = [[y * n + x, y * n + x + 1, (y + 1) * n + x + 1, (y + 1) * n + x]
              for y in range(n - 1) for x in range(n - 1)]
     return PolygonMesh.from_faces(np.asarray(verts, float), faces)
+
+
+def cylinder(around: int = 24, rows: int = 12, height: float = 2.0) -> PolygonMesh:
+    """A closed triangulated unit-radius cylinder along z (side rows, fans at the caps)."""
+    angle = 2 * np.pi * np.arange(around) / around
+    ring = np.stack([np.cos(angle), np.sin(angle)], axis=1)
+    z = np.linspace(-height / 2, height / 2, rows + 1)
+    verts = [[x, y, h] for h in z for x, y in ring] + [[0, 0, z[0]], [0, 0, z[-1]]]
+    bottom, top = len(verts) - 2, len(verts) - 1
+    faces = []
+    for r in range(rows):
+        for i in range(around):
+            a, b = r * around + i, r * around + (i + 1) % around
+            faces += [[a, b, b + around], [a, b + around, a + around]]
+    for i in range(around):
+        faces.append([bottom, (i + 1) % around, i])
+        faces.append([top, rows * around + i, rows * around + (i + 1) % around])
+    return PolygonMesh.from_faces(np.asarray(verts, float), faces)

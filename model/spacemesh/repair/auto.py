@@ -495,15 +495,22 @@ class _Passes:
     vertex_map: IntArray  # working vertex -> current vertex (-1 removed)
     face_source: IntArray  # current face -> working face (-1 new)
     wedge: IntArray  # current face -> fallback wedge (-1 none)
+    origin: IntArray  # current vertex -> in-place region that made it (-1: none)
     results: list[Any] = field(default_factory=list)
 
-    def apply(self, vertex_map: IntArray, face_source: IntArray, mesh: PolygonMesh) -> None:
-        """Follow one more pass (its vertex map and face sources over the current mesh)."""
+    def apply(self, vertex_map: IntArray, face_source: IntArray, mesh: PolygonMesh,
+              region: int = -1) -> None:
+        """Follow one more pass (its vertex map and face sources over the current mesh);
+        the vertices it makes are ``region``'s (-1: none)."""
         self.vertex_map = np.where(self.vertex_map >= 0,
                                    vertex_map[np.maximum(self.vertex_map, 0)], -1)
         old = np.maximum(face_source, 0)
         self.face_source = np.where(face_source >= 0, self.face_source[old], -1)
         self.wedge = np.where(face_source >= 0, self.wedge[old], -1)
+        origin = np.full(mesh.n_vertices, region, dtype=np.int64)
+        alive = vertex_map >= 0
+        origin[vertex_map[alive]] = self.origin[alive]
+        self.origin = origin
         self.mesh = mesh
 
     def vertices_of(self, working: BoolArray) -> BoolArray:
@@ -530,7 +537,24 @@ def _filled_by(by_model: int, by_fallback: int) -> str:
     return "fallback" if by_model == 0 else "model-and-fallback"
 
 
-def repair_auto(plan: AutoPlan, run_pass: Any) -> tuple[Any, list[dict], list[dict]]:
+def _fair_region(state: _Passes, index: int, loops: list[IntArray]) -> None:
+    """Refine and fair the filling of the in-place region ``index`` (its loops, in the
+    current mesh): :func:`spacemesh.geometry.fairing.fair_patch`."""
+    from spacemesh.geometry.fairing import boundary_edge_length, fair_patch
+
+    mesh = state.mesh
+    free = state.origin == index
+    ring = np.zeros(mesh.n_vertices, dtype=bool)
+    ring[np.concatenate(loops)] = True
+    inside = (free | ring)[mesh.face_indices]
+    patch = (state.face_source < 0) & (
+        np.bincount(mesh.face_of_corner, ~inside, minlength=mesh.n_faces) == 0)
+    faired, source, _ = fair_patch(mesh, patch, free, boundary_edge_length(mesh, loops))
+    state.apply(np.arange(mesh.n_vertices), source, faired, index)
+
+
+def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
+                ) -> tuple[Any, list[dict], list[dict]]:
     """Repair every region of an automatic plan, one pass after the other.
 
     Parameters
@@ -542,6 +566,9 @@ def repair_auto(plan: AutoPlan, run_pass: Any) -> tuple[Any, list[dict], list[di
         at the vertices ``tolerated`` ((V,) bool: the regions not repaired yet) alone,
         and returns a :class:`spacemesh.repair.api.RepairResult`; it raises
         :class:`RegionError` when the region grows beyond the faces ``allowed``.
+    fair : bool
+        Refine and fair each in-place filling into the surface around it
+        (:func:`spacemesh.geometry.fairing.fair_patch`); False keeps the passes' patch.
 
     Returns
     -------
@@ -555,7 +582,8 @@ def repair_auto(plan: AutoPlan, run_pass: Any) -> tuple[Any, list[dict], list[di
     """
     work = plan.mesh
     state = _Passes(work, np.arange(work.n_vertices), np.arange(work.n_faces),
-                    np.full(work.n_faces, -1, dtype=np.int64))
+                    np.full(work.n_faces, -1, dtype=np.int64),
+                    np.full(work.n_vertices, -1, dtype=np.int64))
     size = wedge_size(plan.n_tokens)
     outcome: dict[int, str] = {}
     region_reports = []
@@ -571,8 +599,9 @@ def repair_auto(plan: AutoPlan, run_pass: Any) -> tuple[Any, list[dict], list[di
             state.apply(result.vertex_map, result.face_source, result.mesh)
             by = _filled_by(result.stats.loops - _polygons(result), _polygons(result))
         else:
-            loops = [state.vertex_map[loop] for i in region.findings
-                     for loop in (_loops_of(work, plan.findings[i].vertices) or [])]
+            working_loops = [loop for i in region.findings
+                             for loop in (_loops_of(work, plan.findings[i].vertices) or [])]
+            loops = [state.vertex_map[loop] for loop in working_loops]
             n_faces = state.mesh.n_faces
             filled, fans = fan_fill(state.mesh, loops)
             wedge = np.full(filled.n_faces, -1, dtype=np.int64)
@@ -583,7 +612,7 @@ def repair_auto(plan: AutoPlan, run_pass: Any) -> tuple[Any, list[dict], list[di
                     n_wedges += 1
             state.apply(np.arange(state.mesh.n_vertices),
                         np.concatenate([np.arange(n_faces), np.full(filled.n_faces - n_faces, -1)]),
-                        filled)
+                        filled, index)
             state.wedge = wedge
             by_model = 0
             for w in range(first, n_wedges):
@@ -593,9 +622,11 @@ def repair_auto(plan: AutoPlan, run_pass: Any) -> tuple[Any, list[dict], list[di
                 except RegionError:
                     continue  # this wedge keeps its fan
                 state.results.append(result)
-                state.apply(result.vertex_map, result.face_source, result.mesh)
+                state.apply(result.vertex_map, result.face_source, result.mesh, index)
                 by_model += _polygons(result) == 0
             by = _filled_by(by_model, n_wedges - first - by_model)
+            if fair:
+                _fair_region(state, index, [state.vertex_map[loop] for loop in working_loops])
         for i in region.findings:
             outcome[i] = by
         region_reports.append({**region.report(index, work.n_faces),

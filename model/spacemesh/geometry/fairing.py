@@ -1,0 +1,381 @@
+"""Hole patches made to continue the surface around them (Liepa, "Filling holes in
+meshes", SGP 2003).
+
+A filled hole's new vertices are first placed where its filling put them (a fan, the
+model's wedges), which on a curved surface is a flat or folded patch. Here the patch is
+
+1. **refined** (:func:`refine_patch`): its large polygons are fanned from their
+   centroid, every interior edge of its triangles longer than :data:`SPLIT_RATIO`
+   times the target length (the mean length of the hole's boundary edges) is split at
+   its midpoint, both triangles on it in two, then its interior edges are flipped
+   towards Delaunay triangles, so that the patch has the density of the surface around
+   it; quads, pentagons and the hole's boundary edges are never split;
+2. **faired** (:func:`fair_positions`): its vertices are moved to the solution of the
+   discrete bi-Laplace equation ``L^2 x = 0`` (cotangent weights, re-read once from
+   the first solution) with every other vertex fixed: the boundary ring and the ring
+   of faces beyond it define the position and the slope the patch continues (a
+   thin-plate surface, a sparse solve);
+3. **guarded** (:func:`fair_patch`): the faired positions are kept only where they make no
+   new self-intersection near the patch (the move is halved up to twice, else undone).
+
+numpy and scipy only; no face outside the patch changes, and its topology is kept.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import spsolve
+
+from spacemesh.geometry.intersections import self_intersecting_faces
+from spacemesh.mesh import PolygonMesh
+from spacemesh.typed import BoolArray, FloatArray, IntArray
+
+#: An interior patch edge longer than this times the target length is split.
+SPLIT_RATIO = math.sqrt(2.0)
+#: Most vertices a refinement adds, as a multiple of the patch's area over that of an
+#: equilateral triangle of the target edge (bounds the work).
+MAX_DENSITY = 2.0
+#: Most rounds of splits (each splits every long edge whose triangles are untouched).
+MAX_ROUNDS = 24
+#: Patch polygons with at least this many corners (the splice's last resort, one
+#: polygon over a loop the model could not fill) are fanned from their centroid first.
+FAN_CORNERS = 6
+#: Sweeps of Delaunay flips after the splits.
+FLIP_SWEEPS = 4
+#: Bounds of the cotangent weights of :func:`fair_positions` (obtuse angles give
+#: negative cotangents, slivers huge ones).
+MIN_COTANGENT, MAX_COTANGENT = 1e-3, 1e2
+#: Solves of :func:`fair_positions` (the weights re-read from the last solution).
+FAIR_SOLVES = 2
+
+
+# ---------------------------------------------------------------------- refinement
+def _edge_key(a: int, b: int) -> tuple[int, int]:
+    return (a, b) if a < b else (b, a)
+
+
+def _opposite_angle(p: FloatArray, a: int, b: int, c: int) -> float:
+    """The angle at ``c`` of the triangle ``a b c``."""
+    u, v = p[a] - p[c], p[b] - p[c]
+    cos = float(u @ v) / max(float(np.linalg.norm(u) * np.linalg.norm(v)), 1e-300)
+    return math.acos(min(1.0, max(-1.0, cos)))
+
+
+class _Triangles:
+    """The patch's triangles as a mutable list with an edge -> triangles map."""
+
+    def __init__(self, triangles: list[list[int]], taken: set[tuple[int, int]]) -> None:
+        self.taken = taken  # edges of the faces outside the patch (never made by a flip)
+        self.tris: list[list[int] | None] = [list(t) for t in triangles]
+        self.edges: dict[tuple[int, int], list[int]] = {}
+        for t, tri in enumerate(self.tris):
+            self._link(t, tri)
+
+    def _link(self, t: int, tri: list[int]) -> None:
+        for k in range(3):
+            self.edges.setdefault(_edge_key(tri[k], tri[(k + 1) % 3]), []).append(t)
+
+    def _unlink(self, t: int) -> None:
+        tri = self.tris[t]
+        assert tri is not None
+        for k in range(3):
+            key = _edge_key(tri[k], tri[(k + 1) % 3])
+            self.edges[key].remove(t)
+            if not self.edges[key]:
+                del self.edges[key]
+        self.tris[t] = None
+
+    def replace(self, old: list[int], new: list[list[int]]) -> None:
+        for t in old:
+            self._unlink(t)
+        for tri in new:
+            self.tris.append(tri)
+            self._link(len(self.tris) - 1, tri)
+
+    def interior(self) -> list[tuple[tuple[int, int], int, int]]:
+        """Edges with a patch triangle on each side: (edge, triangle, triangle)."""
+        return [(e, ts[0], ts[1]) for e, ts in self.edges.items() if len(ts) == 2]
+
+    @staticmethod
+    def apex(tri: list[int], a: int, b: int) -> tuple[int, bool]:
+        """The corner of ``tri`` off the edge ``a b``, and whether ``tri`` runs ``a -> b``."""
+        k = tri.index(a)
+        forward = tri[(k + 1) % 3] == b
+        return tri[(k + 2) % 3] if forward else tri[(k + 1) % 3], forward
+
+    def alive(self) -> list[list[int]]:
+        return [t for t in self.tris if t is not None]
+
+
+def _split_pass(tris: _Triangles, positions: list[FloatArray], limit: float,
+                budget: int) -> int:
+    """Split the interior edges longer than ``limit`` (longest first); returns the
+    vertices added."""
+    p = np.asarray(positions)
+    long = [(float(np.linalg.norm(p[e[0]] - p[e[1]])), e) for e, _, _ in tris.interior()]
+    long = sorted((x for x in long if x[0] > limit), reverse=True)
+    touched: set[int] = set()
+    added = 0
+    for _, (a, b) in long:
+        if added >= budget:
+            break
+        ts = tris.edges.get((a, b), [])
+        if len(ts) != 2 or touched & set(ts):
+            continue
+        tri_a, tri_b = tris.tris[ts[0]], tris.tris[ts[1]]
+        assert tri_a is not None and tri_b is not None
+        if not _Triangles.apex(tri_a, a, b)[1]:
+            tri_a, tri_b = tri_b, tri_a
+        c, _ = _Triangles.apex(tri_a, a, b)  # a -> b -> c
+        d, _ = _Triangles.apex(tri_b, a, b)  # b -> a -> d
+        m = len(positions)
+        positions.append((p[a] + p[b]) / 2.0)
+        touched.update(ts)
+        tris.replace(list(ts), [[a, m, c], [m, b, c], [b, m, d], [m, a, d]])
+        touched.update(range(len(tris.tris) - 4, len(tris.tris)))
+        added += 1
+    return added
+
+
+def _flip_pass(tris: _Triangles, p: FloatArray) -> int:
+    """Flip interior edges whose opposite angles sum beyond pi (Delaunay); returns the
+    flips made."""
+    flips = 0
+    for (a, b), _, _ in tris.interior():
+        ts = tris.edges.get((a, b), [])
+        if len(ts) != 2:
+            continue
+        tri_a, tri_b = tris.tris[ts[0]], tris.tris[ts[1]]
+        assert tri_a is not None and tri_b is not None
+        if not _Triangles.apex(tri_a, a, b)[1]:
+            tri_a, tri_b = tri_b, tri_a
+        c, _ = _Triangles.apex(tri_a, a, b)
+        d, _ = _Triangles.apex(tri_b, a, b)
+        if c == d or _edge_key(c, d) in tris.edges or _edge_key(c, d) in tris.taken:
+            continue
+        if _opposite_angle(p, a, b, c) + _opposite_angle(p, a, b, d) <= math.pi + 1e-9:
+            continue
+        tris.replace(list(ts), [[a, d, c], [d, b, c]])
+        flips += 1
+    return flips
+
+
+def refine_patch(mesh: PolygonMesh, patch: BoolArray, target: float
+                 ) -> tuple[PolygonMesh, IntArray]:
+    """Split the long interior edges of the patch's triangles and flip towards Delaunay.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+    patch : (F,) bool
+        The patch's faces; only its triangles are refined, and only along edges with a
+        patch triangle on both sides (its boundary and its quads and pentagons stay as
+        they are); its polygons of :data:`FAN_CORNERS` or more corners are first fanned
+        from a new vertex at their centroid.
+    target : float
+        The edge length aimed at; edges longer than :data:`SPLIT_RATIO` times it are split.
+
+    Returns
+    -------
+    mesh : PolygonMesh
+        The input's vertices then the new ones (centroids, midpoints); the faces not
+        refined in their order, then the patch's triangles.
+    face_source : (F',) int64
+        The input face of each face (-1 for the refined triangles).
+    """
+    sizes = mesh.face_sizes
+    tri_faces = np.flatnonzero(patch & ((sizes == 3) | (sizes >= FAN_CORNERS)))
+    if len(tri_faces) < 2 or not target > 0:
+        return mesh, np.arange(mesh.n_faces)
+    positions = list(mesh.vertices)
+    triangles: list[list[int]] = []
+    for f in tri_faces:
+        corners = mesh.face_indices[mesh.face_offsets[f]:mesh.face_offsets[f + 1]].tolist()
+        if len(corners) == 3:
+            triangles.append(corners)
+            continue
+        centre = len(positions)  # a large polygon becomes a fan from its centroid
+        positions.append(mesh.vertices[corners].mean(axis=0))
+        triangles += [[a, b, centre] for a, b in zip(corners, np.roll(corners, -1).tolist(),
+                                                     strict=True)]
+    outside = np.ones(mesh.n_faces, dtype=bool)
+    outside[tri_faces] = False
+    tris = _Triangles(triangles, {_edge_key(a, b) for a, b in
+                                  _faces_subset(mesh, outside).edges.tolist()})
+    corners = np.asarray(positions)[np.asarray(triangles)]
+    area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
+                                         corners[:, 2] - corners[:, 0]), axis=1).sum()
+    budget = int(MAX_DENSITY * area / (math.sqrt(3) / 4 * target**2)) + 1
+    added = 0
+    for _ in range(MAX_ROUNDS):
+        if added >= budget:
+            break
+        step = _split_pass(tris, positions, SPLIT_RATIO * target, budget - added)
+        if step == 0:
+            break
+        added += step
+        _flip_pass(tris, np.asarray(positions))
+    if added == 0 and len(positions) == mesh.n_vertices:
+        return mesh, np.arange(mesh.n_faces)
+    p = np.asarray(positions)
+    for _ in range(FLIP_SWEEPS):
+        if _flip_pass(tris, p) == 0:
+            break
+    keep = np.ones(mesh.n_faces, dtype=bool)
+    keep[tri_faces] = False
+    kept = np.flatnonzero(keep)
+    new = np.asarray(tris.alive(), dtype=np.int64)
+    kept_mesh = _faces_subset(mesh, keep)
+    indices = np.concatenate([kept_mesh.face_indices, new.reshape(-1)])
+    offsets = np.concatenate([kept_mesh.face_offsets,
+                              kept_mesh.face_offsets[-1] + 3 * np.arange(1, len(new) + 1)])
+    out = PolygonMesh(p, indices, offsets.astype(np.int64))
+    source = np.concatenate([kept, np.full(len(new), -1)]).astype(np.int64)
+    return out, source
+
+
+# ---------------------------------------------------------------------- fairing
+def _faces_subset(mesh: PolygonMesh, faces: BoolArray) -> PolygonMesh:
+    """The faces ``faces`` ((F,) bool) of ``mesh`` over all its vertices, in order."""
+    sizes = mesh.face_sizes[faces]
+    offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    return PolygonMesh(mesh.vertices, mesh.face_indices[faces[mesh.face_of_corner]], offsets)
+
+
+def _laplacian(mesh: PolygonMesh, faces: BoolArray) -> sp.csr_matrix:
+    """``I - D^-1 W`` over the faces ``faces`` (each polygon fanned into triangles), with
+    cotangent weights ``W`` clamped to [:data:`MIN_COTANGENT`, :data:`MAX_COTANGENT`] (a
+    cotangent Laplacian measures the curvature of the fixed ring however its edges are
+    laid out, where uniform weights would read an anisotropic ring as curved), (V, V)."""
+    triangles, _ = _faces_subset(mesh, faces).triangulate()
+    p = np.asarray(mesh.vertices, dtype=np.float64)
+    n = mesh.n_vertices
+    rows, cols, weights = [], [], []
+    for k in range(3):
+        i, j, o = triangles[:, k], triangles[:, (k + 1) % 3], triangles[:, (k + 2) % 3]
+        u, v = p[i] - p[o], p[j] - p[o]
+        sine = np.linalg.norm(np.cross(u, v), axis=1)
+        cot = np.einsum("ij,ij->i", u, v) / np.maximum(sine, 1e-300)
+        cot = np.clip(np.where(sine > 0, cot, MAX_COTANGENT), MIN_COTANGENT, MAX_COTANGENT)
+        rows += [i, j]
+        cols += [j, i]
+        weights += [cot / 2, cot / 2]
+    w = sp.coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(n, n)).tocsr()
+    degree = np.asarray(w.sum(axis=1)).ravel()
+    inverse = sp.diags(np.where(degree > 0, 1.0 / np.maximum(degree, 1e-300), 0.0))
+    return (sp.identity(n, format="csr") - inverse @ w).tocsr()
+
+
+def _faces_touching(mesh: PolygonMesh, vertices: BoolArray) -> BoolArray:
+    return np.bincount(mesh.face_of_corner, vertices[mesh.face_indices],
+                       minlength=mesh.n_faces) > 0
+
+
+def fair_positions(mesh: PolygonMesh, free: BoolArray, order: int = 2) -> FloatArray:
+    """Positions with the ``free`` vertices solving ``L^order x = 0``, the rest fixed.
+
+    ``order`` 1 is a membrane (each free vertex at the mean of its neighbours), 2 a
+    thin plate, whose boundary conditions are the fixed ring and the ring beyond it.
+    Only the faces within ``order`` rings of the free vertices are read. A free part
+    that no fixed vertex reaches keeps its positions.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+    free : (V,) bool
+    order : {1, 2}
+
+    Returns
+    -------
+    (V, 3) float64
+    """
+    positions = np.asarray(mesh.vertices, dtype=np.float64).copy()
+    if not free.any():
+        return positions
+    near = free.copy()
+    for _ in range(order - 1):
+        near |= _vertices_of(mesh, _faces_touching(mesh, near))
+    faces = _faces_touching(mesh, near)
+    rows = np.flatnonzero(free)
+    fixed = ~free
+    for _ in range(FAIR_SOLVES):
+        lap = _laplacian(mesh.with_vertices(positions), faces)
+        system = lap
+        for _ in range(order - 1):
+            system = lap @ system
+        a = system[rows][:, rows].tocsc()
+        rhs = -(system[rows][:, fixed] @ positions[fixed])
+        try:
+            solved = np.asarray(spsolve(a, rhs)).reshape(len(rows), 3)
+        except RuntimeError:  # a singular system (a part with no fixed vertex)
+            break
+        if not np.isfinite(solved).all():
+            break
+        positions[rows] = solved
+    return positions
+
+
+def _vertices_of(mesh: PolygonMesh, faces: BoolArray) -> BoolArray:
+    marked = np.zeros(mesh.n_vertices, dtype=bool)
+    marked[mesh.face_indices[faces[mesh.face_of_corner]]] = True
+    return marked
+
+
+def boundary_edge_length(mesh: PolygonMesh, loops: list[IntArray]) -> float:
+    """Mean length of the edges of the closed ``loops`` (vertex cycles)."""
+    lengths = [np.linalg.norm(mesh.vertices[loop] - mesh.vertices[np.roll(loop, -1)], axis=1)
+               for loop in loops if len(loop) > 1]
+    return float(np.concatenate(lengths).mean()) if lengths else 0.0
+
+
+def fair_patch(mesh: PolygonMesh, patch: BoolArray, free: BoolArray, target: float,
+               *, refine: bool = True) -> tuple[PolygonMesh, IntArray, int]:
+    """Refine the patch to ``target`` edge length, fair its free vertices, and keep the
+    faired positions only as far as they add no self-intersection near the patch.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+    patch : (F,) bool
+        The faces of the filled hole(s).
+    free : (V,) bool
+        The vertices that may move (the patch's own vertices; its ring stays fixed).
+    target : float
+        Edge length aimed at (for example :func:`boundary_edge_length` of its loops).
+    refine : bool
+        Split long edges first (:func:`refine_patch`).
+
+    Returns
+    -------
+    mesh : PolygonMesh
+    face_source : (F',) int64
+        The input face of each face (-1 for new ones); the input's vertices come first.
+    added : int
+        Vertices added by the refinement (all free).
+    """
+    source = np.arange(mesh.n_faces)
+    n_before = mesh.n_vertices
+    if refine:
+        mesh, source = refine_patch(mesh, patch, target)
+    added = mesh.n_vertices - n_before
+    free = np.concatenate([free, np.ones(added, dtype=bool)])
+    if not free.any():
+        return mesh, source, added
+    faired = fair_positions(mesh, free)
+    near = _faces_touching(mesh, _vertices_of(mesh, _faces_touching(mesh, free)))
+    local = _faces_subset(mesh, near)
+
+    def crossings(positions: FloatArray) -> int:
+        return int(self_intersecting_faces(local.with_vertices(positions)).sum())
+
+    before = crossings(mesh.vertices)
+    start = np.asarray(mesh.vertices, dtype=np.float64)
+    for weight in (1.0, 0.5, 0.25):
+        moved = start + weight * (faired - start)
+        if crossings(moved) <= before:
+            return mesh.with_vertices(moved), source, added
+    return mesh, source, added

@@ -1,0 +1,76 @@
+"""Hole patches refined and faired into the surface around them
+(:mod:`spacemesh.geometry.fairing`)."""
+
+from __future__ import annotations
+
+import numpy as np
+from auto_meshes import cylinder, punched
+
+from spacemesh.examples import icosphere
+from spacemesh.geometry.fairing import (
+    boundary_edge_length,
+    fair_patch,
+    fair_positions,
+    refine_patch,
+)
+from spacemesh.repair.auto import _loops_of, fan_fill
+from spacemesh.repair.cut import defect_vertices
+from spacemesh.topology import check_topology
+
+
+def fan_filled(mesh):
+    """``mesh``'s holes closed by centroid fans: (filled mesh, new faces, new vertices,
+    loops)."""
+    loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
+    filled, fans = fan_fill(mesh, loops)
+    patch = np.zeros(filled.n_faces, dtype=bool)
+    patch[np.concatenate(fans)] = True
+    free = np.arange(filled.n_vertices) >= mesh.n_vertices
+    return filled, patch, free, loops
+
+
+def test_a_sphere_hole_is_faired_onto_the_sphere():
+    mesh = punched(icosphere(4), [[0.0, 0.0, 1.0]], radius=0.55)
+    filled, patch, free, loops = fan_filled(mesh)
+    flat_error = abs(np.linalg.norm(filled.vertices[free], axis=1) - 1).max()
+    out, source, added = fair_patch(filled, patch, free, boundary_edge_length(filled, loops))
+    assert added > 10  # refined to the ring's density
+    assert check_topology(out).is_closed_oriented_manifold
+    kept = source >= 0  # the input's faces are the same polygons
+    before, after = filled.faces, out.faces
+    assert [tuple(after[f]) for f in np.flatnonzero(kept)] == [
+        tuple(before[s]) for s in source[kept]]
+    assert np.array_equal(out.vertices[:mesh.n_vertices], mesh.vertices)
+    error = abs(np.linalg.norm(out.vertices[mesh.n_vertices:], axis=1) - 1)
+    # the flat fan's centre is off the sphere by the cap's height; the faired patch is
+    # within a fifth of that everywhere
+    assert flat_error > 0.15 and error.max() < 0.2 * flat_error, (flat_error, error.max())
+
+
+def test_a_cylinder_hole_is_faired_onto_the_cylinder():
+    mesh = punched(cylinder(24, 12), [[1.0, 0.0, 0.0]], radius=0.6)
+    filled, patch, free, loops = fan_filled(mesh)
+    out, _, added = fair_patch(filled, patch, free, boundary_edge_length(filled, loops))
+    new = out.vertices[mesh.n_vertices:]
+    radial = abs(np.linalg.norm(new[:, :2], axis=1) - 1)
+    assert added > 5 and check_topology(out).is_closed_oriented_manifold
+    assert radial.max() < 0.03, radial.max()  # the cap's height is 0.17
+
+
+def test_refinement_splits_only_interior_edges_and_fairing_keeps_fixed_vertices():
+    mesh = punched(icosphere(3), [[0.0, 0.0, 1.0]], radius=0.5)
+    filled, patch, _, loops = fan_filled(mesh)
+    target = boundary_edge_length(filled, loops)
+    refined, _ = refine_patch(filled, patch, target)
+    assert refined.n_vertices > filled.n_vertices
+    ring_edges = {frozenset(e) for loop in loops for e in zip(loop, np.roll(loop, -1), strict=True)}
+    assert ring_edges <= {frozenset(e) for e in refined.edges.tolist()}  # never split
+    fixed = np.zeros(refined.n_vertices, dtype=bool)
+    fixed[:mesh.n_vertices] = True
+    faired = fair_positions(refined, ~fixed)
+    assert np.array_equal(faired[fixed], refined.vertices[fixed])
+    assert not np.allclose(faired[~fixed], refined.vertices[~fixed])
+    # nothing free: nothing moves; a long target: nothing is split
+    assert np.array_equal(fair_positions(refined, np.zeros_like(fixed)), refined.vertices)
+    same, identity = refine_patch(filled, patch, 100.0)
+    assert same is filled and np.array_equal(identity, np.arange(filled.n_faces))
