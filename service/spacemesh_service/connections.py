@@ -21,7 +21,7 @@ gRPC: the same ``header_timeout_s`` bounds the connection handshake
 timeout as grace), and dead peers are found by keepalive pings (``grpc.keepalive_*``).
 A message is received whole before a handler sees it; its size is bounded by the upload
 limit. gRPC has no limit on how slowly one message may arrive: the connection's age
-(``grpc_max_connection_age_s``, off by default) bounds that time for untrusted clients.
+(``grpc_max_connection_age_s``, 300 s by default) bounds that time.
 
 TLS: one certificate and key (``--tls-cert``/``--tls-key``, both or neither) serve both
 ports; :func:`load_tls` checks that they are readable and belong together at start-up.

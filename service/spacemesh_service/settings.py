@@ -92,8 +92,9 @@ class Settings(BaseModel):
         300.0, gt=0, description="gRPC: a connection without calls for this many seconds "
         "is closed (GOAWAY).")
     grpc_max_connection_age_s: float = Field(
-        0.0, ge=0, description="gRPC: connections are closed (GOAWAY) at this age in "
-        "seconds, running calls get drain_timeout_s more (0: no limit).")
+        300.0, ge=0, description="gRPC: connections are closed (GOAWAY) at this age in "
+        "seconds, running calls get drain_timeout_s more; clients reconnect on their own. "
+        "It bounds how long a trickled message can hold a connection (0: no limit).")
     grpc_keepalive_s: float = Field(
         60.0, gt=0, description="gRPC: ping a connection without traffic this often (s).")
     grpc_keepalive_timeout_s: float = Field(
