@@ -12,9 +12,11 @@ model's wedges), which on a curved surface is a flat or folded patch. Here the p
    it; quads, pentagons and the hole's boundary edges are never split;
 2. **faired** (:func:`fair_positions`): its vertices are moved to the solution of the
    discrete bi-Laplace equation ``L^2 x = 0`` (cotangent weights, re-read once from
-   the first solution) with every other vertex fixed: the boundary ring and the ring
-   of faces beyond it define the position and the slope the patch continues (a
-   thin-plate surface, a sparse solve);
+   the first solution) with every other vertex fixed:
+   the boundary ring and the ring of faces beyond it define the position and the
+   slope the patch continues (a thin-plate surface, a sparse solve); where that
+   overshoots the box of the ring (a hole across sharp edges), uniform weights, then a
+   membrane (``L x = 0``, within the hull of the ring) are used instead;
 3. **guarded** (:func:`fair_patch`): the faired positions are kept only where they make no
    new self-intersection near the patch (the move is halved up to twice, else undone).
 
@@ -50,6 +52,9 @@ FLIP_SWEEPS = 4
 MIN_COTANGENT, MAX_COTANGENT = 1e-3, 1e2
 #: Solves of :func:`fair_positions` (the weights re-read from the last solution).
 FAIR_SOLVES = 2
+#: How far (a share of the largest side of the box of the fixed vertices around a
+#: patch) a faired vertex may leave that box before a gentler fairing is used.
+MAX_OVERSHOOT = 0.25
 
 
 # ---------------------------------------------------------------------- refinement
@@ -245,11 +250,12 @@ def _faces_subset(mesh: PolygonMesh, faces: BoolArray) -> PolygonMesh:
     return PolygonMesh(mesh.vertices, mesh.face_indices[faces[mesh.face_of_corner]], offsets)
 
 
-def _laplacian(mesh: PolygonMesh, faces: BoolArray) -> sp.csr_matrix:
+def _laplacian(mesh: PolygonMesh, faces: BoolArray, uniform: bool = False) -> sp.csr_matrix:
     """``I - D^-1 W`` over the faces ``faces`` (each polygon fanned into triangles), with
     cotangent weights ``W`` clamped to [:data:`MIN_COTANGENT`, :data:`MAX_COTANGENT`] (a
     cotangent Laplacian measures the curvature of the fixed ring however its edges are
-    laid out, where uniform weights would read an anisotropic ring as curved), (V, V)."""
+    laid out, where uniform weights would read an anisotropic ring as curved), or with
+    ``uniform`` weights 1 on every edge, (V, V)."""
     triangles, _ = _faces_subset(mesh, faces).triangulate()
     p = np.asarray(mesh.vertices, dtype=np.float64)
     n = mesh.n_vertices
@@ -265,6 +271,8 @@ def _laplacian(mesh: PolygonMesh, faces: BoolArray) -> sp.csr_matrix:
         weights += [cot / 2, cot / 2]
     w = sp.coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(n, n)).tocsr()
+    if uniform:
+        w.data[:] = 1.0
     degree = np.asarray(w.sum(axis=1)).ravel()
     inverse = sp.diags(np.where(degree > 0, 1.0 / np.maximum(degree, 1e-300), 0.0))
     return (sp.identity(n, format="csr") - inverse @ w).tocsr()
@@ -275,7 +283,8 @@ def _faces_touching(mesh: PolygonMesh, vertices: BoolArray) -> BoolArray:
                        minlength=mesh.n_faces) > 0
 
 
-def fair_positions(mesh: PolygonMesh, free: BoolArray, order: int = 2) -> FloatArray:
+def fair_positions(mesh: PolygonMesh, free: BoolArray, order: int = 2,
+                   weights: str = "cotangent") -> FloatArray:
     """Positions with the ``free`` vertices solving ``L^order x = 0``, the rest fixed.
 
     ``order`` 1 is a membrane (each free vertex at the mean of its neighbours), 2 a
@@ -288,6 +297,9 @@ def fair_positions(mesh: PolygonMesh, free: BoolArray, order: int = 2) -> FloatA
     mesh : PolygonMesh
     free : (V,) bool
     order : {1, 2}
+    weights : {"cotangent", "uniform"}
+        Cotangent weights (re-read from the first solution, :data:`FAIR_SOLVES` solves)
+        or the uniform umbrella (one solve).
 
     Returns
     -------
@@ -302,8 +314,8 @@ def fair_positions(mesh: PolygonMesh, free: BoolArray, order: int = 2) -> FloatA
     faces = _faces_touching(mesh, near)
     rows = np.flatnonzero(free)
     fixed = ~free
-    for _ in range(FAIR_SOLVES):
-        lap = _laplacian(mesh.with_vertices(positions), faces)
+    for _ in range(FAIR_SOLVES if weights == "cotangent" else 1):
+        lap = _laplacian(mesh.with_vertices(positions), faces, weights == "uniform")
         system = lap
         for _ in range(order - 1):
             system = lap @ system
@@ -330,6 +342,24 @@ def boundary_edge_length(mesh: PolygonMesh, loops: list[IntArray]) -> float:
     lengths = [np.linalg.norm(mesh.vertices[loop] - mesh.vertices[np.roll(loop, -1)], axis=1)
                for loop in loops if len(loop) > 1]
     return float(np.concatenate(lengths).mean()) if lengths else 0.0
+
+
+def _first_contained(mesh: PolygonMesh, free: BoolArray, start: FloatArray) -> FloatArray:
+    """The first of the thin plate (cotangent, then uniform weights) and the membrane
+    whose free vertices stay within the box of the fixed vertices around them widened
+    by :data:`MAX_OVERSHOOT` of its largest side on every side (a thin plate over a
+    hole across sharp edges overshoots; a membrane never leaves the hull of its ring);
+    ``start`` when none does."""
+    ring = _vertices_of(mesh, _faces_touching(mesh, free)) & ~free
+    ring |= _vertices_of(mesh, _faces_touching(mesh, ring)) & ~free
+    low, high = start[ring].min(axis=0), start[ring].max(axis=0)
+    margin = MAX_OVERSHOOT * float((high - low).max())
+    for order, weights in ((2, "cotangent"), (2, "uniform"), (1, "uniform")):
+        faired = fair_positions(mesh, free, order, weights)
+        moved = faired[free]
+        if ((moved >= low - margin) & (moved <= high + margin)).all():
+            return faired
+    return start
 
 
 def fair_patch(mesh: PolygonMesh, patch: BoolArray, free: BoolArray, target: float,
@@ -365,7 +395,8 @@ def fair_patch(mesh: PolygonMesh, patch: BoolArray, free: BoolArray, target: flo
     free = np.concatenate([free, np.ones(added, dtype=bool)])
     if not free.any():
         return mesh, source, added
-    faired = fair_positions(mesh, free)
+    start = np.asarray(mesh.vertices, dtype=np.float64)
+    faired = _first_contained(mesh, free, start)
     near = _faces_touching(mesh, _vertices_of(mesh, _faces_touching(mesh, free)))
     local = _faces_subset(mesh, near)
 
@@ -373,7 +404,6 @@ def fair_patch(mesh: PolygonMesh, patch: BoolArray, free: BoolArray, target: flo
         return int(self_intersecting_faces(local.with_vertices(positions)).sum())
 
     before = crossings(mesh.vertices)
-    start = np.asarray(mesh.vertices, dtype=np.float64)
     for weight in (1.0, 0.5, 0.25):
         moved = start + weight * (faired - start)
         if crossings(moved) <= before:
