@@ -65,6 +65,8 @@ class FitConfig:
     # non-edges keep the false-positive weight until d > tau + margin (hysteresis)
     false_positive_margin: float = 0.5
     init: str = "random"  # or "positions": space coordinates start at the vertex positions
+    # hubs take longer steps: x = (degree / mean degree) ** power * z (0: plain Adam)
+    hub_step_power: float = 0.5
 
 
 @dataclass
@@ -114,29 +116,53 @@ POSITIONS_TAU = 2.0
 INITS = ("random", "positions")
 
 
+#: Vertices of at least this many times the mean degree count as hubs.
+HUB_RATIO = 2.0
+
+
+def hub_step_scale(degrees: np.ndarray, power: float) -> np.ndarray:
+    """Per-vertex scale of the adjacency embedding's steps: ``(degree / mean) ** power``
+    for hubs (:data:`HUB_RATIO`), exactly 1 for every other vertex (so a mesh without
+    hubs fits exactly as with plain Adam).
+
+    A vertex of degree 100 must move far in embedding space (near all of its neighbours,
+    away from other hubs) while Adam moves every coordinate by about ``lr`` per step;
+    optimising ``z`` with ``x = scale * z`` lets hubs take proportionally longer steps.
+    """
+    ratio = degrees / max(float(degrees.mean()), 1.0)
+    return np.where(ratio >= HUB_RATIO, ratio, 1.0) ** power
+
+
 class _Parameters(torch.nn.Module):
     def __init__(self, mesh: PolygonMesh, edges: np.ndarray, config: FitConfig,
-                 generator: torch.Generator) -> None:
+                 generator: torch.Generator, degrees: np.ndarray) -> None:
         super().__init__()
         n, s = mesh.n_vertices, config.init_scale
 
         def rand(*shape: int) -> torch.nn.Parameter:
             return torch.nn.Parameter(torch.randn(*shape, generator=generator) * s)
 
-        self.x = rand(n, config.adjacency_dim)
+        self.z = rand(n, config.adjacency_dim)
+        scale = hub_step_scale(degrees, config.hub_step_power)
+        self.register_buffer("x_scale", torch.as_tensor(scale, dtype=self.z.dtype)[:, None])
         tau = 0.0
         if config.init == "positions":  # space coordinates in units of the mean edge
             v = mesh.vertices
             mean_edge = np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1).mean()
             with torch.no_grad():
                 start = (v - v.mean(0)) / max(float(mean_edge), 1e-12)
-                self.x[:, :3] = torch.as_tensor(start, dtype=self.x.dtype)
+                self.z[:, :3] = torch.as_tensor(start, dtype=self.z.dtype) / self.x_scale
             tau = POSITIONS_TAU
         self.root = rand(n, config.permutation_dim)
         self.prev = rand(n, config.permutation_dim)
         self.next = rand(n, config.permutation_dim)
         self.tau = torch.nn.Parameter(torch.full((), tau))
         self.reduction = PermutationReduction(config.reduction, dim=config.permutation_dim)
+
+    @property
+    def x(self) -> torch.Tensor:
+        """The adjacency embeddings ``(N, k)``."""
+        return self.z * self.x_scale
 
     def embeddings(self) -> Embeddings:
         def np64(t: torch.Tensor) -> np.ndarray:
@@ -265,7 +291,7 @@ def fit_mesh(
     n = mesh.n_vertices
     gt_edges = truth.edges
     generator = torch.Generator().manual_seed(config.seed)
-    params = _Parameters(mesh, gt_edges, config, generator)
+    params = _Parameters(mesh, gt_edges, config, generator, np.diff(truth.offsets))
     optimizer = torch.optim.Adam(params.parameters(), lr=config.lr)
     groups = degree_groups(truth)
     n_rows = sum(int(g.target.numel()) for g in groups)
