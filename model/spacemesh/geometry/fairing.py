@@ -193,7 +193,7 @@ def refine_patch(mesh: PolygonMesh, patch: BoolArray, target: float
     """
     sizes = mesh.face_sizes
     tri_faces = np.flatnonzero(patch & ((sizes == 3) | (sizes >= FAN_CORNERS)))
-    if len(tri_faces) < 2 or not target > 0:
+    if len(tri_faces) == 0 or not target > 0:
         return mesh, np.arange(mesh.n_faces)
     positions = list(mesh.vertices)
     triangles: list[list[int]] = []
@@ -360,6 +360,21 @@ def _first_contained(mesh: PolygonMesh, free: BoolArray, start: FloatArray) -> F
         if ((moved >= low - margin) & (moved <= high + margin)).all():
             return faired
     return start
+
+
+def patch_edge_length(mesh: PolygonMesh, patch: BoolArray) -> float:
+    """Mean length of the edges on the patch's border (one side in the patch, the other
+    outside it): the density of the surface around the patch (0 without such edges)."""
+    he = mesh.halfedges
+    inside = patch[mesh.face_of_corner]
+    key = np.minimum(he[:, 0], he[:, 1]) * mesh.n_vertices + np.maximum(he[:, 0], he[:, 1])
+    _, edge, count = np.unique(key, return_inverse=True, return_counts=True)
+    sides = np.bincount(edge, inside, minlength=len(count))
+    border = (count[edge] == 2) & inside & (sides[edge] == 1)
+    if not border.any():
+        return 0.0
+    p = mesh.vertices
+    return float(np.linalg.norm(p[he[border, 0]] - p[he[border, 1]], axis=1).mean())
 
 
 def fair_patch(mesh: PolygonMesh, patch: BoolArray, free: BoolArray, target: float,
