@@ -11,8 +11,10 @@ from spacemesh.geometry.fairing import (
     boundary_edge_length,
     fair_patch,
     fair_positions,
+    patch_edge_length,
     refine_patch,
 )
+from spacemesh.mesh import PolygonMesh
 from spacemesh.repair.auto import _loops_of, fan_fill
 from spacemesh.repair.cut import defect_vertices
 from spacemesh.topology import check_topology
@@ -74,3 +76,18 @@ def test_refinement_splits_only_interior_edges_and_fairing_keeps_fixed_vertices(
     assert np.array_equal(fair_positions(refined, np.zeros_like(fixed)), refined.vertices)
     same, identity = refine_patch(filled, patch, 100.0)
     assert same is filled and np.array_equal(identity, np.arange(filled.n_faces))
+
+
+def test_one_polygon_over_a_hole_is_fanned_refined_and_faired():
+    mesh = punched(icosphere(4), [[0.0, 0.0, 1.0]], radius=0.55)
+    [loop] = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
+    closed = PolygonMesh.from_faces(mesh.vertices, [*mesh.faces, loop])
+    patch = np.arange(closed.n_faces) == closed.n_faces - 1
+    target = patch_edge_length(closed, patch)
+    assert np.isclose(target, boundary_edge_length(closed, [loop]))
+    out, source, added = fair_patch(closed, patch, np.zeros(closed.n_vertices, dtype=bool),
+                                    target)
+    assert added > 10 and (source == -1).sum() > len(loop)
+    assert check_topology(out).is_closed_oriented_manifold
+    error = abs(np.linalg.norm(out.vertices[mesh.n_vertices:], axis=1) - 1)
+    assert error.max() < 0.04, error.max()
