@@ -4,7 +4,7 @@ PyMeshLab's close-holes and trimesh's fill-holes.
 Two sets of inputs from ../shared/meshes (never copied into the repository):
 
 ``punched``
-    The closed meshes of the test split (experiments/real_meshes_split.csv, at most
+    The closed meshes of the test split (``--split``) (experiments/real_meshes_split.csv, at most
     ``--max-vertices`` vertices), each with ``--holes`` holes punched in known places: a
     sphere around a random vertex (seeded per mesh) holding about 2 % of the vertices (at
     most 30); the faces with a vertex inside are removed. The intact mesh is the
@@ -30,6 +30,10 @@ Writes ``docs/results/repair_holes.md``, ``repair_holes.json`` and a gallery
 ``repair_holes.png``. Usage::
 
     python experiments/eval_repair_holes.py [--model DIR] [--steps N] [--threads 1]
+        [--split dev|test] [--no-open]
+
+The closed meshes of the ``dev`` split are for tuning (``--split dev --no-open``); the
+``test`` split is what the docs report.
 """
 
 from __future__ import annotations
@@ -236,7 +240,8 @@ def write_report(rows: list[dict], config: dict, out: Path, gallery: Path | None
         f"Model `{config['model_label']}`, {config['steps']} sampler steps, seed "
         f"{config['seed']}, {config['threads']} thread(s), {config['seconds']} s in all.",
         "",
-        f"- `punched`: closed test-split meshes of ../shared/meshes (at most "
+        f"- `punched`: closed {config.get('split', 'test')}-split meshes of ../shared/meshes "
+        "(at most "
         f"{config['max_vertices']} vertices) with {config['holes']} holes punched (about 2 % "
         "of the vertices each); CD, F1 (whole surface) and region CD against the intact "
         "mesh (x1e-3, the [-1, 1] frame).",
@@ -259,7 +264,18 @@ def write_report(rows: list[dict], config: dict, out: Path, gallery: Path | None
     model = sum(r.get("holes_model", 0) for r in ours)
     fallback = sum(r.get("holes_fallback", 0) for r in ours)
     refused = [f"{r['shape']} ({r['status']})" for r in ours if r["status"] != "ok"]
+    versus = {"win": 0, "tie": 0, "lose": 0}
+    for r in ours:
+        fix = next((m for m in rows if m["shape"] == r["shape"] and m["set"] == r["set"]
+                    and m["method"] == "meshfix"), {})
+        if r["set"] == "punched" and "cd" in r:
+            a, b = round(r["cd"] * 1e3, 2), round(fix.get("cd", math.inf) * 1e3, 2)
+            versus["tie" if a == b else "win" if a < b else "lose"] += 1
     lines += [
+        "",
+        f"Punched meshes against MeshFix (CD x1e-3 to two decimals; a mesh MeshFix leaves "
+        f"unscored counts as a win): ours better on {versus['win']}, equal on "
+        f"{versus['tie']}, worse on {versus['lose']}.",
         "",
         f"Holes filled by the model: {model}; by a fallback (the fan, or one polygon over "
         f"the loop) at least in part: {fallback} "
@@ -282,8 +298,10 @@ def write_report(rows: list[dict], config: dict, out: Path, gallery: Path | None
         lines += ["", f"![gallery]({gallery.name})", "",
                   "Punched meshes (MIT-licensed ones only) turned so that a hole faces the "
                   "camera: the open mesh, ours, MeshFix, the intact mesh."]
-    lines += ["", "Re-run: `python experiments/eval_repair_holes.py --threads 1` "
-              "(needs ../shared/meshes, pymeshfix, pymeshlab, trimesh).", ""]
+    lines += ["", f"Split `{config.get('split', 'test')}`. Re-run: `python "
+              "experiments/eval_repair_holes.py --threads 1` (the test split, reported "
+              "here; `--split dev --no-open` is the split the fairing was tuned on; needs "
+              "../shared/meshes, pymeshfix, pymeshlab, trimesh).", ""]
     path = out / "repair_holes.md"
     path.write_text("\n".join(lines))
     return path
@@ -349,6 +367,7 @@ def main() -> None:
     gallery = shrink(render(examples, out / "repair_holes.png"))
     config = {"model": _shown(model), "model_label": label, "steps": steps, "seed": args.seed,
               "holes": args.holes, "max_vertices": args.max_vertices, "threads": args.threads,
+              "split": args.split,
               "seconds": round(time.perf_counter() - start, 1)}
     (out / "repair_holes.json").write_text(json.dumps({"config": config, "rows": rows},
                                                       indent=1, default=float))

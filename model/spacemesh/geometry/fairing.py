@@ -54,7 +54,7 @@ MIN_COTANGENT, MAX_COTANGENT = 1e-3, 1e2
 FAIR_SOLVES = 2
 #: How far (a share of the largest side of the box of the fixed vertices around a
 #: patch) a faired vertex may leave that box before a gentler fairing is used.
-MAX_OVERSHOOT = 0.25
+MAX_OVERSHOOT = 0.1
 
 
 # ---------------------------------------------------------------------- refinement
