@@ -269,7 +269,9 @@ def write_report(rows: list[dict], config: dict, out: Path, gallery: Path | None
         fix = next((m for m in rows if m["shape"] == r["shape"] and m["set"] == r["set"]
                     and m["method"] == "meshfix"), {})
         if r["set"] == "punched" and "cd" in r:
-            a, b = round(r["cd"] * 1e3, 2), round(fix.get("cd", math.inf) * 1e3, 2)
+            theirs = fix.get("cd", math.nan)
+            a = round(r["cd"] * 1e3, 2)
+            b = round(theirs * 1e3, 2) if math.isfinite(theirs) else math.inf
             versus["tie" if a == b else "win" if a < b else "lose"] += 1
     lines += [
         "",
