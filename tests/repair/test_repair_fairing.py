@@ -12,6 +12,7 @@ from spacemesh.geometry.fairing import (
     fair_patch,
     fair_positions,
     patch_edge_length,
+    planar_positions,
     refine_patch,
 )
 from spacemesh.mesh import PolygonMesh
@@ -91,3 +92,54 @@ def test_one_polygon_over_a_hole_is_fanned_refined_and_faired():
     assert check_topology(out).is_closed_oriented_manifold
     error = abs(np.linalg.norm(out.vertices[mesh.n_vertices:], axis=1) - 1)
     assert error.max() < 0.04, error.max()
+
+
+def grid_box(n: int = 8) -> PolygonMesh:
+    """The cube [-1, 1]^3 with ``n`` x ``n`` quads on each side, each split in two
+    triangles (sharp edges and corners)."""
+    t = np.linspace(-1.0, 1.0, n + 1)
+    u, v = np.meshgrid(t, t, indexing="ij")
+    points, faces = [], []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            grid = np.zeros((n + 1, n + 1, 3))
+            grid[..., axis] = sign
+            grid[..., (axis + 1) % 3], grid[..., (axis + 2) % 3] = u, v
+            base = sum(len(p) for p in points)
+            ids = base + np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+            for i in range(n):
+                for j in range(n):
+                    a, b, c, d = ids[i, j], ids[i + 1, j], ids[i + 1, j + 1], ids[i, j + 1]
+                    quad = [a, b, c, d] if sign > 0 else [a, d, c, b]
+                    faces += [quad[:3], [quad[0], quad[2], quad[3]]]
+            points.append(grid.reshape(-1, 3))
+    merged, index = np.unique(np.round(np.concatenate(points), 9), axis=0, return_inverse=True)
+    return PolygonMesh.from_faces(merged, index.ravel()[np.asarray(faces)].tolist())
+
+
+def cube_distance(x: np.ndarray) -> np.ndarray:
+    """Distance of each point to the surface of the cube [-1, 1]^3."""
+    outside = np.linalg.norm(np.maximum(abs(x) - 1.0, 0.0), axis=1)
+    return np.where(outside > 0, outside, 1.0 - abs(x).max(axis=1))
+
+
+def test_a_hole_across_a_box_edge_is_filled_piecewise_planar():
+    box = grid_box(8)
+    assert check_topology(box).is_closed_oriented_manifold
+    mesh = punched(box, [[1.0, 1.0, 0.0]], radius=0.6)
+    filled, patch, free, loops = fan_filled(mesh)
+    out, _, added = fair_patch(filled, patch, free, boundary_edge_length(filled, loops))
+    assert added > 5 and check_topology(out).is_closed_oriented_manifold
+    error = cube_distance(out.vertices[mesh.n_vertices:])
+    # the plain thin plate over the same refined patch bulges off the crease
+    refined, _ = refine_patch(filled, patch, boundary_edge_length(filled, loops))
+    plate = fair_positions(refined, np.arange(refined.n_vertices) >= mesh.n_vertices)
+    bulge = cube_distance(plate[mesh.n_vertices:])
+    assert bulge.max() > 0.1, bulge.max()
+    assert error.max() < 0.05, (error.max(), bulge.max())
+
+
+def test_a_smooth_ring_is_not_read_as_sharp():
+    mesh = punched(icosphere(4), [[0.0, 0.0, 1.0]], radius=0.55)
+    filled, patch, free, _ = fan_filled(mesh)
+    assert planar_positions(filled, free, patch, filled.vertices) is None

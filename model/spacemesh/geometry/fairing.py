@@ -55,6 +55,21 @@ FAIR_SOLVES = 2
 #: How far (a share of the largest side of the box of the fixed vertices around a
 #: patch) a faired vertex may leave that box before a gentler fairing is used.
 MAX_OVERSHOOT = 0.1
+#: Faces around a patch whose normals are within this angle (degrees) of a cluster's
+#: mean normal join that cluster (:func:`_ring_planes`).
+CLUSTER_ANGLE = 30.0
+#: A ring is sharp when two of its clusters' normals are this far apart (degrees).
+SHARP_ANGLE = 60.0
+#: A cluster is planar when the RMS distance of its vertices to their plane is below
+#: this share of their RMS spread along the plane (a low-poly curved surface is not).
+FLATNESS = 0.03
+#: The planar continuation is used when its ring error is below this share of the
+#: smooth fairing's (:func:`_continuation`).
+PLANAR_MARGIN = 0.5
+#: Rings of faces around a patch whose surface its freed ring is measured against.
+SURFACE_RINGS = 3
+#: Clusters with less than this share of the ring faces' area are ignored.
+MIN_CLUSTER_SHARE = 0.08
 
 
 # ---------------------------------------------------------------------- refinement
@@ -362,6 +377,243 @@ def _first_contained(mesh: PolygonMesh, free: BoolArray, start: FloatArray) -> F
     return start
 
 
+def _triangle_areas(mesh: PolygonMesh, faces: BoolArray) -> FloatArray:
+    """The area of every face (0 for those not in ``faces``), (F,)."""
+    triangles, source = _faces_subset(mesh, faces).triangulate()
+    corners = mesh.vertices[triangles]
+    area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
+                                         corners[:, 2] - corners[:, 0]), axis=1)
+    out = np.zeros(mesh.n_faces)
+    np.add.at(out, np.flatnonzero(faces)[source], area)
+    return out
+
+
+def _has_crease(mesh: PolygonMesh, faces: BoolArray, normal: FloatArray) -> bool:
+    """Whether two of the ``faces`` sharing an edge meet at more than
+    :data:`SHARP_ANGLE` (a dihedral crease, not a smooth curve)."""
+    he = mesh.halfedges
+    inside = faces[mesh.face_of_corner]
+    key = np.minimum(he[:, 0], he[:, 1]) * mesh.n_vertices + np.maximum(he[:, 0], he[:, 1])
+    key, face = key[inside], mesh.face_of_corner[inside]
+    order = np.argsort(key, kind="stable")
+    key, face = key[order], face[order]
+    pair = np.flatnonzero(key[1:] == key[:-1])
+    cos = np.einsum("ij,ij->i", normal[face[pair]], normal[face[pair + 1]])
+    return bool((cos < math.cos(math.radians(SHARP_ANGLE))).any())
+
+
+def _ring_planes(mesh: PolygonMesh, free: BoolArray, patch: BoolArray
+                 ) -> tuple[FloatArray, FloatArray, IntArray, IntArray] | None:
+    """The planes of the sharp ring around the ``free`` vertices, or None when it is
+    smooth.
+
+    The faces outside ``patch`` within two rings of the fixed vertices next to the free
+    ones are clustered by normal (area first, each joining the first cluster within
+    :data:`CLUSTER_ANGLE`); the ring is sharp when two clusters hold at least
+    :data:`MIN_CLUSTER_SHARE` of their area each and two of the faces meet at a crease
+    (:func:`_has_crease`), and each cluster is flat (:data:`FLATNESS`). Each cluster
+    gets the least-squares plane of its faces' vertices.
+
+    Returns
+    -------
+    normals, points : (K, 3) float64
+        A unit normal and a point of each cluster's plane.
+    ring : (R,) int64
+        The fixed vertices next to the free ones.
+    label : (R,) int64
+        The cluster of each (that of its largest clustered face).
+    """
+    inner = _faces_touching(mesh, free)
+    ring = _vertices_of(mesh, inner) & ~free
+    outside = ~patch & ~inner
+    first = outside & _faces_touching(mesh, ring)
+    faces = first | (outside & _faces_touching(mesh, _vertices_of(mesh, first)))
+    if not first.any():
+        return None
+    area = _triangle_areas(mesh, faces)
+    normal = mesh.face_normals()
+    ids = np.flatnonzero(faces)[np.argsort(-area[faces], kind="stable")]
+    cos = math.cos(math.radians(CLUSTER_ANGLE))
+    sums: list[FloatArray] = []
+    cluster = np.full(mesh.n_faces, -1, dtype=np.int64)
+    for f in ids:
+        for k, total in enumerate(sums):
+            if normal[f] @ total > cos * np.linalg.norm(total):
+                cluster[f] = k
+                sums[k] = total + area[f] * normal[f]
+                break
+        else:
+            cluster[f] = len(sums)
+            sums.append(area[f] * normal[f])
+    share = np.bincount(cluster[faces], area[faces], minlength=len(sums)) / max(
+        float(area[faces].sum()), 1e-300)
+    big = np.flatnonzero(share >= MIN_CLUSTER_SHARE)
+    units = np.asarray(sums)[big]
+    units /= np.maximum(np.linalg.norm(units, axis=1, keepdims=True), 1e-300)
+    if len(big) < 2 or not _has_crease(mesh, faces, normal):
+        return None
+    normals, points = [], []
+    for k, unit in zip(big, units, strict=True):
+        corners = np.unique(mesh.face_indices[(cluster == k)[mesh.face_of_corner]])
+        x = mesh.vertices[corners]
+        centre = x.mean(axis=0)
+        _, spread, vt = np.linalg.svd(x - centre, full_matrices=False)
+        if len(x) < 3 or spread[-1] > FLATNESS * spread[0]:
+            return None  # a curved cluster: the smooth fairing continues it
+        fitted = vt[-1]
+        normals.append(fitted if fitted @ unit >= 0 else -fitted)
+        points.append(centre)
+    # each ring vertex: the cluster of its largest face among the big clusters
+    remap = np.full(len(sums) + 1, -1, dtype=np.int64)
+    remap[big] = np.arange(len(big))
+    ring_ids = np.flatnonzero(ring)
+    corner_face = mesh.face_of_corner
+    vertex = mesh.face_indices
+    keep = faces[corner_face] & ring[vertex] & (remap[cluster[corner_face]] >= 0)
+    label = np.full(mesh.n_vertices, -1, dtype=np.int64)
+    for c in np.flatnonzero(keep)[np.argsort(area[corner_face[keep]], kind="stable")]:
+        label[vertex[c]] = remap[cluster[corner_face[c]]]
+    labelled = ring_ids[label[ring_ids] >= 0]
+    if len(labelled) == 0:
+        return None
+    return np.asarray(normals), np.asarray(points), labelled, label[labelled]
+
+
+def planar_positions(mesh: PolygonMesh, free: BoolArray, patch: BoolArray,
+                     base: FloatArray, planes: tuple[FloatArray, FloatArray] | None = None
+                     ) -> FloatArray | None:
+    """A piecewise-planar continuation of a sharp ring (a hole across a crease, a corner
+    or a thin wall), or None when the ring is smooth (:func:`_ring_planes`).
+
+    Each free vertex takes the plane of the ring vertex nearest to it along the edges of
+    the faces around the free vertices (a graph distance, so the patch is split along
+    the crease), and its ``base`` position is projected onto that plane.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+    free : (V,) bool
+    patch : (F,) bool
+        The faces of the filled hole(s) (never read as the surface around it).
+    base : (V, 3) float64
+        Positions to project (for example a membrane, within the hull of the ring).
+    planes : (normals, points), optional
+        Given planes (each ring vertex then takes the plane nearest to it) instead of
+        those of :func:`_ring_planes`.
+
+    Returns
+    -------
+    (V, 3) float64 or None
+    """
+    from scipy.sparse.csgraph import dijkstra
+
+    if planes is None:
+        found = _ring_planes(mesh, free, patch)
+        if found is None:
+            return None
+        normals, points, ring, label = found
+    else:
+        normals, points = planes
+        ring = np.flatnonzero(_vertices_of(mesh, _faces_touching(mesh, free)) & ~free)
+        offsets = np.abs(np.einsum("kd,rkd->rk", normals,
+                                   mesh.vertices[ring][:, None] - points[None]))
+        label = offsets.argmin(axis=1)
+    local = _faces_subset(mesh, _faces_touching(mesh, free))
+    edges = local.edges
+    length = np.linalg.norm(base[edges[:, 0]] - base[edges[:, 1]], axis=1) + 1e-12
+    n = mesh.n_vertices
+    graph = sp.coo_matrix((length, (edges[:, 0], edges[:, 1])), shape=(n, n)).tocsr()
+    _, _, nearest = dijkstra(graph, directed=False, indices=ring, min_only=True,
+                             return_predecessors=True)
+    rows = np.flatnonzero(free)
+    source = nearest[rows]
+    reached = source >= 0
+    lookup = np.full(n, -1, dtype=np.int64)
+    lookup[ring] = label
+    k = lookup[np.where(reached, source, 0)]
+    ok = reached & (k >= 0)
+    out = np.asarray(base, dtype=np.float64).copy()
+    x, nk, pk = out[rows[ok]], normals[k[ok]], points[k[ok]]
+    x = x - np.einsum("ij,ij->i", x - pk, nk)[:, None] * nk
+    out[rows[ok]] = _clip_to_creases(x, k[ok], normals, points)
+    return out
+
+
+def _clip_to_creases(x: FloatArray, k: IntArray, normals: FloatArray,
+                     points: FloatArray) -> FloatArray:
+    """Points ``x`` on the planes ``k`` moved onto the crease line with any other plane
+    they pass: beyond it at a convex crease (where the solid is the intersection of the
+    two half-spaces), behind it at a concave one (their union). Near-parallel planes
+    (a thin wall's two sides) have no crease."""
+    x = x.copy()
+    for a in range(len(normals)):
+        mine = k == a
+        for b in range(len(normals)):
+            cos = float(normals[a] @ normals[b])
+            if b == a or abs(cos) > 0.95 or not mine.any():
+                continue
+            convex = float(normals[a] @ (points[b] - points[a])) < 0
+            side = (x[mine] - points[b]) @ normals[b]
+            wrong = side > 0 if convex else side < 0
+            # along plane a, towards plane b: the direction of n_b within plane a
+            along = normals[b] - cos * normals[a]
+            step = side / (1.0 - cos * cos)
+            moved = x[mine] - step[:, None] * along[None]
+            x[np.flatnonzero(mine)[wrong]] = moved[wrong]
+    return x
+
+
+def _surface_distance(mesh: PolygonMesh, faces: BoolArray, x: FloatArray,
+                      steps: int = 4) -> FloatArray:
+    """Distance of each point ``x`` to the plane of the triangle of the ``faces`` of
+    ``mesh`` nearest to it (found among points on a barycentric grid of ``steps`` per
+    side on each triangle), (N,)."""
+    from scipy.spatial import cKDTree
+
+    triangles, _ = _faces_subset(mesh, faces).triangulate()
+    i, j = np.meshgrid(np.arange(steps + 1), np.arange(steps + 1), indexing="ij")
+    keep = i + j <= steps
+    a, b = i[keep] / steps, j[keep] / steps
+    bary = np.stack([1 - a - b, a, b], axis=1)  # (G, 3)
+    corners = mesh.vertices[triangles]  # (T, 3, 3)
+    samples = np.einsum("gk,tkd->tgd", bary, corners).reshape(-1, 3)
+    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    nearest = cKDTree(samples).query(x)[1] // len(bary)
+    return np.abs(np.einsum("ij,ij->i", x - corners[nearest, 0], normal[nearest]))
+
+
+def _continuation(mesh: PolygonMesh, free: BoolArray, patch: BoolArray,
+                  start: FloatArray) -> FloatArray:
+    """The smooth fairing (:func:`_first_contained`) or, around a sharp ring, whichever
+    of it and the planar continuation (:func:`planar_positions`) better predicts the
+    surface around the hole: both are re-run with the ring freed too, and the one whose
+    freed ring lands nearer the input's faces around it (:data:`SURFACE_RINGS` rings)
+    wins, by more than :data:`PLANAR_MARGIN` (a distance to the surface, so a vertex
+    sliding along it costs nothing). Only the input mesh is read."""
+    smooth = _first_contained(mesh, free, start)
+    found = _ring_planes(mesh, free, patch)
+    if found is None:
+        return smooth
+    planes = found[:2]
+    planar = planar_positions(mesh, free, patch, fair_positions(mesh, free, 1, "uniform"),
+                              planes)
+    ring = _vertices_of(mesh, _faces_touching(mesh, free)) & ~free
+    wider = free | ring
+    wider_patch = patch | _faces_touching(mesh, wider)
+    planar_guess = planar_positions(mesh, wider, wider_patch,
+                                    fair_positions(mesh, wider, 1, "uniform"), planes)
+    assert planar is not None and planar_guess is not None
+    guess = _first_contained(mesh, wider, start)
+    around = wider
+    for _ in range(SURFACE_RINGS):
+        around = around | _vertices_of(mesh, _faces_touching(mesh, around))
+    surface = _faces_touching(mesh, around) & ~patch
+    smooth_error = float(_surface_distance(mesh, surface, guess[ring]).mean())
+    planar_error = float(_surface_distance(mesh, surface, planar_guess[ring]).mean())
+    return planar if planar_error < PLANAR_MARGIN * smooth_error else smooth
+
+
 def patch_edge_length(mesh: PolygonMesh, patch: BoolArray) -> float:
     """Mean length of the edges on the patch's border (one side in the patch, the other
     outside it): the density of the surface around the patch (0 without such edges)."""
@@ -408,10 +660,11 @@ def fair_patch(mesh: PolygonMesh, patch: BoolArray, free: BoolArray, target: flo
         mesh, source = refine_patch(mesh, patch, target)
     added = mesh.n_vertices - n_before
     free = np.concatenate([free, np.ones(added, dtype=bool)])
+    patch_after = (source < 0) | patch[np.maximum(source, 0)]
     if not free.any():
         return mesh, source, added
     start = np.asarray(mesh.vertices, dtype=np.float64)
-    faired = _first_contained(mesh, free, start)
+    faired = _continuation(mesh, free, patch_after, start)
     near = _faces_touching(mesh, _vertices_of(mesh, _faces_touching(mesh, free)))
     local = _faces_subset(mesh, near)
 
