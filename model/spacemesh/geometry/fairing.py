@@ -16,7 +16,10 @@ model's wedges), which on a curved surface is a flat or folded patch. Here the p
    the boundary ring and the ring of faces beyond it define the position and the
    slope the patch continues (a thin-plate surface, a sparse solve); where that
    overshoots the box of the ring (a hole across sharp edges), uniform weights, then a
-   membrane (``L x = 0``, within the hull of the ring) are used instead;
+   membrane (``L x = 0``, within the hull of the ring) are used instead; around a
+   sharp ring (flat clusters of faces meeting at a crease) a piecewise-planar
+   continuation (:func:`planar_positions`) replaces it where it better predicts the
+   ring itself (the ring freed, then measured against the input's surface);
 3. **guarded** (:func:`fair_patch`): the faired positions are kept only where they make no
    new self-intersection near the patch (the move is halved up to twice, else undone).
 
@@ -68,6 +71,10 @@ FLATNESS = 0.03
 PLANAR_MARGIN = 0.5
 #: Rings of faces around a patch whose surface its freed ring is measured against.
 SURFACE_RINGS = 3
+#: The clusters kept must hold at least this share of the ring faces' area (else the
+#: ring also crosses a curved part, such as a thin wall's rounded rim, that no plane
+#: continues).
+MIN_COVERAGE = 0.9
 #: Clusters with less than this share of the ring faces' area are ignored.
 MIN_CLUSTER_SHARE = 0.08
 
@@ -410,7 +417,8 @@ def _ring_planes(mesh: PolygonMesh, free: BoolArray, patch: BoolArray
     The faces outside ``patch`` within two rings of the fixed vertices next to the free
     ones are clustered by normal (area first, each joining the first cluster within
     :data:`CLUSTER_ANGLE`); the ring is sharp when two clusters hold at least
-    :data:`MIN_CLUSTER_SHARE` of their area each and two of the faces meet at a crease
+    :data:`MIN_CLUSTER_SHARE` of their area each (and those hold
+    :data:`MIN_COVERAGE` of it) and two of the faces meet at a crease
     (:func:`_has_crease`), and each cluster is flat (:data:`FLATNESS`). Each cluster
     gets the least-squares plane of its faces' vertices.
 
@@ -450,7 +458,8 @@ def _ring_planes(mesh: PolygonMesh, free: BoolArray, patch: BoolArray
     big = np.flatnonzero(share >= MIN_CLUSTER_SHARE)
     units = np.asarray(sums)[big]
     units /= np.maximum(np.linalg.norm(units, axis=1, keepdims=True), 1e-300)
-    if len(big) < 2 or not _has_crease(mesh, faces, normal):
+    if (len(big) < 2 or share[big].sum() < MIN_COVERAGE
+            or not _has_crease(mesh, faces, normal)):
         return None
     normals, points = [], []
     for k, unit in zip(big, units, strict=True):
