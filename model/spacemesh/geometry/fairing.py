@@ -14,12 +14,13 @@ model's wedges), which on a curved surface is a flat or folded patch. Here the p
    discrete bi-Laplace equation ``L^2 x = 0`` (cotangent weights, re-read once from
    the first solution) with every other vertex fixed:
    the boundary ring and the ring of faces beyond it define the position and the
-   slope the patch continues (a thin-plate surface, a sparse solve); where that
-   overshoots the box of the ring (a hole across sharp edges), uniform weights, then a
-   membrane (``L x = 0``, within the hull of the ring) are used instead; around a
-   sharp ring (flat clusters of faces meeting at a crease) a piecewise-planar
-   continuation (:func:`planar_positions`) replaces it where it better predicts the
-   ring itself (the ring freed, then measured against the input's surface);
+   slope the patch continues (a thin-plate surface, a sparse solve); uniform weights
+   or a membrane (``L x = 0``, within the hull of the ring), and around a sharp ring
+   (flat clusters of faces meeting at a crease) a piecewise-planar continuation
+   (:func:`planar_positions`), are the other candidates; the one kept
+   (:func:`_continuation`) best predicts the ring itself when the ring is freed too,
+   measured against the input's surface around it (a thin plate that overshoots the
+   box of the ring, as over a hole across sharp edges, is never kept);
 3. **guarded** (:func:`fair_patch`): the faired positions are kept only where they make no
    new self-intersection near the patch (the move is halved up to twice, else undone).
 
@@ -66,6 +67,9 @@ SHARP_ANGLE = 60.0
 #: A cluster is planar when the RMS distance of its vertices to their plane is below
 #: this share of their RMS spread along the plane (a low-poly curved surface is not).
 FLATNESS = 0.03
+#: A gentler smooth fairing is used when its ring error is below this share of the
+#: stiffer one's (:func:`_continuation`).
+SMOOTH_MARGIN = 0.9
 #: The planar continuation is used when its ring error is below this share of the
 #: smooth fairing's (:func:`_continuation`).
 PLANAR_MARGIN = 0.5
@@ -366,22 +370,18 @@ def boundary_edge_length(mesh: PolygonMesh, loops: list[IntArray]) -> float:
     return float(np.concatenate(lengths).mean()) if lengths else 0.0
 
 
-def _first_contained(mesh: PolygonMesh, free: BoolArray, start: FloatArray) -> FloatArray:
-    """The first of the thin plate (cotangent, then uniform weights) and the membrane
-    whose free vertices stay within the box of the fixed vertices around them widened
-    by :data:`MAX_OVERSHOOT` of its largest side on every side (a thin plate over a
-    hole across sharp edges overshoots; a membrane never leaves the hull of its ring);
-    ``start`` when none does."""
+def _contained(mesh: PolygonMesh, free: BoolArray, start: FloatArray,
+               faired: FloatArray) -> bool:
+    """Whether the ``faired`` free vertices stay within the box of the fixed vertices
+    around them (two rings) widened by :data:`MAX_OVERSHOOT` of its largest side on
+    every side (a thin plate over a hole across sharp edges overshoots; a membrane never
+    leaves the hull of its ring)."""
     ring = _vertices_of(mesh, _faces_touching(mesh, free)) & ~free
     ring |= _vertices_of(mesh, _faces_touching(mesh, ring)) & ~free
     low, high = start[ring].min(axis=0), start[ring].max(axis=0)
     margin = MAX_OVERSHOOT * float((high - low).max())
-    for order, weights in ((2, "cotangent"), (2, "uniform"), (1, "uniform")):
-        faired = fair_positions(mesh, free, order, weights)
-        moved = faired[free]
-        if ((moved >= low - margin) & (moved <= high + margin)).all():
-            return faired
-    return start
+    moved = faired[free]
+    return bool(((moved >= low - margin) & (moved <= high + margin)).all())
 
 
 def _triangle_areas(mesh: PolygonMesh, faces: BoolArray) -> FloatArray:
@@ -592,35 +592,52 @@ def _surface_distance(mesh: PolygonMesh, faces: BoolArray, x: FloatArray,
     return np.abs(np.einsum("ij,ij->i", x - corners[nearest, 0], normal[nearest]))
 
 
+#: The smooth fairings tried, gentlest last: (order, weights) of :func:`fair_positions`.
+SMOOTH_FAIRINGS = ((2, "cotangent"), (2, "uniform"), (1, "uniform"))
+
+
 def _continuation(mesh: PolygonMesh, free: BoolArray, patch: BoolArray,
                   start: FloatArray) -> FloatArray:
-    """The smooth fairing (:func:`_first_contained`) or, around a sharp ring, whichever
-    of it and the planar continuation (:func:`planar_positions`) better predicts the
-    surface around the hole: both are re-run with the ring freed too, and the one whose
-    freed ring lands nearer the input's faces around it (:data:`SURFACE_RINGS` rings)
-    wins, by more than :data:`PLANAR_MARGIN` (a distance to the surface, so a vertex
-    sliding along it costs nothing). Only the input mesh is read."""
-    smooth = _first_contained(mesh, free, start)
-    found = _ring_planes(mesh, free, patch)
-    if found is None:
-        return smooth
-    planes = found[:2]
-    planar = planar_positions(mesh, free, patch, fair_positions(mesh, free, 1, "uniform"),
-                              planes)
+    """The continuation that best extends the surface around the hole, judged on the
+    input mesh alone (leave the ring out).
+
+    Each candidate is re-run with the hole's ring freed too, and scored by how far its
+    freed ring lands from the input's faces around it (:data:`SURFACE_RINGS` rings; a
+    distance to the surface, so a vertex sliding along it costs nothing). The
+    candidates are the smooth fairings of :data:`SMOOTH_FAIRINGS` whose solution over
+    the hole stays within the ring's box (:func:`_contained`), a later one taken only
+    when its score is below :data:`SMOOTH_MARGIN` times the best so far, and, around a
+    sharp ring, the piecewise-planar continuation (:func:`planar_positions`), taken when
+    its score is below :data:`PLANAR_MARGIN` times the smooth one's. ``start`` when no
+    candidate stays within the box."""
     ring = _vertices_of(mesh, _faces_touching(mesh, free)) & ~free
     wider = free | ring
-    wider_patch = patch | _faces_touching(mesh, wider)
-    planar_guess = planar_positions(mesh, wider, wider_patch,
-                                    fair_positions(mesh, wider, 1, "uniform"), planes)
-    assert planar is not None and planar_guess is not None
-    guess = _first_contained(mesh, wider, start)
     around = wider
     for _ in range(SURFACE_RINGS):
         around = around | _vertices_of(mesh, _faces_touching(mesh, around))
     surface = _faces_touching(mesh, around) & ~patch
-    smooth_error = float(_surface_distance(mesh, surface, guess[ring]).mean())
-    planar_error = float(_surface_distance(mesh, surface, planar_guess[ring]).mean())
-    return planar if planar_error < PLANAR_MARGIN * smooth_error else smooth
+
+    def score(guess: FloatArray) -> float:
+        return float(_surface_distance(mesh, surface, guess[ring]).mean())
+
+    best, best_error = start, math.inf
+    for order, weights in SMOOTH_FAIRINGS:
+        faired = fair_positions(mesh, free, order, weights)
+        if not _contained(mesh, free, start, faired):
+            continue
+        error = score(fair_positions(mesh, wider, order, weights))
+        if error < SMOOTH_MARGIN * best_error:
+            best, best_error = faired, error
+    found = _ring_planes(mesh, free, patch)
+    if found is None:
+        return best
+    planes = found[:2]
+    planar = planar_positions(mesh, free, patch, fair_positions(mesh, free, 1, "uniform"),
+                              planes)
+    guess = planar_positions(mesh, wider, patch | _faces_touching(mesh, wider),
+                             fair_positions(mesh, wider, 1, "uniform"), planes)
+    assert planar is not None and guess is not None
+    return planar if score(guess) < PLANAR_MARGIN * best_error else best
 
 
 def patch_edge_length(mesh: PolygonMesh, patch: BoolArray) -> float:
