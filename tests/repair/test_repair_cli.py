@@ -82,3 +82,20 @@ def test_weld_repairs_a_flat_shaded_glb(fake_model, tmp_path):
     summary = json.loads(result.output)
     assert summary["welded_vertices"] == 3 * 320 - 162
     assert_closed_manifold(load_mesh(out))
+
+
+@pytest.mark.parametrize("fault", ["moved", "dropped"])
+def test_a_faulty_repair_is_never_written(fake_model, tmp_path, monkeypatch, fault):
+    """The CLI runs the service's check (``verify_repair``) before it writes anything."""
+    import spacemesh.repair as repair_package
+    from tests.service.service_testing import faulty_repair
+
+    monkeypatch.setattr(repair_package, "repair_mesh",
+                        faulty_repair(repair_package.repair_mesh, fault))
+    source, out = tmp_path / "ico.obj", tmp_path / "fixed.ply"
+    save_mesh(icosphere(2), source)
+    result = CliRunner().invoke(app, ["repair", str(source), "--sphere", "0,0,1,0.4", "-o",
+                                      str(out), "--steps", "4", "--no-progress"])
+    assert result.exit_code == 1, result.output
+    assert "outside the grown region" in result.output and "Traceback" not in result.output
+    assert not out.exists()

@@ -124,7 +124,7 @@ def repair(
 
     from spacemesh.io import load_mesh, save_mesh
     from spacemesh.io.errors import MeshFormatError
-    from spacemesh.repair import RegionError, plan_repair, repair_mesh
+    from spacemesh.repair import RegionError, plan_repair, repair_mesh, verify_repair
     from spacemesh.runtime import MeshGenerator, ModelRepositoryError
 
     if output.suffix.lower() not in MESH_SUFFIXES:
@@ -162,6 +162,10 @@ def repair(
         fail(str(error))
     finally:
         bar.close()
+    issues = verify_repair(plan, result)
+    if issues:  # the service's check: a faulty repair is never written
+        fail("internal error: the repair changed the mesh outside the grown region: "
+             + "; ".join(issues), code=1)
     save_mesh(result.mesh, output)
     stats = result.stats
     if as_json:
