@@ -6,18 +6,9 @@ from __future__ import annotations
 import subprocess
 import sys
 
-SCRIPT = r"""
-import sys
+from tests.factories import BLOCK_TORCH
 
-
-class BlockTorch:
-    def find_spec(self, name, path=None, target=None):
-        if name == "torch" or name.startswith("torch."):
-            raise ImportError("torch is blocked in this process")
-        return None
-
-
-sys.meta_path.insert(0, BlockTorch())
+SCRIPT = BLOCK_TORCH + r"""
 import spacemesh.decode, spacemesh.encode, spacemesh.metrics.connectivity, spacemesh.runtime
 from spacemesh.examples import icosphere
 from spacemesh.encode import encode_connectivity

@@ -7,18 +7,9 @@ import sys
 
 import pytest
 
-SCRIPT = r"""
-import sys
+from tests.factories import BLOCK_TORCH
 
-
-class BlockTorch:
-    def find_spec(self, name, path=None, target=None):
-        if name == "torch" or name.startswith("torch."):
-            raise ImportError("torch is blocked in this process")
-        return None
-
-
-sys.meta_path.insert(0, BlockTorch())
+SCRIPT = BLOCK_TORCH + r"""
 import numpy as np
 
 import spacemesh.runtime
