@@ -169,7 +169,8 @@ def mesh_from_response(response: httpx.Response, fmt: str | None) -> Mesh:
 class EventReader:
     """Reads the Server-Sent Events of ``/generate/stream`` line by line.
 
-    ``progress(step, total)`` is called for each sampler step (as over gRPC); the
+    ``progress(stage, done, total)`` (a :class:`~spacemesh_client.progress.Reporter`)
+    is called for each progress event (as over gRPC); the
     ``result`` event becomes the response the plain route would have given, and a
     ``problem`` event raises its typed error.
 
@@ -178,7 +179,7 @@ class EventReader:
     progress : callable
     """
 
-    def __init__(self, progress: Callable[[int, int], None]) -> None:
+    def __init__(self, progress: Callable[[str, int, int], None]) -> None:
         self.progress = progress
         self.name: str | None = None
         self.data: list[str] = []
@@ -196,8 +197,8 @@ class EventReader:
             self._event(name, data)
 
     def _event(self, name: str, data: dict[str, Any]) -> None:
-        if name == "progress" and data.get("stage") == "sampler" and data.get("done"):
-            self.progress(int(data["done"]), int(data["total"]))
+        if name == "progress":
+            self.progress(str(data.get("stage", "")), int(data["done"]), int(data["total"]))
         elif name == "problem":
             raise error_from_problem(data, status=int(data.get("status") or 500))
         elif name == "result":

@@ -40,6 +40,7 @@ from spacemesh_client.errors import (
 )
 from spacemesh_client.mesh import Mesh
 from spacemesh_client.options import GENERATE_OPTIONS, OPTION_NAMES, REPAIR_OPTION_NAMES
+from spacemesh_client.progress import ProgressBar
 from spacemesh_client.retry import RetryPolicy
 from spacemesh_client.security import API_KEY_ENV
 
@@ -195,9 +196,15 @@ def cmd_generate(args: argparse.Namespace) -> None:
         fail(f"{source}: no such file")
     fmt = _output_format(output, args.format)
     started = time.perf_counter()
-    with _client(args) as client:
-        mesh = client.generate(source, format=fmt,
-                               **{o.name: getattr(args, o.name) for o in GENERATE_OPTIONS})
+    show = sys.stderr.isatty() if args.progress is None else args.progress
+    bar = ProgressBar(sys.stderr) if show else None
+    try:
+        with _client(args) as client:
+            mesh = client.generate(source, format=fmt, stage=bar.stage if bar else None,
+                                   **{o.name: getattr(args, o.name) for o in GENERATE_OPTIONS})
+    finally:
+        if bar is not None:
+            bar.close()
     _save(mesh, output)
     _report(mesh, output, time.perf_counter() - started, args.json)
 
@@ -310,6 +317,9 @@ def build_parser() -> argparse.ArgumentParser:
                               help="generate a mesh from a point cloud file")
     gen.add_argument("input", help="point cloud (PLY, XYZ, PTS, TXT, NPY, NPZ, OBJ, ...)")
     _add_option_flags(gen, OPTION_NAMES)
+    gen.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                     help="a progress line on stderr (the server's stages and sampler "
+                     "steps; default: when stderr is a terminal)")
     gen.set_defaults(run=cmd_generate)
 
     rep = commands.add_parser("repair", parents=[options, common],

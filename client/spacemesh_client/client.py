@@ -32,6 +32,7 @@ from spacemesh_client._inputs import (
 from spacemesh_client.errors import ConnectionFailed, SpaceMeshError
 from spacemesh_client.mesh import Mesh
 from spacemesh_client.options import chosen
+from spacemesh_client.progress import ProgressFn, StageFn, reporter
 from spacemesh_client.retry import DEFAULT_RETRY, RetryPolicy
 from spacemesh_client.security import Verify, auth_headers
 
@@ -42,7 +43,6 @@ DEFAULT_URL = "http://localhost:8000"
 DEFAULT_FORMAT = "ply"
 
 T = TypeVar("T")
-ProgressFn = Callable[[int, int], None]
 
 
 def _is_grpc(url: str) -> bool:
@@ -141,7 +141,7 @@ class Client(_Options):
                  start: str | None = None, start_time: float | None = None,
                  target_vertices: int | None = None, samples: int | None = None,
                  raw: bool | None = None, filename: str | None = None,
-                 progress: ProgressFn | None = None) -> Mesh:
+                 progress: ProgressFn | None = None, stage: StageFn | None = None) -> Mesh:
         """Point cloud in, oriented manifold polygon mesh out.
 
         Parameters
@@ -182,6 +182,11 @@ class Client(_Options):
         progress : callable, optional
             ``progress(step, total)`` after each diffusion step (gRPC
             ``GenerateStream``; over REST ``POST /generate/stream``, Server-Sent Events).
+        stage : callable, optional
+            ``stage(name, done, total)`` for each progress event of the stream: as each
+            stage begins (``queued``, ``encoder``, ``sampler``, ``connectivity``,
+            ``decode``, ``geometry``, ``report``, ``encode_output``) and per sampler
+            step (``sampler``), over either transport.
 
         Returns
         -------
@@ -200,7 +205,8 @@ class Client(_Options):
                          start_time=start_time, target_vertices=target_vertices,
                          samples=samples, raw=raw)
         return self._retrying(
-            lambda: self._transport.generate(source, format, options, progress))
+            lambda: self._transport.generate(source, format, options,
+                                             reporter(progress, stage)))
 
     def repair(self, mesh: MeshLike, region: RegionLike = None, *,
                format: str | None = DEFAULT_FORMAT,
@@ -358,14 +364,16 @@ class AsyncClient(_Options):
                        start: str | None = None, start_time: float | None = None,
                        target_vertices: int | None = None, samples: int | None = None,
                        raw: bool | None = None, filename: str | None = None,
-                       progress: ProgressFn | None = None) -> Mesh:
+                       progress: ProgressFn | None = None,
+                       stage: StageFn | None = None) -> Mesh:
         """See :meth:`Client.generate`."""
         source = points_input(points, normals, filename)
         options = chosen(seed=seed, steps=steps, sampler=sampler, start=start,
                          start_time=start_time, target_vertices=target_vertices,
                          samples=samples, raw=raw)
         return await self._retrying(
-            lambda: self._transport.generate(source, format, options, progress))
+            lambda: self._transport.generate(source, format, options,
+                                             reporter(progress, stage)))
 
     async def repair(self, mesh: MeshLike, region: RegionLike = None, *,
                      format: str | None = DEFAULT_FORMAT, seed: int | None = None,

@@ -19,7 +19,7 @@ metadata call: ``model_info()`` raises :class:`~spacemesh_client.errors.Unimplem
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any
 from urllib.parse import urlsplit
 
@@ -39,6 +39,7 @@ from spacemesh_client.errors import (
 )
 from spacemesh_client.mesh import Mesh, MeshStats, repair_summary
 from spacemesh_client.options import OPTION_NAMES, REPAIR_OPTION_NAMES
+from spacemesh_client.progress import Reporter
 from spacemesh_client.security import Verify, grpc_root_certificates
 
 #: URL schemes of this transport.
@@ -50,7 +51,6 @@ _SERVING = 1
 _CHANNEL_OPTIONS = [("grpc.max_receive_message_length", -1),
                     ("grpc.max_send_message_length", -1)]
 
-ProgressFn = Callable[[int, int], None]
 
 
 def _modules() -> tuple[Any, Any, Any]:
@@ -271,14 +271,14 @@ class GrpcTransport(_Base):
             response_deserializer=_health_status)
 
     def generate(self, source: Upload | Arrays, fmt: str | None, options: Mapping[str, Any],
-                 progress: ProgressFn | None = None) -> Mesh:
+                 progress: Reporter | None = None) -> Mesh:
         request = generate_message(self.pb, source, fmt, options)
         try:
             if progress is None:
                 return mesh_from_reply(self.stub.Generate(request, **self._call_kwargs()))
             for event in self.stub.GenerateStream(request, **self._call_kwargs()):
                 if event.HasField("progress"):
-                    progress(event.progress.step, event.progress.total)
+                    progress(event.progress.stage, event.progress.step, event.progress.total)
                 else:
                     return mesh_from_reply(event.mesh)
         except self.grpc.RpcError as error:
@@ -324,14 +324,14 @@ class AsyncGrpcTransport(_Base):
 
     async def generate(self, source: Upload | Arrays, fmt: str | None,
                        options: Mapping[str, Any],
-                       progress: ProgressFn | None = None) -> Mesh:
+                       progress: Reporter | None = None) -> Mesh:
         request = generate_message(self.pb, source, fmt, options)
         try:
             if progress is None:
                 return mesh_from_reply(await self.stub.Generate(request, **self._call_kwargs()))
             async for event in self.stub.GenerateStream(request, **self._call_kwargs()):
                 if event.HasField("progress"):
-                    progress(event.progress.step, event.progress.total)
+                    progress(event.progress.stage, event.progress.step, event.progress.total)
                 else:
                     return mesh_from_reply(event.mesh)
         except self.grpc.RpcError as error:

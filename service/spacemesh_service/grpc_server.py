@@ -34,6 +34,7 @@ from spacemesh_service.pb import spacemesh_pb2 as pb
 from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
 from spacemesh_service.problems import Problem
 from spacemesh_service.security import Guard
+from spacemesh_service.streaming import ProgressEvents, next_event
 
 log = logging.getLogger("spacemesh.service")
 
@@ -174,22 +175,18 @@ class SpaceMeshServicer(pb_grpc.SpaceMeshServicer):
 
     async def GenerateStream(self, request: pb.GenerateRequest,
                              context: grpc.aio.ServicerContext) -> AsyncIterator[pb.GenerateEvent]:
-        events: asyncio.Queue[tuple[int, int]] = asyncio.Queue()
+        events = ProgressEvents()  # the SSE stream's stage and step reports
         task: asyncio.Task | None = None
         async with self._call("GenerateStream", context):
             try:
                 parse = request_parser(request, self.engine.settings.max_upload_bytes)
                 task = asyncio.ensure_future(self.engine.generate(
                     parse, grpc_values(request, GENERATE_ROUTE_OPTIONS),
-                    progress=lambda done, total: events.put_nowait((done, total))))
-                while not task.done() or not events.empty():
-                    getter = asyncio.ensure_future(events.get())
-                    await asyncio.wait({getter, task}, return_when=asyncio.FIRST_COMPLETED)
-                    if getter.done():
-                        done, total = getter.result()
-                        yield pb.GenerateEvent(progress=pb.Progress(step=done, total=total))
-                    else:
-                        getter.cancel()
+                    progress=events.step, stage=events.stage))
+                while (event := await next_event(events, task)) is not None:
+                    yield pb.GenerateEvent(progress=pb.Progress(
+                        step=event["done"], total=event["total"], stage=event["stage"],
+                        fraction=event["fraction"]))
                 reply = task.result()  # raises the request's Problem
                 yield pb.GenerateEvent(mesh=reply_to_pb(reply))
             finally:

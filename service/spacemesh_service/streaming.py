@@ -103,7 +103,7 @@ def result_event(reply: Reply, filename: str) -> dict[str, Any]:
             "body": base64.b64encode(reply.mesh.body).decode("ascii")}
 
 
-async def _next_event(events: ProgressEvents, task: asyncio.Future,
+async def next_event(events: ProgressEvents, task: asyncio.Future,
                       timeout: float | None = None) -> dict[str, Any] | None:
     """The next progress event, or None once ``task`` is done and no event is left
     (or nothing came within ``timeout``: then ``{}``)."""
@@ -166,7 +166,7 @@ async def stream_response(request: Request, engine: Engine, work: Work,
     events = ProgressEvents()
     task = asyncio.ensure_future(work(events.step, events.stage))
     try:
-        first = await _next_event(events, task)
+        first = await next_event(events, task)
         if first is None:  # finished (or failed) before any event
             task.result()
     except BaseException:
@@ -180,7 +180,7 @@ async def stream_response(request: Request, engine: Engine, work: Work,
             event = first
             while event is not None:
                 yield sse("progress", event) if event else b": keep-alive\n\n"
-                event = await _next_event(events, task, KEEPALIVE_S)
+                event = await next_event(events, task, KEEPALIVE_S)
             try:
                 reply = task.result()
             except Exception as error:

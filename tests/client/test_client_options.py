@@ -23,7 +23,7 @@ from spacemesh_client.cli import build_parser
 from spacemesh_client.options import GENERATE_OPTIONS, OPTION_NAMES, REPAIR_OPTION_NAMES
 
 #: Keywords of ``generate`` that are not generate options.
-NOT_OPTIONS = {"points", "self", "normals", "format", "filename", "progress"}
+NOT_OPTIONS = {"points", "self", "normals", "format", "filename", "progress", "stage"}
 CLI = [sys.executable, "-c", "from spacemesh_client.cli import main; main()"]
 
 

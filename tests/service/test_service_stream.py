@@ -191,3 +191,29 @@ def test_sdk_progress_over_rest(server, case):
 
     steps, result = asyncio.run(run())
     assert steps == seen and result.data == plain.data
+
+
+def test_grpc_generate_stream_reports_the_stages_of_the_sse_stream(http, server, case):
+    import grpc
+
+    from spacemesh_service.pb import spacemesh_pb2 as pb
+    from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
+
+    params = {"seed": case.good_seed, "format": "ply", "start": "noise", "steps": 4}
+    _, events = stream(http, "/generate/stream", params=params,
+                       files={"file": ("cloud.ply", as_ply(case.points))})
+    sse = [(d["stage"], d["done"], d["total"], d["fraction"]) for n, d in events[:-1]]
+    with grpc.insecure_channel(server.grpc_target) as channel:
+        replies = list(pb_grpc.SpaceMeshStub(channel).GenerateStream(pb.GenerateRequest(
+            file=pb.PointCloudFile(data=as_ply(case.points), filename="cloud.ply"),
+            **params)))
+    kinds = [r.WhichOneof("event") for r in replies]
+    assert kinds[-1] == "mesh" and set(kinds[:-1]) == {"progress"}, kinds
+    over_grpc = [(r.progress.stage, r.progress.step, r.progress.total, r.progress.fraction)
+                 for r in replies[:-1]]
+    stages = [p[0] for p in over_grpc]
+    for stage in ("queued", "encoder", "sampler", "connectivity", "geometry",
+                  "encode_output"):
+        assert stage in stages, stages
+    assert over_grpc == sse  # the same events as the SSE stream, in the same order
+    assert replies[-1].mesh.mesh == base64.b64decode(events[-1][1]["body"])

@@ -62,7 +62,7 @@ class SpaceMeshServicer:
         raise NotImplementedError('Method not implemented!')
 
     def GenerateStream(self, request, context):
-        """The same, with one Progress event per diffusion step before the mesh.
+        """The same, with Progress events (one per stage and per diffusion step) before the mesh.
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')

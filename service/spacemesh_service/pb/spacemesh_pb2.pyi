@@ -284,12 +284,16 @@ class RepairRegion(_message.Message):
     def __init__(self, id: _Optional[int] = ..., requested_faces: _Optional[int] = ..., region_faces: _Optional[int] = ..., grown_faces: _Optional[int] = ..., share: _Optional[float] = ..., strategy: _Optional[str] = ..., reason: _Optional[str] = ..., passes: _Optional[int] = ..., filled_by: _Optional[str] = ...) -> None: ...
 
 class Progress(_message.Message):
-    __slots__ = ("step", "total")
+    __slots__ = ("step", "total", "stage", "fraction")
     STEP_FIELD_NUMBER: _ClassVar[int]
     TOTAL_FIELD_NUMBER: _ClassVar[int]
+    STAGE_FIELD_NUMBER: _ClassVar[int]
+    FRACTION_FIELD_NUMBER: _ClassVar[int]
     step: int
     total: int
-    def __init__(self, step: _Optional[int] = ..., total: _Optional[int] = ...) -> None: ...
+    stage: str
+    fraction: float
+    def __init__(self, step: _Optional[int] = ..., total: _Optional[int] = ..., stage: _Optional[str] = ..., fraction: _Optional[float] = ...) -> None: ...
 
 class GenerateEvent(_message.Message):
     __slots__ = ("progress", "mesh")
