@@ -3,6 +3,7 @@ CLI's progress line on stderr, against a real server."""
 
 from __future__ import annotations
 
+import asyncio
 import io
 import json
 import subprocess
@@ -11,7 +12,7 @@ import sys
 import pytest
 from service_testing import as_ply
 
-from spacemesh_client import Client, RetryPolicy
+from spacemesh_client import AsyncClient, Client, RetryPolicy
 from spacemesh_client.progress import ProgressBar
 
 pytestmark = pytest.mark.slow
@@ -76,3 +77,19 @@ def test_cli_shows_the_stages_on_stderr_only(transport, rest_url, grpc_url, case
                  for r in (shown, hidden)]  # the JSON summary alone, nothing mixed in
     assert summaries[0] == summaries[1]
     assert runs["--progress"][1] == runs["--no-progress"][1]
+
+
+def test_async_client_reports_stages(url, case):
+    seen: list[tuple[str, int, int]] = []
+
+    async def run() -> bytes:
+        async with AsyncClient(url, retry=RetryPolicy.never()) as client:
+            mesh = await client.generate(case.points, seed=case.good_seed, steps=3, start="noise",
+                                         stage=lambda *event: seen.append(event))
+            return mesh.data
+
+    assert asyncio.run(run())
+    assert [e for e in seen if e[0] == "sampler" and e[1] >= 1] == [("sampler", 1, 3),
+                                                                     ("sampler", 2, 3),
+                                                                     ("sampler", 3, 3)]
+    assert {"queued", "connectivity", "geometry", "encode_output"} <= {e[0] for e in seen}
