@@ -1,5 +1,6 @@
 """Point cloud in, mesh out, over gRPC with the stubs of proto/spacemesh.proto
-(pip install -e 'client[grpc]'), streaming one progress event per diffusion step.
+(pip install -e 'client[grpc]'), streaming one progress event per stage of the work
+(and per diffusion step, where the model's default has any).
 
 Run from the repository root:  python examples/grpc_generate.py [POINTS]
 """
@@ -16,14 +17,16 @@ from spacemesh_client.pb import spacemesh_pb2_grpc as pb_grpc
 target = os.environ.get("SPACEMESH_GRPC_TARGET", "localhost:8001")
 path = Path(sys.argv[1] if len(sys.argv) > 1 else "examples/points.ply")
 request = pb.GenerateRequest(file=pb.PointCloudFile(data=path.read_bytes(), filename=path.name),
-                             format="glb", seed=int(os.environ.get("SEED", 0)))
+                             format="glb", seed=int(os.environ.get("SEED", 0)),
+                             stages=True)
 
 with grpc.insecure_channel(target) as channel:
     stub = pb_grpc.SpaceMeshStub(channel)
     try:
         for event in stub.GenerateStream(request, timeout=300):
             if event.HasField("progress"):
-                print(f"step {event.progress.step}/{event.progress.total}", end="\r")
+                progress = event.progress
+                print(f"{progress.stage:<13} {progress.step}/{progress.total}", end="\r")
             else:
                 reply = event.mesh
     except grpc.RpcError as error:  # the problem type is in the trailing metadata

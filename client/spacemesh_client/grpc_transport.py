@@ -273,6 +273,7 @@ class GrpcTransport(_Base):
     def generate(self, source: Upload | Arrays, fmt: str | None, options: Mapping[str, Any],
                  progress: Reporter | None = None) -> Mesh:
         request = generate_message(self.pb, source, fmt, options)
+        request.stages = progress is not None and progress.stage is not None
         try:
             if progress is None:
                 return mesh_from_reply(self.stub.Generate(request, **self._call_kwargs()))
@@ -326,6 +327,7 @@ class AsyncGrpcTransport(_Base):
                        options: Mapping[str, Any],
                        progress: Reporter | None = None) -> Mesh:
         request = generate_message(self.pb, source, fmt, options)
+        request.stages = progress is not None and progress.stage is not None
         try:
             if progress is None:
                 return mesh_from_reply(await self.stub.Generate(request, **self._call_kwargs()))

@@ -184,6 +184,9 @@ class SpaceMeshServicer(pb_grpc.SpaceMeshServicer):
                     parse, grpc_values(request, GENERATE_ROUTE_OPTIONS),
                     progress=events.step, stage=events.stage))
                 while (event := await next_event(events, task)) is not None:
+                    if not request.stages and not (event["stage"] == "sampler"
+                                                   and event["done"] > 0):
+                        continue  # steps only, as older clients expect
                     yield pb.GenerateEvent(progress=pb.Progress(
                         step=event["done"], total=event["total"], stage=event["stage"],
                         fraction=event["fraction"]))

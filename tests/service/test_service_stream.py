@@ -206,7 +206,7 @@ def test_grpc_generate_stream_reports_the_stages_of_the_sse_stream(http, server,
     with grpc.insecure_channel(server.grpc_target) as channel:
         replies = list(pb_grpc.SpaceMeshStub(channel).GenerateStream(pb.GenerateRequest(
             file=pb.PointCloudFile(data=as_ply(case.points), filename="cloud.ply"),
-            **params)))
+            stages=True, **params)))
     kinds = [r.WhichOneof("event") for r in replies]
     assert kinds[-1] == "mesh" and set(kinds[:-1]) == {"progress"}, kinds
     over_grpc = [(r.progress.stage, r.progress.step, r.progress.total, r.progress.fraction)

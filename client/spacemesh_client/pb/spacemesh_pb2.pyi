@@ -23,7 +23,7 @@ class Points(_message.Message):
     def __init__(self, xyz: _Optional[_Iterable[float]] = ..., normals: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class GenerateRequest(_message.Message):
-    __slots__ = ("file", "points", "format", "seed", "steps", "sampler", "start", "start_time", "target_vertices", "samples", "raw")
+    __slots__ = ("file", "points", "format", "seed", "steps", "sampler", "start", "start_time", "target_vertices", "samples", "raw", "stages")
     FILE_FIELD_NUMBER: _ClassVar[int]
     POINTS_FIELD_NUMBER: _ClassVar[int]
     FORMAT_FIELD_NUMBER: _ClassVar[int]
@@ -35,6 +35,7 @@ class GenerateRequest(_message.Message):
     TARGET_VERTICES_FIELD_NUMBER: _ClassVar[int]
     SAMPLES_FIELD_NUMBER: _ClassVar[int]
     RAW_FIELD_NUMBER: _ClassVar[int]
+    STAGES_FIELD_NUMBER: _ClassVar[int]
     file: PointCloudFile
     points: Points
     format: str
@@ -46,7 +47,8 @@ class GenerateRequest(_message.Message):
     target_vertices: int
     samples: int
     raw: bool
-    def __init__(self, file: _Optional[_Union[PointCloudFile, _Mapping]] = ..., points: _Optional[_Union[Points, _Mapping]] = ..., format: _Optional[str] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., start: _Optional[str] = ..., start_time: _Optional[float] = ..., target_vertices: _Optional[int] = ..., samples: _Optional[int] = ..., raw: _Optional[bool] = ...) -> None: ...
+    stages: bool
+    def __init__(self, file: _Optional[_Union[PointCloudFile, _Mapping]] = ..., points: _Optional[_Union[Points, _Mapping]] = ..., format: _Optional[str] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., start: _Optional[str] = ..., start_time: _Optional[float] = ..., target_vertices: _Optional[int] = ..., samples: _Optional[int] = ..., raw: _Optional[bool] = ..., stages: _Optional[bool] = ...) -> None: ...
 
 class FitReport(_message.Message):
     __slots__ = ("points_to_mesh_mean", "points_to_mesh_p95", "mesh_to_points_mean", "mesh_to_points_p95", "points_to_mesh_mean_rel", "points_to_mesh_p95_rel", "mesh_to_points_mean_rel", "mesh_to_points_p95_rel", "coverage", "components", "self_intersections", "diagonal", "n_points")
