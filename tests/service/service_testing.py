@@ -270,3 +270,17 @@ BAD_OPTIONS = [
     ({"samples": 17}, "samples"),
     ({"raw": "maybe"}, "raw"),
 ]
+
+
+def region_pb(region: dict):
+    """The gRPC ``Region`` of a region in its JSON form (every form, ``auto`` included)."""
+    from spacemesh_service.pb import spacemesh_pb2 as pb
+
+    (kind, value), = region.items()
+    if kind in ("faces", "vertices"):
+        return pb.Region(**{kind: pb.Indices(indices=value)})
+    if kind == "sphere":
+        return pb.Region(sphere=pb.Sphere(center=value["center"], radius=value["radius"]))
+    if kind == "auto":
+        return pb.Region(auto_region=value)
+    return pb.Region(box=pb.Box(min=value["min"], max=value["max"]))

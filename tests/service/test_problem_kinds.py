@@ -38,6 +38,7 @@ from service_testing import (
     WrappedGenerator,
     faulty_repair,
     mesh_file,
+    region_pb,
 )
 
 from spacemesh.examples import icosphere
@@ -142,17 +143,6 @@ def post_repair(http: httpx.Client, mesh, region: dict, **params) -> RestAnswer:
     return RestAnswer.of(http.post(
         "/repair", params={"format": "obj", "steps": REPAIR_STEPS, **params},
         files={"file": ("mesh.obj", mesh_file(mesh))}, data={"region": json.dumps(region)}))
-
-
-def region_pb(region: dict) -> pb.Region:
-    (kind, value), = region.items()
-    if kind in ("faces", "vertices"):
-        return pb.Region(**{kind: pb.Indices(indices=value)})
-    if kind == "sphere":
-        return pb.Region(sphere=pb.Sphere(center=value["center"], radius=value["radius"]))
-    if kind == "auto":
-        return pb.Region(auto_region=value)
-    return pb.Region(box=pb.Box(min=value["min"], max=value["max"]))
 
 
 def repair_rpc(stub, mesh, region: dict, **fields) -> GrpcAnswer:

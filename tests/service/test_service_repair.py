@@ -15,6 +15,7 @@ from service_testing import (
     check_repair,
     make_cloud,
     mesh_file,
+    region_pb,
     repair_mesh_cases,
 )
 
@@ -56,15 +57,6 @@ def assert_problem(response, status: int, slug: str) -> dict:
     assert body["status"] == status and body["title"] and body["detail"]
     assert body["instance"] == "/repair"
     return body
-
-
-def region_pb(region: dict) -> pb.Region:
-    (kind, value), = region.items()
-    if kind in ("faces", "vertices"):
-        return pb.Region(**{kind: pb.Indices(indices=value)})
-    if kind == "sphere":
-        return pb.Region(sphere=pb.Sphere(center=value["center"], radius=value["radius"]))
-    return pb.Region(box=pb.Box(min=value["min"], max=value["max"]))
 
 
 def repair_pb(mesh, region: dict | None = None, **fields) -> pb.RepairRequest:
