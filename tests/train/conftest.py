@@ -43,3 +43,14 @@ def local_model(toy_model, tmp_path_factory):  # noqa: F811  (the imported fixtu
     finally:
         torch.set_num_threads(before)
     return SimpleNamespace(base=base, run=run, directory=directory, data=toy_model.data)
+
+
+@pytest.fixture
+def one_thread():
+    """torch on one thread for the test, as it was afterwards."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)

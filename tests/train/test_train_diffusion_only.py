@@ -24,14 +24,6 @@ def _quiet(_message: str) -> None:
     pass
 
 
-@pytest.fixture
-def one_thread():
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
-
-
 def _config(name: str = "tiny", **changes):
     return get_config(name).with_train(val_every=2, checkpoint_every=2, val_shapes=2,
                                        batch_size=3, **changes)

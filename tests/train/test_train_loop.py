@@ -19,14 +19,6 @@ from spacemesh.train.checkpoint import latest_checkpoint, load_checkpoint  # noq
 from spacemesh.train.loop import TrainOptions, train  # noqa: E402
 
 
-@pytest.fixture
-def one_thread():
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
-
-
 def _config():
     return get_config("tiny").with_train(val_every=2, checkpoint_every=2, val_shapes=2,
                                          batch_size=3)
