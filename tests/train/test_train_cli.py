@@ -25,7 +25,7 @@ def test_help_names_the_options():
     result = _train("--help")
     assert result.exit_code == 0
     for flag in ("--diffusion-only", "--encoder-cache", "--augment", "--mix",
-                 "--checkpoint-minutes", "--init-from", "--base"):
+                 "--checkpoint-minutes", "--init-from", "--base", "--warm-start"):
         assert flag in result.output
 
 
@@ -36,6 +36,8 @@ def test_help_names_the_options():
         (["--diffusion-only"], "--diffusion-only freezes a trained encoder"),
         (["--augment", "wild"], "unknown augmentation 'wild'"),
         (["--resume", "--augment", "realistic"], "apply to new runs"),
+        (["--warm-start"], "--warm-start applies to --diffusion-only runs"),
+        (["--diffusion-only", "--init-from", "x", "--warm-start"], "give --base"),
     ],
 )
 def test_bad_combinations_exit_2_with_one_line(toy_data, tmp_path, options, message):

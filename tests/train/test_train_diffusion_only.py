@@ -202,3 +202,50 @@ def test_a_run_resumes_on_its_base_moved_and_refuses_another(toy_model, tmp_path
     with pytest.raises(ValueError, match=r"connectivity\.onnx does not match its manifest"):
         train(TrainOptions(config=config, data=toy_model.data, out=run, steps=3, resume=True,
                            progress=False, base=moved), log=_quiet)
+
+
+def test_a_warm_started_local_denoiser_starts_as_the_base_denoiser(toy_model, tmp_path,
+                                                                    one_thread):
+    """``warm_start``: the base's denoiser graph is read back (checked against
+    onnxruntime) and grafted into the local-point denoiser, whose local attention starts
+    silent, so before any step the run predicts what the base's graph predicts."""
+    import onnxruntime as ort
+
+    from spacemesh.nn.base_model import OnnxEncoder
+    from spacemesh.runtime.backend import volume_names
+
+    config = _config("tiny-local", diffusion_only=True, warm_start=True, lr=1e-12)
+    run = tmp_path / "run"
+    summary = train(TrainOptions(config=config, data=toy_model.data, out=run, steps=1,
+                                 progress=False, base=toy_model.repository), log=_quiet)
+    state = load_checkpoint(summary.checkpoint)
+    assert state["config"].train.warm_start
+    denoiser = model_from_config(state["config"]).denoiser.eval()
+    denoiser.load_state_dict({k[len("denoiser."):]: v for k, v in state["model"].items()
+                              if k.startswith("denoiser.")})
+    generator = torch.Generator().manual_seed(1)
+    points = torch.rand(1, state["config"].encoder.n_points, 3, generator=generator) * 2 - 1
+    encoder = OnnxEncoder(toy_model.repository / "encoder.onnx")
+    with torch.no_grad():
+        volumes = list(encoder(points))
+        x_t = torch.randn(1, 20, 4, generator=generator)
+        ours = denoiser(x_t, torch.tensor([5]), volumes, points).numpy()
+    session = ort.InferenceSession(str(toy_model.repository / "denoiser.onnx"),
+                                   providers=["CPUExecutionProvider"])
+    feeds = {"x_t": x_t.numpy(), "t": np.array([5], dtype=np.int64)}
+    feeds.update(zip(volume_names(len(volumes)), (v.numpy() for v in volumes), strict=True))
+    theirs = session.run(None, feeds)[0]
+    assert np.abs(ours - theirs).max() < 1e-4 * max(1.0, float(np.abs(theirs).max()))
+    fresh = model_from_config(state["config"]).denoiser.eval()
+    with torch.no_grad():
+        other = fresh(x_t, torch.tensor([5]), volumes, points).numpy()
+    assert np.abs(other - theirs).max() > 1e-2  # a fresh denoiser would not agree
+
+
+def test_a_denoiser_of_another_size_is_not_grafted():
+    from spacemesh.nn.denoiser import graft_denoiser
+
+    tiny = model_from_config("tiny").denoiser
+    small = model_from_config("small-local").denoiser
+    with pytest.raises(ValueError, match="cannot graft the denoiser"):
+        graft_denoiser(tiny, small)

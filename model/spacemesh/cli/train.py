@@ -20,14 +20,19 @@ def _require_torch() -> None:
 
 def _mode_options(model_config, *, resume: bool, diffusion_only: bool,
                   encoder_cache: int | None, augment: str | None,
-                  checkpoint_minutes: float | None):
+                  checkpoint_minutes: float | None, warm_start: bool = False):
     """``model_config`` with the diffusion-only, cache, augmentation and checkpoint-timer
     options applied (a one-line exit for those a resumed run cannot change)."""
     from spacemesh.data.augment import get_augment
 
-    if resume and (diffusion_only or encoder_cache is not None or augment is not None):
-        fail("--diffusion-only, --encoder-cache and --augment apply to new runs (a resumed "
-             "run keeps its own)")
+    if resume and (diffusion_only or encoder_cache is not None or augment is not None
+                   or warm_start):
+        fail("--diffusion-only, --encoder-cache, --augment and --warm-start apply to new "
+             "runs (a resumed run keeps its own)")
+    if warm_start:
+        if not diffusion_only:
+            fail("--warm-start applies to --diffusion-only runs on a --base")
+        model_config = model_config.with_train(warm_start=True)
     if diffusion_only:
         model_config = model_config.with_train(diffusion_only=True)
     if encoder_cache is not None:
@@ -134,6 +139,12 @@ def train(
                      "this many minutes (0: only every checkpoint_every steps; applies on "
                      "--resume too)."),
     ] = None,
+    warm_start: Annotated[
+        bool,
+        typer.Option("--warm-start", help="With --diffusion-only and --base: start the new "
+                     "denoiser from the base's (a local-point denoiser: the shared weights, "
+                     "and local attention that starts silent) instead of fresh weights."),
+    ] = False,
 ) -> None:
     """Train the encoder, denoiser and connectivity network on a dataset."""
     _require_torch()
@@ -159,9 +170,11 @@ def train(
         model_config = model_config.with_train(lr=lr)
     model_config = _mode_options(model_config, resume=resume, diffusion_only=diffusion_only,
                                  encoder_cache=encoder_cache, augment=augment,
-                                 checkpoint_minutes=checkpoint_minutes)
+                                 checkpoint_minutes=checkpoint_minutes, warm_start=warm_start)
     if diffusion_only and not resume and base is None and init_from is None:
         fail("--diffusion-only freezes a trained encoder: give --base or --init-from")
+    if warm_start and base is None:
+        fail("--warm-start starts from the --base model's denoiser: give --base")
     if not (data / "manifest.json").is_file():
         fail(f"{data}: not a dataset folder (no manifest.json)")
     for folder in mix or ():

@@ -39,14 +39,23 @@ def _initializers(graph) -> dict[str, np.ndarray]:
 
 def connectivity_weights(path: str | Path, net: ConnectivityNet) -> dict[str, torch.Tensor]:
     """The state dict of ``net`` (an instance of the exported architecture) read from a
-    ``connectivity.onnx``.
+    ``connectivity.onnx`` (:func:`graph_weights` with the connectivity prefix)."""
+    return graph_weights(path, net, PREFIX)
+
+
+def graph_weights(path: str | Path, net: torch.nn.Module, prefix: str
+                  ) -> dict[str, torch.Tensor]:
+    """The state dict of ``net`` (an instance of the exported architecture) read from an
+    exported graph whose parameters are named ``prefix + name``.
 
     Parameters
     ----------
     path : path
-        An exported connectivity graph.
-    net : ConnectivityNet
+        An exported graph (``connectivity.onnx``, ``denoiser.onnx``).
+    net : torch.nn.Module
         Built from the same config; it provides the parameter names and shapes.
+    prefix : str
+        The network's attribute in the exported wrapper, with a dot (``"denoiser."``).
 
     Returns
     -------
@@ -64,11 +73,11 @@ def connectivity_weights(path: str | Path, net: ConnectivityNet) -> dict[str, to
     values = _initializers(graph)
     wanted = net.state_dict()
     # flattened names in the fx metadata ('backbone_blocks_0_attn_qkv_weight')
-    flat = {(PREFIX + k).replace(".", "_"): k for k in wanted}
+    flat = {(prefix + k).replace(".", "_"): k for k in wanted}
     found: dict[str, np.ndarray] = {}
     for key in wanted:
-        if PREFIX + key in values:
-            found[key] = values[PREFIX + key]
+        if prefix + key in values:
+            found[key] = values[prefix + key]
     consumers: dict[str, list] = {}
     for node in graph.node:
         for name in node.input:
@@ -99,10 +108,10 @@ def connectivity_weights(path: str | Path, net: ConnectivityNet) -> dict[str, to
     state = {}
     for key, reference in wanted.items():
         if key not in found:
-            raise ValueError(f"{path}: no weights for connectivity.{key} in the graph")
+            raise ValueError(f"{path}: no weights for {prefix}{key} in the graph")
         value = np.asarray(found[key], dtype=np.float32)
         if tuple(value.shape) != tuple(reference.shape):
-            raise ValueError(f"{path}: connectivity.{key} has shape {value.shape} in the "
+            raise ValueError(f"{path}: {prefix}{key} has shape {value.shape} in the "
                              f"graph, {tuple(reference.shape)} in the config's network")
         state[key] = torch.from_numpy(value.copy())
     return state
@@ -149,15 +158,69 @@ def load_connectivity(path: str | Path, net: ConnectivityNet, volumes: list[torc
     feeds.update(zip(volume_names(len(volumes)), (v.numpy() for v in volumes), strict=True))
     theirs = session.run(list(CONNECTIVITY_OUTPUTS), feeds)
     net.train(was_training)
+    return _check_parity(path, ours, theirs)
+
+
+def _check_parity(path: str | Path, ours, theirs) -> float:
+    """The largest difference between torch outputs ``ours`` and onnxruntime outputs
+    ``theirs``, relative to each output's scale; above :data:`PARITY_TOLERANCE` the
+    weights read back are refused."""
     worst = 0.0
     for a, b in zip(ours, theirs, strict=True):
-        a = a.reshape(b.shape).numpy()
+        a = a.detach().reshape(b.shape).numpy()
         scale = max(float(np.abs(b).max()), 1.0)
         worst = max(worst, float(np.abs(a - b).max()) / scale)
     if worst > PARITY_TOLERANCE:
         raise ValueError(f"{path}: the weights read back do not reproduce the graph "
                          f"(relative difference {worst:.2e})")
     return worst
+
+
+@torch.no_grad()
+def load_denoiser(path: str | Path, net: torch.nn.Module, volumes: list[torch.Tensor]
+                  ) -> float:
+    """Load a volumes-only ``denoiser.onnx``'s weights into ``net`` (a
+    :class:`spacemesh.nn.denoiser.VertexDenoiser` without local points) and check that it
+    reproduces the graph.
+
+    Parameters
+    ----------
+    path : path
+    net : VertexDenoiser
+        Changed in place.
+    volumes : list of (1, C_r, R_r, R_r, R_r) tensors
+        Encoder volumes of some shape, for the check (the graph's inputs).
+
+    Returns
+    -------
+    float
+        The largest output difference, relative to the output's scale.
+
+    Raises
+    ------
+    ValueError
+        A weight is missing, or the loaded network does not reproduce the graph.
+    """
+    import onnxruntime as ort
+
+    from spacemesh.runtime.backend import DENOISER_INPUTS, volume_names
+
+    if getattr(net, "local_points", 0):
+        raise ValueError("load_denoiser reads a volumes-only denoiser; graft the result "
+                         "into a local-point one (spacemesh.nn.denoiser.graft_denoiser)")
+    net.load_state_dict(graph_weights(path, net, "denoiser."))
+    was_training = net.training
+    net.eval()
+    generator = torch.Generator().manual_seed(0)
+    x_t = torch.randn(1, 40, 4, generator=generator)  # (1, N, 4)
+    t = torch.tensor([17], dtype=torch.int64)
+    ours = [net(x_t, t, volumes)]
+    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    feeds = dict(zip(DENOISER_INPUTS, (x_t.numpy(), t.numpy()), strict=True))
+    feeds.update(zip(volume_names(len(volumes)), (v.numpy() for v in volumes), strict=True))
+    theirs = session.run(None, feeds)
+    net.train(was_training)
+    return _check_parity(path, ours, theirs)
 
 
 def is_model_version(path: str | Path) -> bool:

@@ -212,6 +212,11 @@ class TrainConfig:
         Conditioning-cloud augmentation preset (:data:`spacemesh.data.augment.PRESETS`):
         ``none`` (the clean samples) or ``realistic`` (noise, uneven density, missing
         regions and outliers); the ground-truth mesh stays the clean one.
+    warm_start : bool
+        In a diffusion-only run on a base model, start the new denoiser from the base's
+        (read back from its ``denoiser.onnx``; a local-point denoiser gets the shared
+        weights and local attention that starts silent, see
+        :func:`spacemesh.nn.denoiser.graft_denoiser`) instead of fresh weights.
     """
 
     batch_size: int = 8
@@ -237,6 +242,7 @@ class TrainConfig:
     checkpoint_minutes: float = 0.0
     val_shapes: int = 32
     augment: str = "none"
+    warm_start: bool = False
 
 
 @dataclass(frozen=True)

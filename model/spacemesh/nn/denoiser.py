@@ -117,3 +117,40 @@ class VertexDenoiser(nn.Module):
             h = block(h)
         return self.output_proj(self.ln_post(h)[:, 1:])
 
+
+
+@torch.no_grad()
+def graft_denoiser(source: VertexDenoiser, target: VertexDenoiser) -> None:
+    """Start ``target`` as ``source``: copy the weights they share and silence the rest.
+
+    ``target`` may add local-point attention to ``source``'s architecture; its output
+    projections start at zero, so the grafted denoiser computes exactly ``source``'s
+    prediction until training opens the local view (a warm start: the new branch learns
+    what the volumes miss instead of a fresh denoiser relearning what they give).
+
+    Parameters
+    ----------
+    source : VertexDenoiser
+        A trained denoiser (volumes only, or the same architecture as ``target``).
+    target : VertexDenoiser
+        Changed in place.
+
+    Raises
+    ------
+    ValueError
+        The two differ in more than the local-point attention.
+    """
+    wanted = target.state_dict()
+    given = source.state_dict()
+    resized = [k for k, v in given.items() if k in wanted and wanted[k].shape != v.shape]
+    if resized:
+        raise ValueError(f"cannot graft the denoiser: {', '.join(resized)} differ in shape")
+    missing, unexpected = target.load_state_dict(given, strict=False)
+    added = ("neighbour_features.", "local_attention.")
+    wrong = [k for k in missing if not k.startswith(added)] + list(unexpected)
+    if wrong:
+        raise ValueError(f"cannot graft the denoiser: {', '.join(wrong)} do not fit")
+    if missing:
+        for local in target.local_attention:
+            local.proj.weight.zero_()
+            local.proj.bias.zero_()

@@ -224,18 +224,40 @@ def _check_resumed_base(state: dict[str, Any], base: BaseModel | None) -> None:
                          f"({stored['path']}): its files differ")
 
 
+def _base_volumes(model: SpaceMeshModel) -> list[torch.Tensor]:
+    """The frozen encoder's volumes of a fixed random cloud, as graph-parity inputs."""
+    channels = 6 if model.config.encoder.normals else 3
+    points = torch.rand(1, model.config.encoder.n_points, channels,
+                        generator=torch.Generator().manual_seed(0)) * 2 - 1
+    with torch.no_grad():
+        return [v.cpu() for v in model.encoder(points)]
+
+
+def _base_denoiser(model: SpaceMeshModel, base: BaseModel) -> None:
+    """Start a diffusion-only run's denoiser from the base's (``warm_start``): its graph is
+    read back into a volumes-only twin, checked against onnxruntime, and grafted."""
+    from dataclasses import replace
+
+    from spacemesh.export.onnx_import import load_denoiser
+    from spacemesh.nn.config import model_from_config
+    from spacemesh.nn.denoiser import graft_denoiser
+
+    twin_config = replace(model.config, denoiser=replace(model.config.denoiser, local_points=0))
+    twin = model_from_config(twin_config).denoiser
+    load_denoiser(base.graph_path("denoiser"), twin, _base_volumes(model))
+    device = next(model.denoiser.parameters()).device
+    graft_denoiser(twin, model.denoiser.cpu())
+    model.denoiser.to(device)
+
+
 def _base_connectivity(model: SpaceMeshModel, base: BaseModel) -> None:
     """Read the base's connectivity weights into a diffusion-only run's (frozen) network,
     so that the run's torch model is the whole model its export will be."""
     from spacemesh.export.onnx_import import load_connectivity
 
-    channels = 6 if model.config.encoder.normals else 3
-    points = torch.rand(1, model.config.encoder.n_points, channels,
-                        generator=torch.Generator().manual_seed(0)) * 2 - 1
     device = next(model.connectivity.parameters()).device
-    with torch.no_grad():
-        volumes = [v.cpu() for v in model.encoder(points)]
-    load_connectivity(base.graph_path("connectivity"), model.connectivity.cpu(), volumes)
+    load_connectivity(base.graph_path("connectivity"), model.connectivity.cpu(),
+                      _base_volumes(model))
     model.connectivity.to(device)
 
 
@@ -418,6 +440,9 @@ class Trainer:
             self.model.connectivity.requires_grad_(False)
             if self.base is not None and state is None:
                 _base_connectivity(self.model, self.base)
+                if config.train.warm_start:
+                    _base_denoiser(self.model, self.base)
+                    log(f"denoiser warm-started from {self.base.graph_path('denoiser')}")
         elif self.base is not None:
             self.model.denoiser.requires_grad_(False)
         trainable = [p for p in self.model.parameters() if p.requires_grad]
