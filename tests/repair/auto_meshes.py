@@ -94,3 +94,44 @@ def cylinder(around: int = 24, rows: int = 12, height: float = 2.0) -> PolygonMe
         faces.append([bottom, (i + 1) % around, i])
         faces.append([top, rows * around + i, rows * around + (i + 1) % around])
     return PolygonMesh.from_faces(np.asarray(verts, float), faces)
+
+
+def _rings(mesh: PolygonMesh, v: int) -> tuple[set[int], list[set[int]]]:
+    """The neighbours of ``v`` and the vertex sets of the faces around it."""
+    faces = [set(f.tolist()) for f in mesh.faces]
+    around = [f for f in faces if v in f]
+    return set().union(*around) - {v}, around
+
+
+def touching_holes() -> PolygonMesh:
+    """An icosphere with two holes (the fans of two vertices removed) whose loops touch
+    at one vertex: two loops through it, between two fans of faces."""
+    mesh = icosphere(2)
+    faces = [set(f.tolist()) for f in mesh.faces]
+    for a in range(mesh.n_vertices):
+        ring_a, _ = _rings(mesh, a)
+        for c in sorted(ring_a):
+            ring_c, _ = _rings(mesh, c)
+            for b in sorted(ring_c - ring_a - {a}):
+                ring_b, _ = _rings(mesh, b)
+                if ring_a & ring_b != {c}:
+                    continue
+                drop = np.array([a in f or b in f for f in faces])
+                kept_at_c = [f for f, d in zip(faces, drop, strict=True) if c in f and not d]
+                if len(kept_at_c) == 2 and not (kept_at_c[0] & kept_at_c[1]) - {c}:
+                    return without_faces(mesh, drop)
+    raise AssertionError("no pair of vertices opposite across a third")
+
+
+def pinched_annulus() -> PolygonMesh:
+    """An icosphere with an annular hole whose island (the fan of a vertex) still
+    touches the rest at one vertex: one loop that passes that vertex twice."""
+    mesh = icosphere(2)
+    a = 0
+    ring1, _ = _rings(mesh, a)
+    faces = [set(f.tolist()) for f in mesh.faces]
+    c = min(ring1)
+    outer = [k for k, f in enumerate(faces) if c in f and not (f - {c}) & (ring1 | {a})]
+    drop = np.array([bool(f & ring1) and a not in f for f in faces])
+    drop[outer[0]] = False  # the one face that ties the island's corner to the rest
+    return without_faces(mesh, drop)

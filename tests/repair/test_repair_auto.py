@@ -11,8 +11,10 @@ from auto_meshes import (
     grid_disk,
     hemisphere,
     moebius,
+    pinched_annulus,
     pinched_spheres,
     punched,
+    touching_holes,
     with_degenerate_face,
     with_fin,
 )
@@ -27,7 +29,14 @@ from spacemesh.repair import (
     repair_mesh,
     verify_repair,
 )
-from spacemesh.repair.auto import AutoPlan, find_issues, orient_faces, reverse_faces, wedge_size
+from spacemesh.repair.auto import (
+    AutoPlan,
+    _loops_of,
+    find_issues,
+    orient_faces,
+    reverse_faces,
+    wedge_size,
+)
 from spacemesh.repair.cut import FaceSubset, defect_vertices
 from spacemesh.topology import check_topology
 
@@ -149,6 +158,27 @@ def test_a_hole_at_a_vertex_with_a_closed_fan_is_rebuilt_with_its_ring():
     result = run(opened, {"auto": "holes"})
     assert_closed_manifold(result.mesh)
     assert [r["strategy"] for r in result.stats.regions] == ["model"]
+
+
+@pytest.mark.parametrize("build, loops", [(touching_holes, [5, 6]),
+                                           (pinched_annulus, [9, 9])])
+def test_loops_touching_at_a_vertex_are_split_there_and_filled_in_place(build, loops):
+    """Two loops through one vertex (two holes touching), and one loop through a vertex
+    twice (an annulus whose island touches the rest): each gap between the vertex's two
+    fans becomes the corner of one simple loop (the second case split by a new edge), and
+    filling them joins the fans into one disc, no input face changed."""
+    mesh = build()
+    sub = FaceSubset.of(mesh, np.arange(mesh.n_faces))
+    [pinch] = np.flatnonzero(sub.fan_counts(mesh.n_vertices) > 1)
+    [hole] = find_issues(mesh, "holes")
+    split = _loops_of(mesh, hole.vertices)
+    assert split is not None and sorted(len(loop) for loop in split) == loops
+    assert all(len(set(loop.tolist())) == len(loop) for loop in split)
+    assert sum(int(pinch) in loop.tolist() for loop in split) == 2
+    result = run(mesh, {"auto": "holes"})
+    assert_closed_manifold(result.mesh)
+    assert_outside_identical(mesh, result)
+    assert [r["strategy"] for r in result.stats.regions] == ["in-place"]
 
 
 def test_a_closed_mesh_has_nothing_to_repair():
