@@ -221,7 +221,10 @@ def _judge(
     """Decode the current embeddings and compare with the input on all pairs.
 
     Returns the decode, exactness, edge F1 and next accuracy. Exact means: exactly as
-    many pairs below the threshold as input edges, and the same faces (as cycles).
+    many pairs below the threshold as input edges, and the same faces (as cycles). The
+    decode is the paper's (threshold, then the assignment per vertex), without the
+    geometric steps of the generative pipeline (``DecodeOptions.uncross`` and the
+    refinements), which may remove or flip true edges of a real mesh.
     """
     emb = params.embeddings()
     gt_edges = truth.edges
@@ -236,6 +239,10 @@ def _judge(
         # a sparse graph is decoded as it is (high-degree poles included); only a dense
         # one, which cannot be exact anyway, gets the decode's degree bound
         max_degree=None if n_raw <= 8 * len(gt_edges) else MAX_DEGREE,
+        # the embeddings alone decide: the generator's geometric clean-up would drop true
+        # edges that cross geometrically (a degree-3 vertex next to the opposite side of
+        # its fan, coplanar low-poly facets), which no embedding can then bring back
+        uncross=False,
     )
     result = decode(mesh.vertices, emb, options)
     exact = (
