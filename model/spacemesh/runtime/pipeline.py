@@ -40,6 +40,11 @@ from spacemesh.geometry import (
 from spacemesh.geometry.policy import decode_changes
 from spacemesh.mesh import PolygonMesh
 from spacemesh.runtime.backend import Backend, denoiser_fn
+from spacemesh.runtime.large import (
+    DEFAULT_LARGE_MESHES,
+    check_large_meshes,
+    network_vertices,
+)
 from spacemesh.runtime.options import GenerateOptions
 from spacemesh.runtime.sampler import ProgressFn, StageFn, sample, split_tokens
 from spacemesh.runtime.schedule import NoiseSchedule
@@ -107,6 +112,10 @@ class ModelSpec:
     local_points : int
         Nearest input points a local-point denoiser reads (0: none; it then also takes
         the encoder's input, see :func:`spacemesh.runtime.backend.denoiser_fn`).
+    large_meshes : {"tokens", "split"}
+        How ``start=points`` makes more vertices than ``max_vertices``: all of them as
+        tokens of the connectivity network (up to a cap), or ``max_vertices`` tokens and
+        edge splits (:mod:`spacemesh.runtime.large`; ``manifest["sampler"]["large_meshes"]``).
     """
 
     n_points: int
@@ -123,6 +132,7 @@ class ModelSpec:
     feature_boost: float = 0.0
     geometry: GeometryOptions = field(default_factory=GeometryOptions)
     local_points: int = 0
+    large_meshes: str = DEFAULT_LARGE_MESHES
 
     @classmethod
     def from_config(cls, config: dict[str, Any], betas: Sequence[float] | None = None,
@@ -179,6 +189,8 @@ class ModelSpec:
             vertices=int(sampler.get("vertices", DEFAULT_VERTICES)),
             feature_boost=float(sampler.get("feature_boost", 0.0)),
             geometry=GeometryOptions.from_section(manifest.get("geometry", {})),
+            large_meshes=check_large_meshes(
+                str(sampler.get("large_meshes", DEFAULT_LARGE_MESHES))),
         )
 
 
@@ -606,9 +618,8 @@ class MeshGenerator:
         normalised cloud (real tokens first, padding after with mask -1)."""
         chosen = []
         for prepared, options in jobs:
-            wanted = self.vertex_count(options)
-            if not options.raw:
-                wanted = min(wanted, self.spec.max_vertices)  # the stage splits the rest
+            wanted = network_vertices(self.vertex_count(options), self.spec.max_vertices,
+                                      self.spec.large_meshes, raw=options.raw)
             pick = farthest_point_sampling(prepared.unit, wanted, seed=options.seed,
                                            weights=prepared.weights)
             chosen.append(prepared.unit[pick])

@@ -1,0 +1,74 @@
+"""Meshes larger than the model's tokens (spacemesh.runtime.large) with the shipped graphs."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from spacemesh.runtime.large import MAX_NETWORK_TOKENS, network_vertices
+
+pytest.importorskip("onnxruntime")
+
+from spacemesh.runtime import MeshGenerator, ModelRepository, ModelSpec
+from spacemesh.runtime.repository import default_model_dir
+from spacemesh.topology import check_topology
+
+
+def test_network_vertices_by_mode():
+    assert network_vertices(200, 256, "tokens", raw=False) == 200
+    assert network_vertices(200, 256, "split", raw=False) == 200
+    assert network_vertices(1024, 256, "split", raw=False) == 256
+    assert network_vertices(1024, 256, "tokens", raw=False) == 1024
+    assert network_vertices(9000, 256, "tokens", raw=False) == MAX_NETWORK_TOKENS
+    assert network_vertices(9000, 256, "split", raw=True) == 9000
+    with pytest.raises(ValueError, match="large_meshes"):
+        network_vertices(1024, 256, "patches?", raw=False)
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    if not default_model_dir().exists():
+        pytest.skip("no shipped model in this checkout")
+    return ModelRepository.load(intra_op_threads=1)
+
+
+def test_the_manifest_chooses_the_mode(shipped):
+    manifest = json.loads(json.dumps(shipped.manifest))
+    assert ModelSpec.from_manifest(manifest).large_meshes == "tokens"
+    manifest["sampler"]["large_meshes"] = "split"
+    assert ModelSpec.from_manifest(manifest).large_meshes == "split"
+    manifest["sampler"]["large_meshes"] = "bogus"
+    with pytest.raises(ValueError, match="large_meshes"):
+        ModelSpec.from_manifest(manifest)
+
+
+def _cloud() -> np.ndarray:
+    """4,096 points on a squashed ellipsoid with a box-like bulge (sharp-ish features)."""
+    rng = np.random.default_rng(5)
+    d = rng.normal(size=(4096, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return np.sign(d) * np.abs(d) ** 0.6 * [1.6, 1.0, 0.7]
+
+
+def test_a_1024_vertex_mesh_comes_from_the_networks(shipped):
+    """target_vertices=1024: the connectivity network places every vertex (nothing is
+    split), and the mesh is a closed oriented manifold of about that many vertices."""
+    generator = MeshGenerator(shipped.backend, ModelSpec.from_manifest(shipped.manifest))
+    result = generator.generate(_cloud(), seed=0, target_vertices=1024)
+    report = check_topology(result.mesh)
+    assert report.is_closed_oriented_manifold, report.defects()
+    assert abs(result.mesh.n_vertices - 1024) <= 0.1 * 1024, result.mesh.n_vertices
+    assert result.n_sampled_vertices == 1024
+    assert result.geometry_stats["n_split"] <= 0.1 * 1024  # only what the decode dropped
+
+
+def test_split_mode_gives_the_network_its_token_count(shipped):
+    spec = replace(ModelSpec.from_manifest(shipped.manifest), large_meshes="split")
+    generator = MeshGenerator(shipped.backend, spec)
+    result = generator.generate(_cloud(), seed=0, target_vertices=1024)
+    assert result.n_sampled_vertices <= spec.max_vertices
+    assert check_topology(result.mesh).is_closed_oriented_manifold
+    assert abs(result.mesh.n_vertices - 1024) <= 0.1 * 1024
