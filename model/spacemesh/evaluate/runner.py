@@ -59,6 +59,9 @@ MODES: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
     "raw": ("ours_raw", {"raw": True}, {}),
     "paper": ("ours_paper", {"raw": True, "start": "noise"}, {}),
     "samples4": ("ours_s4", {"samples": 4}, {}),
+    "denoise_low": ("ours_denoise_low", {"start_time": 0.02}, {}),
+    "denoise": ("ours_denoise", {"start_time": 0.05}, {}),
+    "gt_denoise": ("ours_gt_denoise", {"start_time": 0.05}, {}),
     "gt": ("ours_gt", {}, {}),
     "no_fit": ("ours_no_fit", {}, {"fit": {"iterations": 0}}),
     "no_flips": ("ours_no_flips", {}, {"flips": False}),
@@ -414,7 +417,7 @@ def run_evaluation(
                 method, extra, geometry = MODES[mode]
                 bar.set_postfix_str(method)
                 extra = dict(extra, seed=seed, steps=steps)
-                if mode == "gt":
+                if mode in ("gt", "gt_denoise"):
                     extra["target_vertices"] = gt.n_vertices
                 with _geometry_changed(generator, geometry):
                     meshes[method] = _timed(_generate, generator, points,
