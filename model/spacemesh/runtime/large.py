@@ -22,6 +22,13 @@ The cap bounds the cost: the network's attention is quadratic in the tokens and 
 decode's crossing and pinch rounds grow faster still (on one core, about 3 s each for
 2,048 tokens and 12 s and 27 s for 4,096). ``raw`` requests are not capped: they give every
 target vertex to the networks, as before.
+
+On thin shapes the full-token graph can fall apart (on one dev mesh the decode kept 118
+of 1,024 vertices, and the fit could not undo the folds: 47% of the faces intersect). A
+``tokens`` decode that keeps fewer than :data:`MIN_KEPT_SHARE` of its vertices is
+therefore replaced by the ``split`` one: the connectivity network runs again on the
+first ``max_vertices`` tokens (farthest-point sampling is greedy, so they are exactly the
+``split`` tokens), and ``decode_stats["large_meshes"]`` says ``"split"``.
 """
 
 from __future__ import annotations
@@ -33,6 +40,9 @@ DEFAULT_LARGE_MESHES = "tokens"
 #: Most vertex tokens the connectivity network reads outside ``raw`` (the geometry
 #: stage splits edges beyond it).
 MAX_NETWORK_TOKENS = 2048
+#: A full-token decode that keeps fewer than this share of its vertices is replaced by
+#: the ``split`` decode (the first ``max_vertices`` farthest-point tokens).
+MIN_KEPT_SHARE = 0.9
 
 
 def check_large_meshes(mode: str) -> str:
@@ -73,3 +83,9 @@ def network_vertices(wanted: int, max_vertices: int, mode: str, *, raw: bool) ->
     if check_large_meshes(mode) == "split":
         return min(wanted, max_vertices)
     return min(wanted, max(max_vertices, MAX_NETWORK_TOKENS))
+
+
+def needs_split(n_tokens: int, n_kept: int, max_vertices: int) -> bool:
+    """Whether a decode of ``n_tokens`` tokens that kept ``n_kept`` vertices falls back
+    to the ``split`` decode (see the module docstring)."""
+    return n_tokens > max_vertices and n_kept < MIN_KEPT_SHARE * n_tokens

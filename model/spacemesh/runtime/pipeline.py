@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from spacemesh.data.validate import signed_volume
-from spacemesh.decode import DecodeOptions, Embeddings, decode
+from spacemesh.decode import DecodeOptions, DecodeResult, Embeddings, decode
 from spacemesh.geometry import (
     FitReport,
     GeometryOptions,
@@ -39,10 +39,11 @@ from spacemesh.geometry import (
 )
 from spacemesh.geometry.policy import decode_changes
 from spacemesh.mesh import PolygonMesh
-from spacemesh.runtime.backend import Backend, denoiser_fn
+from spacemesh.runtime.backend import Backend, ConnectivityOutputs, denoiser_fn
 from spacemesh.runtime.large import (
     DEFAULT_LARGE_MESHES,
     check_large_meshes,
+    needs_split,
     network_vertices,
 )
 from spacemesh.runtime.options import GenerateOptions
@@ -631,6 +632,17 @@ class MeshGenerator:
             tokens[b, : len(c), 3] = 1.0
         return tokens
 
+    def _decode(self, positions: np.ndarray, emb: ConnectivityOutputs, b: int,
+                alive: np.ndarray, prepared: PreparedInput) -> DecodeResult:
+        """Decode batch item ``b`` of the connectivity outputs ``emb`` (positions
+        ``(N, 3)``, alive ``(N,)``)."""
+        embeddings = Embeddings(
+            np.asarray(emb.x[b], np.float64), emb.tau, np.asarray(emb.root[b], np.float64),
+            np.asarray(emb.prev[b], np.float64), np.asarray(emb.next[b], np.float64),
+        )
+        return decode(positions.astype(np.float64), embeddings, self.spec.decode,
+                      alive=alive, points=prepared.cloud[:, :3])
+
     def _run_group(
         self, jobs: list[tuple[PreparedInput, GenerateOptions]],
         key: tuple[int, str, str, float], progress: ProgressFn, stage: StageFn,
@@ -662,12 +674,16 @@ class MeshGenerator:
         for b, (prepared, options) in enumerate(jobs):
             stage("decode", b + 1, len(jobs))
             e0 = time.perf_counter()
-            embeddings = Embeddings(
-                np.asarray(emb.x[b], np.float64), emb.tau, np.asarray(emb.root[b], np.float64),
-                np.asarray(emb.prev[b], np.float64), np.asarray(emb.next[b], np.float64),
-            )
-            decoded = decode(positions[b].astype(np.float64), embeddings, self.spec.decode,
-                             alive=alive[b], points=prepared.cloud[:, :3])
+            decoded = self._decode(positions[b], emb, b, alive[b], prepared)
+            m = self.spec.max_vertices
+            if (start == "points" and not options.raw
+                    and needs_split(int(alive[b].sum()), decoded.mesh.n_vertices, m)):
+                # the full-token graph fell apart: the model's own token count instead
+                alive[b, m:] = False
+                prefix = self.backend.connect(positions[b:b + 1, :m], alive[b:b + 1, :m],
+                                              [v[b:b + 1] for v in volumes])
+                decoded = self._decode(positions[b, :m], prefix, 0, alive[b, :m], prepared)
+                decoded.stats["large_meshes"] = "split"
             mesh = _outward(decoded.mesh)
             e1 = time.perf_counter()
             geometry_stats: dict[str, Any] = {}
