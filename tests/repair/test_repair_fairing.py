@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from auto_meshes import cylinder, punched
 
 from spacemesh.examples import icosphere
@@ -11,10 +12,14 @@ from spacemesh.geometry.fairing import (
     boundary_edge_length,
     fair_patch,
     fair_positions,
+    flat_positions,
+    min_area_triangles,
     patch_edge_length,
+    patch_loops,
     planar_positions,
     refine_patch,
 )
+from spacemesh.geometry.surface_fit import closest_points_on_triangles
 from spacemesh.mesh import PolygonMesh
 from spacemesh.repair.auto import _loops_of, fan_fill
 from spacemesh.repair.cut import defect_vertices
@@ -143,3 +148,43 @@ def test_a_smooth_ring_is_not_read_as_sharp():
     mesh = punched(icosphere(4), [[0.0, 0.0, 1.0]], radius=0.55)
     filled, patch, free, _ = fan_filled(mesh)
     assert planar_positions(filled, free, patch, filled.vertices) is None
+
+
+def test_least_area_triangulation_of_a_polygon():
+    """A convex planar polygon: n - 2 triangles of the polygon's area, all facing one way;
+    a folded (saddle) loop: no more area than the fan from its first corner."""
+    angles = np.linspace(0, 2 * np.pi, 7)[:-1]
+    hexagon = np.stack([np.cos(angles), np.sin(angles), np.zeros(6)], axis=1)
+    triangles = min_area_triangles(hexagon)
+    corners = hexagon[triangles]
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    assert triangles.shape == (4, 3) and (normals[:, 2] > 0).all()
+    assert 0.5 * normals[:, 2].sum() == pytest.approx(3 * np.sqrt(3) / 2)
+    saddle = np.stack([np.cos(angles), np.sin(angles), 0.5 * np.cos(2 * angles)], axis=1)
+    corners = saddle[min_area_triangles(saddle)]
+    fan = saddle[[[0, k, k + 1] for k in range(1, 5)]]
+
+    def area(c):
+        return 0.5 * np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]), axis=1).sum()
+
+    assert area(corners) <= area(fan) + 1e-12
+
+
+def test_flat_fill_lies_on_the_least_area_triangulation_of_its_loop(monkeypatch):
+    box = grid_box(8)
+    mesh = punched(box, [[1.0, 1.0, 0.0]], radius=0.6)  # a hole across a box edge
+    filled, patch, _, loops = fan_filled(mesh)
+    refined, source = refine_patch(filled, patch, boundary_edge_length(filled, loops))
+    moving = np.arange(refined.n_vertices) >= mesh.n_vertices
+    new_patch = source < 0
+    [loop] = patch_loops(refined, new_patch)
+    assert sorted(loop.tolist()) == sorted(loops[0].tolist())
+    base = fair_positions(refined, moving, 1, "uniform")
+    flat = flat_positions(refined, moving, new_patch, base)
+    assert flat is not None and np.array_equal(flat[~moving], refined.vertices[~moving])
+    corners = refined.vertices[loop][min_area_triangles(refined.vertices[loop])]
+    for x in flat[moving]:  # on one of the triangles
+        on = closest_points_on_triangles(np.repeat(x[None], len(corners), axis=0), corners)
+        assert np.linalg.norm(on - x, axis=1).min() < 1e-9
+    monkeypatch.setattr("spacemesh.geometry.fairing.MAX_FLAT_LOOP", len(loop) - 1)
+    assert flat_positions(refined, moving, new_patch, base) is None

@@ -20,7 +20,9 @@ model's wedges), which on a curved surface is a flat or folded patch. Here the p
    (:func:`planar_positions`), are the other candidates; the one kept
    (:func:`_continuation`) best predicts the ring itself when the ring is freed too,
    measured against the input's surface around it (a thin plate that overshoots the
-   box of the ring, as over a hole across sharp edges, is never kept);
+   box of the ring, as over a hole across sharp edges, is never kept; when both thin
+   plates overshoot, the membrane is projected onto the least-area triangulation of
+   the hole's loops, :func:`flat_positions`, the flat fill MeshFix-like tools make);
 3. **guarded** (:func:`fair_patch`): the faired positions are kept only where they make no
    new self-intersection near the patch (the move is halved up to twice, else undone).
 
@@ -36,6 +38,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
 from spacemesh.geometry.intersections import self_intersecting_faces
+from spacemesh.geometry.surface_fit import closest_points_on_triangles
 from spacemesh.mesh import PolygonMesh
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
@@ -81,6 +84,11 @@ SURFACE_RINGS = 3
 MIN_COVERAGE = 0.9
 #: Clusters with less than this share of the ring faces' area are ignored.
 MIN_CLUSTER_SHARE = 0.08
+#: Longest loop the minimal-area triangulation of :func:`flat_positions` is built for
+#: (its dynamic programme takes ``O(n^3)`` work); a longer one keeps the membrane.
+MAX_FLAT_LOOP = 300
+#: Triangles (nearest by centroid) each vertex is projected onto in :func:`flat_positions`.
+FLAT_NEIGHBOURS = 8
 
 
 # ---------------------------------------------------------------------- refinement
@@ -592,6 +600,98 @@ def _surface_distance(mesh: PolygonMesh, faces: BoolArray, x: FloatArray,
     return np.abs(np.einsum("ij,ij->i", x - corners[nearest, 0], normal[nearest]))
 
 
+# ---------------------------------------------------------------------- flat fill
+def min_area_triangles(points: FloatArray) -> IntArray:
+    """The triangulation of a closed polygon of least total area (Liepa 2003, Sec. 3.1;
+    the fill MeshFix-like tools start from), by dynamic programming over its sub-chains.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        The polygon's corners in order, ``n >= 3``.
+
+    Returns
+    -------
+    (n - 2, 3) int64
+        Corner indices of each triangle, in the polygon's direction.
+    """
+    n = len(points)
+    p = np.asarray(points, dtype=np.float64)
+    cost = np.zeros((n, n))
+    best = np.zeros((n, n), dtype=np.int64)
+    for length in range(2, n):
+        for a in range(n - length):
+            b = a + length
+            k = np.arange(a + 1, b)
+            area = 0.5 * np.linalg.norm(np.cross(p[k] - p[a], p[b] - p[a]), axis=1)
+            total = cost[a, k] + cost[k, b] + area
+            m = int(np.argmin(total))
+            cost[a, b], best[a, b] = total[m], k[m]
+    triangles, stack = [], [(0, n - 1)]
+    while stack:
+        a, b = stack.pop()
+        if b - a >= 2:
+            k = int(best[a, b])
+            triangles.append((a, k, b))
+            stack += [(a, k), (k, b)]
+    return np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+
+
+def patch_loops(mesh: PolygonMesh, patch: BoolArray) -> list[IntArray] | None:
+    """The loops of the patch's border (its edges with no patch face on the other side),
+    in the patch's direction, or None when they are not simple cycles."""
+    inside = patch[mesh.face_of_corner]
+    he = mesh.halfedges[inside]
+    n = max(mesh.n_vertices, 1)
+    key = he[:, 0] * n + he[:, 1]
+    border = he[~np.isin(he[:, 1] * n + he[:, 0], key)]
+    if len(np.unique(border[:, 0])) != len(border):
+        return None
+    following = dict(zip(border[:, 0].tolist(), border[:, 1].tolist(), strict=True))
+    loops, seen = [], set()
+    for first in following:
+        if first in seen:
+            continue
+        loop, v = [], first
+        while v not in seen:
+            seen.add(v)
+            loop.append(v)
+            v = following.get(v, -1)
+            if v < 0:
+                return None
+        loops.append(np.asarray(loop, dtype=np.int64))
+    return loops
+
+
+def flat_positions(mesh: PolygonMesh, free: BoolArray, patch: BoolArray, base: FloatArray
+                   ) -> FloatArray | None:
+    """The ``base`` positions of the ``free`` vertices projected onto the least-area
+    triangulation of each of the patch's border loops (:func:`min_area_triangles`): a
+    flat patch spanned by the loop (what MeshFix-like fillers make), with the patch's
+    own tessellation; None when a loop is not simple or longer than
+    :data:`MAX_FLAT_LOOP`."""
+    from scipy.spatial import cKDTree
+
+    loops = patch_loops(mesh, patch)
+    if not loops or any(len(loop) > MAX_FLAT_LOOP for loop in loops):
+        return None
+    corners = np.concatenate([mesh.vertices[loop][min_area_triangles(mesh.vertices[loop])]
+                              for loop in loops if len(loop) >= 3])  # (T, 3, 3)
+    if len(corners) == 0:
+        return None
+    rows = np.flatnonzero(free)
+    x = np.asarray(base, dtype=np.float64)[rows]
+    k = min(FLAT_NEIGHBOURS, len(corners))
+    _, near = cKDTree(corners.mean(axis=1)).query(x, k=k)
+    near = np.asarray(near).reshape(len(rows), k)
+    closest = closest_points_on_triangles(np.repeat(x, k, axis=0),
+                                          corners[near.reshape(-1)]).reshape(len(rows), k, 3)
+    pick = np.linalg.norm(closest - x[:, None], axis=2).argmin(axis=1)
+    out = np.asarray(base, dtype=np.float64).copy()
+    out[rows] = closest[np.arange(len(rows)), pick]
+    return out
+
+
 #: The smooth fairings tried, gentlest last: (order, weights) of :func:`fair_positions`.
 SMOOTH_FAIRINGS = ((2, "cotangent"), (2, "uniform"), (1, "uniform"))
 
@@ -608,8 +708,10 @@ def _continuation(mesh: PolygonMesh, free: BoolArray, patch: BoolArray,
     the hole stays within the ring's box (:func:`_contained`), a later one taken only
     when its score is below :data:`SMOOTH_MARGIN` times the best so far, and, around a
     sharp ring, the piecewise-planar continuation (:func:`planar_positions`), taken when
-    its score is below :data:`PLANAR_MARGIN` times the smooth one's. ``start`` when no
-    candidate stays within the box."""
+    its score is below :data:`PLANAR_MARGIN` times the smooth one's. When neither thin
+    plate stays within the box (sharp surroundings), the membrane is replaced by the
+    flat fill (:func:`flat_positions`: closer to the intact surface on every such dev
+    hole). ``start`` when no candidate stays within the box."""
     ring = _vertices_of(mesh, _faces_touching(mesh, free)) & ~free
     wider = free | ring
     around = wider
@@ -621,13 +723,18 @@ def _continuation(mesh: PolygonMesh, free: BoolArray, patch: BoolArray,
         return float(_surface_distance(mesh, surface, guess[ring]).mean())
 
     best, best_error = start, math.inf
+    plate = False  # whether a thin plate stays within the box
     for order, weights in SMOOTH_FAIRINGS:
         faired = fair_positions(mesh, free, order, weights)
         if not _contained(mesh, free, start, faired):
             continue
+        plate |= order == 2
         error = score(fair_positions(mesh, wider, order, weights))
         if error < SMOOTH_MARGIN * best_error:
             best, best_error = faired, error
+    if not plate:  # sharp surroundings: the flat least-area fill rather than a membrane
+        flat = flat_positions(mesh, free, patch, best)
+        best = best if flat is None else flat
     found = _ring_planes(mesh, free, patch)
     if found is None:
         return best
