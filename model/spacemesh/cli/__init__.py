@@ -14,6 +14,7 @@ from spacemesh.cli.common import app
 COMMAND_MODULES = (
     "spacemesh.cli.example",
     "spacemesh.cli.fit",
+    "spacemesh.cli.fit_collection",
     "spacemesh.cli.data",
     "spacemesh.cli.train",
     "spacemesh.cli.evaluate",
