@@ -12,15 +12,15 @@ Methods:
   networks; the geometry stage splits edges up to the target);
 - ``raw``: ``raw=True`` (every target token through the connectivity network, no geometry
   stage);
-- ``tokens``: every target token through the connectivity network, then the geometry stage;
-- ``patches``: overlapping spatial patches of at most ``max_vertices`` tokens, one decode
-  of the stitched graph, then the geometry stage;
+- ``tokens``: ``ModelSpec.large_meshes = "tokens"``: every target vertex up to 2,048
+  through the connectivity network (with its fallback to ``split``), then the geometry
+  stage; the same as ``default`` unless a manifest chooses otherwise;
 - ``psr_star``: screened Poisson on estimated normals, decimated to the default's count.
 
 Usage::
 
     python experiments/eval_vertex_count.py --targets 256,512,1024,2048 \
-        --methods default,raw,tokens,patches,psr_star --out /tmp/vc.csv
+        --methods default,split,raw,psr_star --out /tmp/vc.csv
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ DEV_MESHES = (
 POINTS = 8192
 #: Methods that are the default pipeline with one way of making large meshes
 #: (:attr:`spacemesh.runtime.pipeline.ModelSpec.large_meshes`).
-LARGE_MODES = {"split": "split", "tokens": "tokens", "patches": "patches"}
+LARGE_MODES = {"split": "split", "tokens": "tokens"}
 
 
 def real_shapes(meshes: Path, limit: int | None) -> list[tuple[str, object, np.ndarray]]:
@@ -88,7 +88,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--meshes", type=Path, default=ROOT.parent / "shared" / "meshes")
     parser.add_argument("--targets", default="256,512,1024,2048")
-    parser.add_argument("--methods", default="default,raw,tokens,patches,psr_star")
+    parser.add_argument("--methods", default="default,split,raw,psr_star")
     parser.add_argument("--real", type=int, default=8, help="dev meshes (0: none)")
     parser.add_argument("--synth", type=int, default=3, help="generator shapes (0: none)")
     parser.add_argument("--synth-seed", type=int, default=11)
