@@ -99,6 +99,37 @@ def uv_sphere(n_lon: int, n_lat: int) -> PolygonMesh:
     return PolygonMesh.from_faces(v, faces)
 
 
+def hub_ring(k: int, m: int) -> PolygonMesh:
+    """A thick washer whose flat faces join a coarse outer ring to a fine inner one.
+
+    The outer rings have ``k`` vertices, the inner ones ``k * m``; each outer vertex fans
+    over ``m + 1`` inner ones (long thin triangles), so all ``2k`` outer vertices are hubs
+    of degree ``m + 4``, each adjacent to three others: the CAD pattern of a coarse
+    boundary tessellated against a fine circle, with many hubs next to each other.
+    Quads close the outer wall and the inner tube (genus 1).
+    """
+    n_in = k * m
+    outer = [_ring(k, 0.0, 2.0), _ring(k, 1.0, 2.0)]
+    inner = [_ring(n_in, 0.0, 1.0), _ring(n_in, 1.0, 1.0)]
+    v = np.concatenate([*outer, *inner])
+
+    def o(level: int, i: int) -> int:
+        return level * k + i % k
+
+    def c(level: int, j: int) -> int:
+        return 2 * k + level * n_in + j % n_in
+
+    faces = []
+    for level, flip in ((1, False), (0, True)):  # top faces +z, bottom faces -z
+        for i in range(k):
+            fan = [[c(level, j), o(level, i), c(level, j + 1)] for j in range(i * m, (i + 1) * m)]
+            fan.append([o(level, i), o(level, i + 1), c(level, (i + 1) * m)])
+            faces += [f[::-1] for f in fan] if flip else fan
+    faces += [[o(0, i), o(0, i + 1), o(1, i + 1), o(1, i)] for i in range(k)]
+    faces += [[c(0, j), c(1, j), c(1, j + 1), c(0, j + 1)] for j in range(n_in)]
+    return PolygonMesh.from_faces(v, faces)
+
+
 #: Named stress cases: the highest vertex degree and the largest face of each.
 STRESS_CASES: dict[str, Callable[[], PolygonMesh]] = {
     "pyramid over a 30-gon": lambda: pyramid(30),
@@ -112,4 +143,6 @@ STRESS_CASES: dict[str, Callable[[], PolygonMesh]] = {
     "uv sphere, poles of degree 64": lambda: uv_sphere(64, 12),
     "capped cylinder, hubs of degree 40": lambda: capped_cylinder(40),
     "capped cylinder, hubs of degree 126": lambda: capped_cylinder(126),
+    "hub ring, 16 adjacent hubs of degree 36": lambda: hub_ring(8, 32),
+    "hub ring, 12 adjacent hubs of degree 64": lambda: hub_ring(6, 60),
 }
