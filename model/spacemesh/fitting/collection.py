@@ -79,6 +79,7 @@ class CollectionConfig:
     code_lr: float | None = 3e-2  # of latent codes and positional embedding (None: lr)
     latent_std: float = 1.0
     warmup: int = 20  # steps of linear learning-rate warm-up
+    clip: float | None = 1.0  # gradient norm clipping (None: off)
     position_weight: float = 1.0  # of the position + mask L2 against the connectivity losses
     embedding_scale: float = 1.0
     false_positive_weight: float | None = 1.0
@@ -193,8 +194,10 @@ def decode_options(
     config: CollectionConfig, reduction_params: dict | None, n_raw: int, n_vertices: int
 ) -> DecodeOptions:
     """How a collection's tokens are decoded: as single-mesh fitting does, except that
-    crossing quad diagonals are not dropped by geometry (``uncross``), because the
-    decoded positions are only near the true ones and the embeddings alone are judged.
+    the decode uses no geometry: crossing quad diagonals are not dropped by position
+    (``uncross``) and a vertex whose assignment is not one orbit gets the paper's greedy
+    orbit instead of its neighbours by angle, because the decoded positions are only
+    near the true ones (and a wrong angular order cascades through the unpinching).
     A sparse graph (at most ``4 V`` raw pairs) is decoded as it is, a dense one with the
     decode's degree bound."""
     return DecodeOptions(
@@ -204,6 +207,7 @@ def decode_options(
         reduction_params=reduction_params,
         sinkhorn_iters=config.sinkhorn_iters,
         max_degree=None if n_raw <= 4 * n_vertices else MAX_DEGREE,
+        fallback="greedy",
         uncross=False,
     )
 
@@ -529,6 +533,8 @@ def fit_collection(
             )
             loss = config.position_weight * position_loss + edge_loss + perm_loss
             loss.backward()
+            if config.clip is not None:
+                torch.nn.utils.clip_grad_norm_(model.parameters(), config.clip)
             optimizer.step()
             edge_f1 = 2 * edge.true_positives / max(edge.predicted + edge.edges, 1)
             next_acc = int(correct) / max(n_rows, 1)

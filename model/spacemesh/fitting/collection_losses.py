@@ -1,11 +1,12 @@
 """The edge loss of a batch of decoded meshes on sampled pairs (Eq. 3).
 
 Single-mesh fitting's sparse mode (:func:`spacemesh.nn.losses.edge_loss_pairs`), per
-mesh: every edge, the non-edges currently within ``margin`` of the threshold (mined on
-all pairs every step, from the same distance matrix that gives the step's cheap edge
-F1) and uniformly sampled non-edges that stand in for the rest. On a loaded CPU this is
-several times cheaper than the dense loss over all ``N^2`` pairs of every mesh, and an
-unbiased estimate of it.
+mesh: every edge; the non-edges currently within ``margin`` of the threshold, mined on
+all pairs every step from the distance matrix that also gives the step's cheap edge F1
+(all of those within ``false_positive_margin``, which get the false-positive weight, and
+a subset of the others); and uniformly sampled non-edges that stand in for the rest. On
+a loaded CPU this is several times cheaper than the dense loss over all ``N^2`` pairs of
+every mesh, and an unbiased estimate of it.
 """
 
 from __future__ import annotations
@@ -35,6 +36,14 @@ class EdgeLossResult:
     true_positives: int
     predicted: int
     edges: int
+
+
+def _subset(pairs: Tensor, cap: int, generator: torch.Generator) -> tuple[Tensor, float]:
+    """At most ``cap`` random rows of ``pairs`` and how many rows each stands for."""
+    if len(pairs) <= cap:
+        return pairs, 1.0
+    keep = torch.randperm(len(pairs), generator=generator)[:cap].to(pairs.device)
+    return pairs[keep], len(pairs) / cap
 
 
 def sampled_edge_loss(
@@ -85,13 +94,13 @@ def sampled_edge_loss(
             n_pred += int(below.sum())
             n_edges += len(e)
             near = (d < t + sampling.margin) & upper & ~is_edge
-            hard = torch.nonzero(near)  # (H, 2)
-            cap = sampling.max_hard * len(e)
-            w_hard = 1.0
-            if len(hard) > cap:  # a random subset stands in for all of them
-                keep = torch.randperm(len(hard), generator=generator)[:cap].to(x.device)
-                w_hard = len(hard) / cap
-                hard = hard[keep]
+            # the false positives (and those about to be) always, each for itself, so
+            # that they get the false-positive weight; a subset of the other near ones
+            close = near & (d < t + false_positive_margin)
+            hard, w_hard = _subset(torch.nonzero(close), 4 * sampling.max_hard * len(e),
+                                   generator)
+            rest, w_rest = _subset(torch.nonzero(near & ~close), sampling.max_hard * len(e),
+                                   generator)
             n_far = n * (n - 1) // 2 - len(e) - int(near.sum())
             m = sampling.random_negatives * len(e)
             i = torch.randint(0, n, (m,), generator=generator).to(x.device)
@@ -100,9 +109,10 @@ def sampled_edge_loss(
             far = (lo != hi) & ~near[lo, hi] & ~is_edge[lo, hi]
             rand = torch.stack([lo[far], hi[far]], 1)
             w_rand = max(n_far, 0) / max(len(rand), 1)
-            negatives = torch.cat([hard, rand])
+            negatives = torch.cat([hard, rest, rand])
             weights = torch.cat([
                 torch.full((len(hard),), w_hard, device=x.device),
+                torch.full((len(rest),), w_rest, device=x.device),
                 torch.full((len(rand),), w_rand, device=x.device),
             ])
         losses.append(edge_loss_pairs(
