@@ -63,7 +63,8 @@ def write_markdown(rows: list[dict], threads: int, seed: int, path: Path) -> str
     lines = [
         "# Fitting the closed manifold meshes of ../shared/meshes",
         "",
-        f"`python experiments/fit_real_meshes.py --threads {threads}` with the default settings "
+        f"`python experiments/fit_real_meshes.py --threads {threads} --seed {seed}` (in parts: "
+        "`--max-vertices 2000`, then `--min-vertices 2001 --merge`) with the default settings "
         "of `spacemesh fit` (k = 16, 8 + 8; k_p = 6; Adam lr 0.1; random start; at most 1,000 "
         "iterations; mined negatives above 1,024 vertices; false-positive weight 1 with a 0.5 "
         "margin; hub steps with power 0.5). Iterations are deterministic; seconds are wall "

@@ -59,7 +59,8 @@ def main() -> None:
         f"`python experiments/fit_stress.py --threads {args.threads} --max-iters "
         f"{args.max_iters} --seeds {args.seeds}`: the settings of `spacemesh fit` "
         "(random start) on the cases of `spacemesh.fitting.stress` (vertices of degree 30 "
-        "to 100, needle triangles, faces of 40 to 100 sides). Seconds are wall time on the "
+        "to 126, rings of adjacent hubs, needle triangles, faces of 40 to 100 sides). "
+        "Seconds are wall time on the "
         "shared 2-core machine.",
         "",
         f"**{n_exact} of {len(rows)} fits exact within {args.max_iters} iterations.**",
