@@ -21,6 +21,7 @@ from auto_meshes import (
 from repair_testing import NoiseBackend, assert_closed_manifold, assert_outside_identical, make_spec
 
 from spacemesh.examples import icosphere
+from spacemesh.mesh import PolygonMesh
 from spacemesh.repair import (
     Region,
     RegionError,
@@ -35,6 +36,8 @@ from spacemesh.repair.auto import (
     find_issues,
     orient_faces,
     reverse_faces,
+    unpaired_faces,
+    unzip_defects,
     wedge_size,
 )
 from spacemesh.repair.cut import FaceSubset, defect_vertices
@@ -350,3 +353,42 @@ def test_cli_refuses_a_moebius_strip(fake_model, tmp_path):
     result = _cli([str(source), "--holes", "-o", str(tmp_path / "o.obj")])
     assert result.exit_code == 2 and "non-orientable" in result.output
     assert len(result.output.strip().splitlines()) == 1
+
+
+# ---------------------------------------------------------------------- defects beside holes
+def test_unzip_splits_a_fin_off_and_keeps_every_corner_in_place():
+    mesh = with_fin(icosphere(2))
+    fin = find_issues(mesh, "defects")
+    marked = np.zeros(mesh.n_vertices, dtype=bool)
+    for f in fin:
+        marked[f.vertices] = True
+    out = unzip_defects(mesh, marked)
+    assert out.n_vertices > mesh.n_vertices
+    assert np.array_equal(out.face_offsets, mesh.face_offsets)
+    assert np.array_equal(out.vertices[out.face_indices], mesh.vertices[mesh.face_indices])
+    sub = FaceSubset.of(out, np.arange(out.n_faces))
+    assert (sub.edge_count <= 2).all() and not unpaired_faces(out).any()
+    assert {f.kind for f in find_issues(out, "all")} == {"hole"}
+
+
+def test_a_fin_on_a_large_hole_is_split_off_then_the_holes_are_filled_in_place():
+    mesh = hemisphere(4)
+    sub = FaceSubset.of(mesh, np.arange(mesh.n_faces))
+    rim = np.zeros(mesh.n_vertices, dtype=bool)
+    rim[sub.halfedges[sub.edge_count[sub.edge] == 1].reshape(-1)] = True
+    a, b = next((int(a), int(b)) for a, b in mesh.edges if rim[a] != rim[b])
+    tip = mesh.vertices[a] + mesh.vertices[b] - 0.5 * mesh.vertices[a:a + 1].sum(axis=0)
+    mesh = PolygonMesh.from_faces(np.vstack([mesh.vertices, tip]),
+                                  [*mesh.faces, np.array([a, b, mesh.n_vertices])])
+    # as one region the fin and the loop beside it are more than the model holds
+    plan = plan_repair(mesh, {"auto": "all"}, SPEC.max_vertices)
+    assert isinstance(plan, AutoPlan) and plan.split
+    assert all(r.strategy == "in-place" for r in plan.regions)
+    result = run(mesh, {"auto": "all"}, plan=plan)
+    assert_closed_manifold(result.mesh)
+    assert not result.region.any()  # every face kept, the fin's vertices split
+    out = result.mesh
+    n = mesh.face_offsets[-1]
+    assert np.array_equal(out.vertices[out.face_indices[:n]], mesh.vertices[mesh.face_indices])
+    actions = {f["kind"]: f["action"] for f in result.stats.findings}
+    assert actions["non-manifold-edges"] == "split" and actions["hole"] == "filled"

@@ -715,5 +715,7 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
         regions=regions[:MAX_REPORTED], seed=seed, steps=steps, method=method,
         timings=timings,
     )
-    vertex_map = state.vertex_map if plan.weld_map is None else state.vertex_map[plan.weld_map]
+    # the working mesh's vertices after the input's are copies made by unzip_defects
+    vertex_map = (state.vertex_map[:plan.source.n_vertices] if plan.weld_map is None
+                  else state.vertex_map[plan.weld_map])
     return RepairResult(out, vertex_map, state.face_source, removed, stats)

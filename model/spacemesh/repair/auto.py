@@ -30,7 +30,10 @@ into the surface around it (:func:`spacemesh.geometry.fairing.fair_patch`: a thi
 solve with the ring fixed), so its new vertices continue that surface. A region
 with other defects, or loops that cannot be split into simple ones, is re-generated with
 its ring by one model pass; when it cannot be planned it is refused, naming what it
-holds.
+holds. With ``all``, when defects and the holes around them make a region that cannot
+be planned, the non-manifold edges and pinched vertices are first split
+(:func:`unzip_defects`: one vertex per fan, every face kept; a fin still joined at both
+ends is removed, :func:`unpaired_faces`) and the holes this leaves are filled in place.
 """
 
 from __future__ import annotations
@@ -260,6 +263,91 @@ def auto_faces(mesh: PolygonMesh, mode: str) -> BoolArray:
     return mask
 
 
+# ---------------------------------------------------------------------- unzipping
+#: Defect kinds :func:`unzip_defects` resolves by splitting vertices.
+SPLIT_KINDS = ("non-manifold-edges", "pinched-vertices")
+
+
+def _pair_sides(mesh: PolygonMesh, sub: FaceSubset) -> IntArray:
+    """(S,) the twin of each halfedge, with the sides of edges of more than two sides
+    paired too (:func:`unzip_defects`); -1 for a side left open."""
+    he = sub.halfedges
+    mate = sub.twin.copy()
+    normals = mesh.face_normals()
+    crowded = np.flatnonzero(sub.edge_count[sub.edge] > 2)
+    order = crowded[np.argsort(sub.edge[crowded], kind="stable")]
+    cuts = np.flatnonzero(np.diff(sub.edge[order])) + 1
+    for group in np.split(order, cuts) if len(order) else []:
+        pairs = [(float(normals[sub.face[a]] @ normals[sub.face[b]]), int(a), int(b))
+                 for a, b in itertools.combinations(group.tolist(), 2)
+                 if he[a, 0] == he[b, 1] and sub.face[a] != sub.face[b]]
+        taken: set[int] = set()
+        for _, a, b in sorted(pairs, reverse=True):
+            if a not in taken and b not in taken:
+                mate[a], mate[b] = b, a
+                taken |= {a, b}
+    return mate
+
+
+def unpaired_faces(mesh: PolygonMesh) -> BoolArray:
+    """(F,) the faces left over at edges of more than two sides (:func:`_pair_sides`:
+    a fin whose fans :func:`unzip_defects` could not separate)."""
+    sub = FaceSubset.of(mesh, np.arange(mesh.n_faces))
+    mate = _pair_sides(mesh, sub)
+    left = (sub.edge_count[sub.edge] > 2) & (mate < 0)
+    out = np.zeros(mesh.n_faces, dtype=bool)
+    out[sub.face[left]] = True
+    return out
+
+
+def unzip_defects(mesh: PolygonMesh, vertices: BoolArray) -> PolygonMesh:
+    """Split the non-manifold edges and pinched vertices among ``vertices`` ((V,) bool):
+    every face keeps its corners' positions, but a vertex with several fans of faces gets
+    one copy per fan.
+
+    At an edge with more than two sides, the sides running opposite ways are paired,
+    the pair of faces with the most aligned normals first (the sheet that continues
+    flattest across the edge, so a fin standing on a surface is the side left over);
+    a side left unpaired becomes an open edge. Fans are then joined across paired
+    sides (as :meth:`FaceSubset.fan_counts` does across manifold edges), and every fan
+    of a marked vertex but its first gets a new vertex at the same position, appended.
+    What was a fin or a second sheet joined along an edge or at a vertex becomes a
+    surface with an open boundary there, which the hole filling closes.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+    vertices : (V,) bool
+        The vertices that may be split (the defects' vertices).
+
+    Returns
+    -------
+    PolygonMesh
+        The same faces in the same order (same first corners, same positions), over
+        ``mesh``'s vertices then the copies.
+    """
+    sub = FaceSubset.of(mesh, np.arange(mesh.n_faces))
+    he = sub.halfedges
+    mate = _pair_sides(mesh, sub)
+    total = len(he)
+    has = np.flatnonzero(mate >= 0)
+    graph = coo_matrix((np.ones(len(has)), (has, sub.next[mate[has]])), shape=(total, total))
+    _, fan = connected_components(graph, directed=False)
+    origin = he[:, 0]
+    split = vertices[origin]
+    first_fan = np.full(mesh.n_vertices, -1, dtype=np.int64)
+    ids = np.flatnonzero(split)[::-1]
+    first_fan[origin[ids]] = fan[ids]  # the fan of each vertex's first corner
+    extra = split & (fan != first_fan[origin])
+    new_fans, which = np.unique(fan[extra], return_inverse=True)
+    corners = mesh.face_indices.copy()  # halfedge i leaves corner i (all faces, in order)
+    corners[extra] = mesh.n_vertices + which.reshape(-1)
+    copy_of = np.zeros(len(new_fans), dtype=np.int64)
+    copy_of[which.reshape(-1)] = origin[extra]
+    vertices_out = np.concatenate([mesh.vertices, mesh.vertices[copy_of]])
+    return PolygonMesh(vertices_out, corners, mesh.face_offsets)
+
+
 # ---------------------------------------------------------------------- regions
 @dataclass
 class AutoRegion:
@@ -323,6 +411,14 @@ class AutoPlan:
     n_tokens : int
     max_growth : float
     seconds : float
+    split : list of Finding
+        Non-manifold edges and pinched vertices split before the regions were planned
+        (:func:`unzip_defects`, when they and the holes around them made a region too
+        large); their copies follow the input's vertices in :attr:`mesh`.
+    removed : (F,) bool or None
+        Faces of :attr:`mesh` removed before the holes are filled: the sides left over
+        at edges the split could not make manifold (:func:`unpaired_faces`); the
+        regions and their loops are those of :attr:`opened`.
     """
 
     mode: str
@@ -335,6 +431,8 @@ class AutoPlan:
     n_tokens: int
     max_growth: float
     seconds: float = 0.0
+    split: list[Finding] = field(default_factory=list)
+    removed: BoolArray | None = None
 
     @property
     def input_mesh(self) -> PolygonMesh:
@@ -342,10 +440,21 @@ class AutoPlan:
         return self.source
 
     @property
+    def opened(self) -> PolygonMesh:
+        """The working mesh without the :attr:`removed` faces (what the holes are of)."""
+        if self.removed is None:
+            return self.mesh
+        from spacemesh.geometry.fairing import _faces_subset
+
+        return _faces_subset(self.mesh, ~self.removed)
+
+    @property
     def changeable(self) -> BoolArray:
         """(F,) faces of the working mesh a repair may change: the model-filled regions
-        after growth (a region filled by the fan keeps every face)."""
-        mask = np.zeros(self.mesh.n_faces, dtype=bool)
+        after growth (a region filled by the fan keeps every face) and the removed
+        faces."""
+        mask = np.zeros(self.mesh.n_faces, dtype=bool) if self.removed is None else (
+            self.removed.copy())
         for region in self.regions:
             mask |= region.changed
         return mask
@@ -537,45 +646,11 @@ def _others(mesh: PolygonMesh, regions: list[AutoRegion], region: AutoRegion) ->
     return marked
 
 
-def plan_auto(mesh: PolygonMesh, mode: str, n_tokens: int, *, weld: bool = False,
-              max_growth: float | None = None) -> AutoPlan:
-    """Find the holes and defects, group them into regions and plan each.
+def _plan_regions(work: PolygonMesh, findings: list[Finding], n_tokens: int,
+                  max_growth: float) -> list[AutoRegion]:
+    """Group the findings' rings into regions and plan each (:func:`plan_auto`)."""
+    from spacemesh.repair.api import plan_repair
 
-    Parameters
-    ----------
-    mesh : PolygonMesh
-    mode : {"holes", "defects", "all"}
-    n_tokens : int
-        The model's vertex tokens.
-    weld : bool
-        Merge vertices at equal positions first.
-    max_growth : float, optional
-        Largest share of the mesh's faces a region may grow to (default
-        :data:`spacemesh.repair.api.DEFAULT_MAX_GROWTH`).
-
-    Returns
-    -------
-    AutoPlan
-
-    Raises
-    ------
-    RegionError
-        ``non-orientable``; ``empty-region`` (nothing found and no face reversed); or
-        the error of a region with defects other than holes that cannot be planned, its
-        message naming them (``details["findings"]``).
-    """
-    from spacemesh.repair.api import DEFAULT_MAX_GROWTH, plan_repair
-    from spacemesh.repair.weld import weld_vertices
-
-    start = time.perf_counter()
-    max_growth = DEFAULT_MAX_GROWTH if max_growth is None else float(max_growth)
-    work, weld_map = (weld_vertices(mesh) if weld else (mesh, None))
-    work, reversed_faces = orient_faces(work)
-    findings = find_issues(work, mode)
-    if not findings and not reversed_faces.any():
-        what = {"holes": "no hole (open boundary)", "defects": "no defect",
-                "all": "no hole or defect"}[mode]
-        raise RegionError(EMPTY_REGION, f"the mesh has {what}: nothing to repair")
     rings = [_faces_touching(work, f.vertices) for f in findings]
     union = np.logical_or.reduce(rings) if rings else np.zeros(work.n_faces, dtype=bool)
     grown = grow_region(work, union)
@@ -606,6 +681,78 @@ def plan_auto(mesh: PolygonMesh, mode: str, n_tokens: int, *, weld: bool = False
                    "place" if holes_only else "")
             raise RegionError(error.kind, f"{error} ({_name(findings, region.findings)}){why}",
                               {**error.details, "findings": detail[:MAX_REPORTED]}) from None
+    return regions
+
+
+def plan_auto(mesh: PolygonMesh, mode: str, n_tokens: int, *, weld: bool = False,
+              max_growth: float | None = None) -> AutoPlan:
+    """Find the holes and defects, group them into regions and plan each.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+    mode : {"holes", "defects", "all"}
+    n_tokens : int
+        The model's vertex tokens.
+    weld : bool
+        Merge vertices at equal positions first.
+    max_growth : float, optional
+        Largest share of the mesh's faces a region may grow to (default
+        :data:`spacemesh.repair.api.DEFAULT_MAX_GROWTH`).
+
+    Returns
+    -------
+    AutoPlan
+
+    Raises
+    ------
+    RegionError
+        ``non-orientable``; ``empty-region`` (nothing found and no face reversed); or
+        the error of a region with defects other than holes that cannot be planned, its
+        message naming them (``details["findings"]``).
+    """
+    from spacemesh.geometry.fairing import _faces_subset
+    from spacemesh.repair.api import DEFAULT_MAX_GROWTH
+    from spacemesh.repair.weld import weld_vertices
+
+    start = time.perf_counter()
+    max_growth = DEFAULT_MAX_GROWTH if max_growth is None else float(max_growth)
+    work, weld_map = (weld_vertices(mesh) if weld else (mesh, None))
+    work, reversed_faces = orient_faces(work)
+    findings = find_issues(work, mode)
+    if not findings and not reversed_faces.any():
+        what = {"holes": "no hole (open boundary)", "defects": "no defect",
+                "all": "no hole or defect"}[mode]
+        raise RegionError(EMPTY_REGION, f"the mesh has {what}: nothing to repair")
+    try:
+        regions = _plan_regions(work, findings, n_tokens, max_growth)
+        split: list[Finding] = []
+    except RegionError as error:
+        # defects and holes too close for one region: split the non-manifold edges and
+        # pinched vertices first (every face kept), then plan what that leaves
+        split = [f for f in findings if f.kind in SPLIT_KINDS] if mode == "all" else []
+        if not split:  # (only where the holes it opens are filled too)
+            raise
+        marked = np.zeros(work.n_vertices, dtype=bool)
+        for f in split:
+            marked[f.vertices] = True
+        unzipped = unzip_defects(work, marked)
+        removed = unpaired_faces(unzipped)  # fins still joined at both ends: removed
+        opened = _faces_subset(unzipped, ~removed)
+        try:
+            again = find_issues(opened, mode)
+            regions = _plan_regions(opened, again, n_tokens, max_growth)
+        except RegionError:
+            raise error from None
+        kept = np.flatnonzero(~removed)
+        for region in regions:  # the masks over the unzipped mesh's faces
+            for name in ("requested", "region"):
+                lifted = np.zeros(unzipped.n_faces, dtype=bool)
+                lifted[kept] = getattr(region, name)
+                setattr(region, name, lifted)
+        return AutoPlan(mode, mesh, unzipped, weld_map, reversed_faces, again, regions,
+                        n_tokens, max_growth, time.perf_counter() - start, split,
+                        removed if removed.any() else None)
     return AutoPlan(mode, mesh, work, weld_map, reversed_faces, findings, regions, n_tokens,
                     max_growth, time.perf_counter() - start)
 
@@ -730,6 +877,9 @@ def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
                     np.full(work.n_faces, -1, dtype=np.int64),
                     np.full(work.n_vertices, -1, dtype=np.int64),
                     np.full(work.n_faces, -1, dtype=np.int64))
+    if plan.removed is not None:  # the fins left at non-manifold edges go first
+        state.apply(np.arange(work.n_vertices), np.flatnonzero(~plan.removed), plan.opened)
+    opened = plan.opened
     size = wedge_size(plan.n_tokens)
     outcome: dict[int, str] = {}
     region_reports = []
@@ -748,7 +898,7 @@ def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
                 _fair_region(state, index)  # holes touching themselves, ring rebuilt
         else:
             loops = [state.vertex_map[loop] for i in region.findings
-                     for loop in (_loops_of(work, plan.findings[i].vertices) or [])]
+                     for loop in (_loops_of(opened, plan.findings[i].vertices) or [])]
             n_faces = state.mesh.n_faces
             filled, fans = fan_fill(state.mesh, loops)
             wedge = np.full(filled.n_faces, -1, dtype=np.int64)
@@ -778,7 +928,9 @@ def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
             outcome[i] = by
         region_reports.append({**region.report(index, work.n_faces),
                                "passes": len(state.results) - before, "filled_by": by})
-    findings = []
+    findings: list[dict[str, Any]] = [
+        {"kind": f.kind, "size": f.size, "vertex": int(f.vertices[0]), "region": -1,
+         "action": "split"} for f in plan.split]
     for i, f in enumerate(plan.findings):
         entry: dict[str, Any] = {"kind": f.kind, "size": f.size, "vertex": int(f.vertices[0]),
                                  "region": next(r for r, reg in enumerate(plan.regions)
