@@ -25,11 +25,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from spacemesh.encode import encode_connectivity
-from spacemesh.fitting import FitConfig, fit_mesh
 from spacemesh.io import load_mesh
+from spacemesh.threads import limit_threads
 from spacemesh.topology import check_topology
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -109,7 +108,8 @@ def main() -> int:
     parser.add_argument("--merge", action="store_true",
                         help="keep the existing CSV's rows of meshes outside this run")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "fitting")
-    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--threads", type=int, default=1,
+                        help="CPU threads (0: one per core), as spacemesh fit --threads")
     parser.add_argument("--only", default="", help="substring filter on file names")
     parser.add_argument("--seed", type=int, default=0, help="seed of the initial embeddings")
     args = parser.parse_args()
@@ -117,7 +117,9 @@ def main() -> int:
     if not manifest.is_file():
         print(f"skipped: {manifest} not found (the shared meshes are not on this machine)")
         return 0
-    torch.set_num_threads(args.threads)
+    # before torch loads: its OpenMP pool reads OMP_WAIT_POLICY (sleep, not spin) only then
+    threads = limit_threads(args.threads)
+    from spacemesh.fitting import FitConfig, fit_mesh
     split = read_split()
     rows = []
     with manifest.open() as handle:
@@ -133,7 +135,7 @@ def main() -> int:
         if not report.is_closed_oriented_manifold:
             continue
         start = time.perf_counter()
-        result = fit_mesh(mesh, FitConfig(threads=args.threads, seed=args.seed))
+        result = fit_mesh(mesh, FitConfig(threads=threads, seed=args.seed))
         row = {
             "file": entry["file"],
             "category": entry["category"],
@@ -158,7 +160,7 @@ def main() -> int:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    summary = write_markdown(rows, args.threads, args.seed, args.out / "real_meshes.md")
+    summary = write_markdown(rows, threads, args.seed, args.out / "real_meshes.md")
     print(summary)
     return 0 if all(r["exact"] for r in rows) else 1
 

@@ -20,8 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from spacemesh.encode import encode_connectivity
-from spacemesh.fitting import FitConfig, fit_mesh
-from spacemesh.fitting.stress import STRESS_CASES
+from spacemesh.threads import limit_threads
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -35,6 +34,10 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "fitting" / "stress.md")
     args = parser.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
+    # before torch loads: its OpenMP pool reads OMP_WAIT_POLICY (sleep, not spin) only then
+    threads = limit_threads(args.threads)
+    from spacemesh.fitting import FitConfig, fit_mesh
+    from spacemesh.fitting.stress import STRESS_CASES
     rows = []
     for name, make in STRESS_CASES.items():
         if args.only not in name:
@@ -42,7 +45,7 @@ def main() -> None:
         mesh = make()
         degree = int(np.diff(encode_connectivity(mesh).offsets).max())
         for seed in seeds:
-            config = FitConfig(max_iters=args.max_iters, seed=seed, threads=args.threads)
+            config = FitConfig(max_iters=args.max_iters, seed=seed, threads=threads)
             result = fit_mesh(mesh, config)
             plain = fit_mesh(mesh, replace(config, hub_step_power=0.0))
             row = {"case": name, "seed": seed, "max_degree": degree,
