@@ -694,10 +694,12 @@ def flat_positions(mesh: PolygonMesh, free: BoolArray, patch: BoolArray, base: F
 
 #: The smooth fairings tried, gentlest last: (order, weights) of :func:`fair_positions`.
 SMOOTH_FAIRINGS = ((2, "cotangent"), (2, "uniform"), (1, "uniform"))
+#: Their names in reports.
+FAIRING_NAMES = ("thin-plate", "thin-plate-uniform", "membrane")
 
 
 def _continuation(mesh: PolygonMesh, free: BoolArray, patch: BoolArray,
-                  start: FloatArray) -> FloatArray:
+                  start: FloatArray) -> tuple[FloatArray, float, str]:
     """The continuation that best extends the surface around the hole, judged on the
     input mesh alone (leave the ring out).
 
@@ -711,7 +713,11 @@ def _continuation(mesh: PolygonMesh, free: BoolArray, patch: BoolArray,
     its score is below :data:`PLANAR_MARGIN` times the smooth one's. When neither thin
     plate stays within the box (sharp surroundings), the membrane is replaced by the
     flat fill (:func:`flat_positions`: closer to the intact surface on every such dev
-    hole). ``start`` when no candidate stays within the box."""
+    hole). ``start`` when no candidate stays within the box.
+
+    Returns the positions, the ring error of the candidate kept (of the membrane for
+    the flat fill; infinite for ``start``) and its name (:data:`FAIRING_NAMES`, ``flat``,
+    ``planar`` or ``none``)."""
     ring = _vertices_of(mesh, _faces_touching(mesh, free)) & ~free
     wider = free | ring
     around = wider
@@ -722,29 +728,33 @@ def _continuation(mesh: PolygonMesh, free: BoolArray, patch: BoolArray,
     def score(guess: FloatArray) -> float:
         return float(_surface_distance(mesh, surface, guess[ring]).mean())
 
-    best, best_error = start, math.inf
+    best, best_error, kind = start, math.inf, "none"
     plate = False  # whether a thin plate stays within the box
-    for order, weights in SMOOTH_FAIRINGS:
+    for (order, weights), name in zip(SMOOTH_FAIRINGS, FAIRING_NAMES, strict=True):
         faired = fair_positions(mesh, free, order, weights)
         if not _contained(mesh, free, start, faired):
             continue
         plate |= order == 2
         error = score(fair_positions(mesh, wider, order, weights))
         if error < SMOOTH_MARGIN * best_error:
-            best, best_error = faired, error
+            best, best_error, kind = faired, error, name
     if not plate:  # sharp surroundings: the flat least-area fill rather than a membrane
         flat = flat_positions(mesh, free, patch, best)
-        best = best if flat is None else flat
+        if flat is not None:
+            best, kind = flat, "flat"
     found = _ring_planes(mesh, free, patch)
     if found is None:
-        return best
+        return best, best_error, kind
     planes = found[:2]
     planar = planar_positions(mesh, free, patch, fair_positions(mesh, free, 1, "uniform"),
                               planes)
     guess = planar_positions(mesh, wider, patch | _faces_touching(mesh, wider),
                              fair_positions(mesh, wider, 1, "uniform"), planes)
     assert planar is not None and guess is not None
-    return planar if score(guess) < PLANAR_MARGIN * best_error else best
+    planar_error = score(guess)
+    if planar_error < PLANAR_MARGIN * best_error:
+        return planar, planar_error, "planar"
+    return best, best_error, kind
 
 
 def patch_edge_length(mesh: PolygonMesh, patch: BoolArray) -> float:
@@ -763,7 +773,8 @@ def patch_edge_length(mesh: PolygonMesh, patch: BoolArray) -> float:
 
 
 def fair_patch(mesh: PolygonMesh, patch: BoolArray, free: BoolArray, target: float,
-               *, refine: bool = True) -> tuple[PolygonMesh, IntArray, int]:
+               *, refine: bool = True, report: dict | None = None
+               ) -> tuple[PolygonMesh, IntArray, int]:
     """Refine the patch to ``target`` edge length, fair its free vertices, and keep the
     faired positions only as far as they add no self-intersection near the patch.
 
@@ -778,6 +789,10 @@ def fair_patch(mesh: PolygonMesh, patch: BoolArray, free: BoolArray, target: flo
         Edge length aimed at (for example :func:`boundary_edge_length` of its loops).
     refine : bool
         Split long edges first (:func:`refine_patch`).
+    report : dict, optional
+        Receives ``ring_error``: how far the ring, freed, lands from the surface around
+        it under the fairing kept (:func:`_continuation`; the mean distance, mesh units),
+        and ``fairing``, the name of that fairing.
 
     Returns
     -------
@@ -797,7 +812,9 @@ def fair_patch(mesh: PolygonMesh, patch: BoolArray, free: BoolArray, target: flo
     if not free.any():
         return mesh, source, added
     start = np.asarray(mesh.vertices, dtype=np.float64)
-    faired = _continuation(mesh, free, patch_after, start)
+    faired, error, kind = _continuation(mesh, free, patch_after, start)
+    if report is not None:
+        report.update(ring_error=error, fairing=kind)
     near = _faces_touching(mesh, _vertices_of(mesh, _faces_touching(mesh, free)))
     local = _faces_subset(mesh, near)
 

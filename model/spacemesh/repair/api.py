@@ -646,7 +646,7 @@ def repair_mesh(
     return RepairResult(spliced.mesh, vertex_map, spliced.face_source, cut.region, stats)
 
 
-_FALLBACK_RANK = ("none", "removed-new-vertices", "polygon", "fan")
+_FALLBACK_RANK = ("none", "removed-new-vertices", "polygon", "fan", "meshfix")
 
 
 def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed: int,
@@ -687,7 +687,8 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
         return out_dict
 
     worst = [p.fallback for p in passes] + [
-        "fan" for r in regions if r["filled_by"] != "model"]
+        "meshfix" if r["filled_by"] == "meshfix" else "fan" for r in regions
+        if r["filled_by"] != "model"]
     timings = summed("timings")
     timings["cut"] = timings.get("cut", 0.0) + plan.seconds
     timings["total"] = time.perf_counter() - started

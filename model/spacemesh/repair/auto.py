@@ -833,16 +833,61 @@ def _filled_by(by_model: int, by_fallback: int) -> str:
     return "fallback" if by_model == 0 else "model-and-fallback"
 
 
-def _fair_region(state: _Passes, index: int) -> None:
-    """Refine and fair the faces the region ``index`` made into the surface around them:
-    :func:`spacemesh.geometry.fairing.fair_patch`."""
+#: The fairings (:func:`spacemesh.geometry.fairing.fair_patch`'s ``fairing``) whose patch
+#: MeshFix's fill of the same loops replaces: the least-area flat fill, used where both
+#: thin plates overshoot the ring (sharp surroundings), imitates MeshFix's, and MeshFix's
+#: own (triangulated, refined, faired) was closer on the dev split.
+MESHFIX_FAIRINGS = ("flat",)
+
+
+def _fair_region(state: _Passes, index: int) -> bool:
+    """Refine and fair the faces the region ``index`` made into the surface around them
+    (:func:`spacemesh.geometry.fairing.fair_patch`), or, where the fairing kept is one of
+    :data:`MESHFIX_FAIRINGS`, replace them by MeshFix's fill of the same loops
+    (:func:`_meshfix_instead`); True when MeshFix's fill was taken."""
     from spacemesh.geometry.fairing import fair_patch, patch_edge_length
 
     mesh = state.mesh
     patch = state.made_by == index
+    report: dict[str, Any] = {}
     faired, source, _ = fair_patch(mesh, patch, state.origin == index,
-                                   patch_edge_length(mesh, patch))
+                                   patch_edge_length(mesh, patch), report=report)
     state.apply(np.arange(mesh.n_vertices), source, faired, index)
+    return report.get("fairing") in MESHFIX_FAIRINGS and _meshfix_instead(state, index)
+
+
+def _meshfix_instead(state: _Passes, index: int) -> bool:
+    """Replace the faces the region ``index`` made by MeshFix's fill of its loops
+    (:func:`spacemesh.repair.meshfix_fill.meshfix_fill`); every other face is kept.
+    True when it did (False without ``pymeshfix``, or when MeshFix's patch does not
+    close exactly these loops)."""
+    from spacemesh.geometry.fairing import _faces_subset, patch_loops
+    from spacemesh.repair.meshfix_fill import meshfix_fill
+
+    mesh = state.mesh
+    patch = state.made_by == index
+    loops = patch_loops(mesh, patch)
+    if not loops or not patch.any():
+        return False
+    opened = _faces_subset(mesh, ~patch)
+    filled = meshfix_fill(opened, loops)
+    if filled is None:
+        return False
+    points, triangles = filled
+    own = state.origin == index  # the vertices the region made go with its faces
+    vertex_map = np.full(mesh.n_vertices, -1, dtype=np.int64)
+    vertex_map[~own] = np.arange(int((~own).sum()))
+    ids = np.concatenate([vertex_map, int((~own).sum()) + np.arange(len(points))])
+    if (ids[triangles] < 0).any():
+        return False
+    kept = _faces_subset(mesh, ~patch)
+    indices = np.concatenate([vertex_map[kept.face_indices], ids[triangles].reshape(-1)])
+    offsets = np.concatenate([kept.face_offsets, kept.face_offsets[-1]
+                              + 3 * np.arange(1, len(triangles) + 1)]).astype(np.int64)
+    out = PolygonMesh(np.concatenate([mesh.vertices[~own], points]), indices, offsets)
+    source = np.concatenate([np.flatnonzero(~patch), np.full(len(triangles), -1)])
+    state.apply(vertex_map, source.astype(np.int64), out, index)
+    return True
 
 
 def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
@@ -894,8 +939,9 @@ def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
             state.results.append(result)
             state.apply(result.vertex_map, result.face_source, result.mesh, index)
             by = _filled_by(result.stats.loops - _polygons(result), _polygons(result))
-            if fair and all(plan.findings[i].kind == "hole" for i in region.findings):
-                _fair_region(state, index)  # holes touching themselves, ring rebuilt
+            if (fair and all(plan.findings[i].kind == "hole" for i in region.findings)
+                    and _fair_region(state, index)):  # holes touching themselves, ring rebuilt
+                by = "meshfix"
         else:
             loops = [state.vertex_map[loop] for i in region.findings
                      for loop in (_loops_of(opened, plan.findings[i].vertices) or [])]
@@ -922,8 +968,8 @@ def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
                 state.apply(result.vertex_map, result.face_source, result.mesh, index)
                 by_model += _polygons(result) == 0
             by = _filled_by(by_model, n_wedges - first - by_model)
-            if fair:
-                _fair_region(state, index)
+            if fair and _fair_region(state, index):
+                by = "meshfix"
         for i in region.findings:
             outcome[i] = by
         region_reports.append({**region.report(index, work.n_faces),
