@@ -159,6 +159,8 @@ def run_ours(mesh, mode: str, generator, seed: int, steps: int | None):
     extra = {"passes": s.passes, "findings": s.findings_total,
              "holes_model": sum(f["filled_by"] == "model" for f in holes),
              "holes_fallback": sum(f["filled_by"] != "model" for f in holes),
+             "holes_meshfix": sum(f["filled_by"] == "meshfix" for f in holes),
+             "split_defects": sum(f["action"] == "split" for f in s.findings),
              "grown_faces": s.grown_faces, "fallback": s.fallback}
     return (result.mesh, status, seconds), extra
 
@@ -263,6 +265,7 @@ def write_report(rows: list[dict], config: dict, out: Path, gallery: Path | None
     ours = [r for r in rows if r["method"] == "ours"]
     model = sum(r.get("holes_model", 0) for r in ours)
     fallback = sum(r.get("holes_fallback", 0) for r in ours)
+    by_meshfix = sum(r.get("holes_meshfix", 0) for r in ours)
     refused = [f"{r['shape']} ({r['status']})" for r in ours if r["status"] != "ok"]
     versus = {"win": 0, "tie": 0, "lose": 0}
     for r in ours:
@@ -279,9 +282,11 @@ def write_report(rows: list[dict], config: dict, out: Path, gallery: Path | None
         f"unscored counts as a win): ours better on {versus['win']}, equal on "
         f"{versus['tie']}, worse on {versus['lose']}.",
         "",
-        f"Holes filled by the model: {model}; by a fallback (the fan, or one polygon over "
-        f"the loop) at least in part: {fallback} "
-        f"(fallback share {fallback / max(model + fallback, 1):.2f}).",
+        f"Holes filled by the model: {model}; by a fallback (the fan, one polygon over "
+        f"the loop, or MeshFix's own fill of the hole where the fairing would span it "
+        f"flat) at least in part: {fallback}, of them {by_meshfix} by MeshFix's fill "
+        f"(fallback share {fallback / max(model + fallback, 1):.2f}; counted over the "
+        "first 20 findings each mesh reports).",
         f"Refused or failed: {', '.join(refused) if refused else 'none'}.",
         "",
         "Per mesh (CD x1e-3; ours / MeshFix):",
