@@ -545,6 +545,7 @@ def fit_collection(
             history.append(record)
             log.write(",".join(f"{v:.6g}" if isinstance(v, float) else str(v)
                                for v in asdict(record).values()) + "\n")
+            log.flush()
             if callback is not None:
                 callback(record)
             if full and edge_f1 == 1.0 and next_acc == 1.0 and step % config.check_every == 0:
