@@ -1,4 +1,4 @@
-"""Build a mesh collection and fit it with ``spacemesh fit-collection`` (docs/fitting/collection.md).
+"""Build a mesh collection and fit it with ``spacemesh fit-collection``.
 
 Collections (never committed; files are read from ../shared/meshes or written to /tmp):
 

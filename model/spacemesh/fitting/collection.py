@@ -16,7 +16,11 @@ positional embedding and transformer are trained jointly with Adam on
 
 Scores (per mesh, then means): vertex L2 (mean squared error of the coordinates of the
 mesh's vertices in the [-1, 1] frame), edge F1 on all pairs, ``next`` accuracy and
-exactness of the numpy decode (:func:`score_mesh`).
+exactness of the numpy decode (:mod:`~spacemesh.fitting.collection_scores`).
+
+Modules: ``collection_config`` (settings), ``collection_data`` (reading, normalising),
+``collection_model`` (the decoder), ``collection_losses`` (the sampled edge loss),
+``collection_scores`` (scores, decoding, gallery) and this one (training, checkpoints).
 """
 
 from __future__ import annotations
@@ -31,21 +35,27 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from spacemesh.decode import MAX_DEGREE, DecodeOptions, Embeddings, decode
 from spacemesh.errors import SpaceMeshError
+from spacemesh.fitting.collection_config import FIXED_SETTINGS, CollectionConfig
 from spacemesh.fitting.collection_data import CollectionMesh
-from spacemesh.fitting.collection_losses import PairSampling, sampled_edge_loss
-from spacemesh.fitting.collection_model import CollectionDecoder, DecodedTokens, DecoderShape
-from spacemesh.mesh import PolygonMesh
-from spacemesh.metrics.connectivity import next_accuracy
-from spacemesh.nn.losses import (
-    degree_groups,
-    permutation_loss,
+from spacemesh.fitting.collection_losses import sampled_edge_loss
+from spacemesh.fitting.collection_model import CollectionDecoder
+from spacemesh.fitting.collection_scores import (
+    MeshScore,
+    decode_meshes,
+    evaluate,
+    score_mesh,
+    write_gallery,
 )
-from spacemesh.permutation import SINKHORN_ITERS
-from spacemesh.spacetime import count_pairs_below_threshold, distance_operands
+from spacemesh.nn.losses import degree_groups, permutation_loss
 from spacemesh.threads import limit_threads
 from spacemesh.train.batching import concat_connectivity
+
+__all__ = [
+    "CHECKPOINT", "GALLERY", "LOG", "SCORES", "CollectionConfig", "CollectionResult",
+    "MeshScore", "StepRecord", "decode_meshes", "evaluate", "fit_collection", "load_run",
+    "score_mesh", "write_gallery",
+]
 
 #: File of the newest checkpoint in a run folder.
 CHECKPOINT = "checkpoint.pt"
@@ -55,60 +65,6 @@ LOG = "log.csv"
 SCORES = "scores.json"
 #: Decoded meshes next to their originals.
 GALLERY = "gallery.png"
-
-
-@dataclass(frozen=True)
-class CollectionConfig:
-    """Settings of :func:`fit_collection` (see docs/fitting/collection.md).
-
-    The decoder's sizes are :class:`DecoderShape`'s; ``lr`` 1e-3 is the paper's.
-    """
-
-    latent_dim: int = 512
-    width: int = 128
-    layers: int = 2
-    heads: int = 4
-    feedforward: int = 512
-    adjacency_dim: int = 16
-    permutation_dim: int = 6
-    reduction: str = "product"
-    position_skip: bool = False
-    distance: str = "spacetime"
-    sinkhorn_iters: int = SINKHORN_ITERS
-    lr: float = 3e-3
-    code_lr: float | None = 3e-2  # of latent codes and positional embedding (None: lr)
-    latent_std: float = 1.0
-    warmup: int = 20  # steps of linear learning-rate warm-up
-    clip: float | None = 1.0  # gradient norm clipping (None: off)
-    position_weight: float = 1.0  # of the position + mask L2 against the connectivity losses
-    embedding_scale: float = 1.0
-    false_positive_weight: float | None = 1.0
-    false_positive_margin: float = 0.5
-    sampling: PairSampling = field(default_factory=PairSampling)
-    batch_size: int = 16  # meshes per step (all of them when the collection is smaller)
-    seed: int = 0
-    max_steps: int | None = None
-    max_seconds: float | None = None  # of this call (a resumed run gets a new budget)
-    checkpoint_seconds: float = 120.0
-    check_every: int = 25  # steps between exactness checks when the cheap scores are 1
-    l2_target: float = 5e-4  # stop early once every mesh is exact and this close
-    threads: int | None = None  # None: as the process is; else spacemesh.threads
-    device: str = "cpu"
-
-    def shape(self, n_meshes: int, n_tokens: int) -> DecoderShape:
-        """The decoder's sizes for a collection."""
-        return DecoderShape(
-            n_meshes, n_tokens, self.latent_dim, self.width, self.layers, self.heads,
-            self.feedforward, self.adjacency_dim, self.permutation_dim, self.reduction,
-            self.position_skip,
-        )
-
-
-#: Settings a resumed run takes from its checkpoint (the rest may change).
-FIXED_SETTINGS = (
-    "latent_dim", "width", "layers", "heads", "feedforward", "adjacency_dim",
-    "permutation_dim", "reduction", "position_skip", "distance", "sinkhorn_iters",
-)
 
 
 @dataclass
@@ -123,36 +79,6 @@ class StepRecord:
     perm_loss: float
     edge_f1: float
     next_accuracy: float
-
-
-@dataclass
-class MeshScore:
-    """How well one mesh decodes (the keys of ``spacemesh fit --json`` plus L2)."""
-
-    file: str
-    exact: bool
-    n_vertices: int
-    n_faces: int
-    edge_f1: float
-    next_accuracy: float
-    vertex_l2: float
-    n_decoded_vertices: int
-    decoded: PolygonMesh | None = None  # in the [-1, 1] frame
-
-    def summary(self, iterations: int, seconds: float) -> dict:
-        """This mesh's entry of the ``meshes`` list."""
-        return {
-            "file": self.file,
-            "exact": self.exact,
-            "iterations": iterations,
-            "seconds": round(seconds, 3),
-            "n_vertices": self.n_vertices,
-            "n_faces": self.n_faces,
-            "edge_f1": round(self.edge_f1, 6),
-            "next_accuracy": round(self.next_accuracy, 6),
-            "vertex_l2": float(f"{self.vertex_l2:.4g}"),
-            "n_decoded_vertices": self.n_decoded_vertices,
-        }
 
 
 @dataclass
@@ -188,37 +114,6 @@ class CollectionResult:
             "n_exact": sum(m.exact for m in s),
             "meshes": [m.summary(self.iterations, self.seconds) for m in s],
         }
-
-
-def decode_options(
-    config: CollectionConfig, reduction_params: dict | None, n_raw: int, n_vertices: int
-) -> DecodeOptions:
-    """How a collection's tokens are decoded: as single-mesh fitting does, except that
-    the decode uses no geometry: crossing quad diagonals are not dropped by position
-    (``uncross``) and a vertex whose assignment is not one orbit gets the paper's greedy
-    orbit instead of its neighbours by angle, because the decoded positions are only
-    near the true ones (and a wrong angular order cascades through the unpinching).
-    A sparse graph (at most ``4 V`` raw pairs) is decoded as it is, a dense one with the
-    decode's degree bound."""
-    return DecodeOptions(
-        distance=config.distance,
-        n_space=config.adjacency_dim // 2,
-        reduction=config.reduction,
-        reduction_params=reduction_params,
-        sinkhorn_iters=config.sinkhorn_iters,
-        max_degree=None if n_raw <= 4 * n_vertices else MAX_DEGREE,
-        fallback="greedy",
-        uncross=False,
-    )
-
-
-def _embeddings(out: DecodedTokens, b: int, rows: slice | np.ndarray) -> Embeddings:
-    def np64(t: torch.Tensor) -> np.ndarray:
-        return t[b][rows].detach().cpu().double().numpy()
-
-    return Embeddings(
-        np64(out.x), float(out.tau.detach()), np64(out.root), np64(out.prev), np64(out.next)
-    )
 
 
 def _targets(meshes: Sequence[CollectionMesh], n_tokens: int) -> torch.Tensor:
@@ -291,129 +186,6 @@ def load_run(run: str | Path, device: str = "cpu") -> tuple[CollectionDecoder, d
     model = CollectionDecoder(shape, state["config"]["embedding_scale"]).to(device)
     model.load_state_dict(state["model"])
     return model, state
-
-
-def score_mesh(
-    mesh: CollectionMesh, emb: Embeddings, positions: np.ndarray, mask: np.ndarray,
-    config: CollectionConfig, reduction_params: dict | None,
-) -> MeshScore:
-    """Score one mesh's first ``V`` tokens against it, on all pairs.
-
-    Parameters
-    ----------
-    mesh : CollectionMesh
-    emb : Embeddings
-        Of its ``V`` vertices.
-    positions : (V, 3) float
-        Decoded positions.
-    mask : (N,) float
-        The mask channel of all tokens.
-    config : CollectionConfig
-    reduction_params : dict, optional
-
-    Returns
-    -------
-    MeshScore
-        ``exact``: the decode's faces equal the mesh's, exactly ``E`` pairs are below the
-        threshold, and the mask keeps exactly the ``V`` vertices.
-    """
-    n, truth = mesh.mesh.n_vertices, mesh.connectivity
-    n_space = config.adjacency_dim // 2
-    n_raw = count_pairs_below_threshold(emb.adjacency, emb.tau, config.distance, n_space)
-    a, b = distance_operands(emb.adjacency, config.distance, n_space)
-    e = truth.edges
-    tp = int(((a[e[:, 0]] * b[e[:, 1]]).sum(-1) < emb.tau).sum())
-    edge_f1 = 2 * tp / max(n_raw + len(e), 1)
-    result = decode(positions, emb, decode_options(config, reduction_params, n_raw, n))
-    mask_right = bool(np.all(mask[:n] > 0) and np.all(mask[n:] <= 0))
-    exact = (
-        n_raw == len(e) == tp
-        and mask_right
-        and result.mesh.n_vertices == n
-        and result.mesh.face_key_set() == mesh.mesh.face_key_set()
-    )
-    return MeshScore(
-        mesh.name, bool(exact), n, mesh.mesh.n_faces, float(edge_f1),
-        next_accuracy(result.connectivity, truth),
-        float(np.mean((positions - mesh.mesh.vertices) ** 2)),
-        int((mask > 0).sum()), result.mesh,
-    )
-
-
-def evaluate(
-    model: CollectionDecoder,
-    meshes: Sequence[CollectionMesh],
-    config: CollectionConfig,
-    chunk: int = 8,
-) -> list[MeshScore]:
-    """Score every mesh (:func:`score_mesh`), decoding ``chunk`` meshes at a time."""
-    reduction_params = model.reduction.numpy_params()
-    device = next(model.parameters()).device
-    scores = []
-    model.eval()
-    with torch.no_grad():
-        for start in range(0, len(meshes), chunk):
-            index = torch.arange(start, min(start + chunk, len(meshes)), device=device)
-            out = model(index)
-            for b, i in enumerate(index.tolist()):
-                n = meshes[i].mesh.n_vertices
-                positions = out.positions[b, :n].double().cpu().numpy()  # (V, 3)
-                scores.append(score_mesh(
-                    meshes[i], _embeddings(out, b, slice(0, n)), positions,
-                    out.mask[b].cpu().numpy(), config, reduction_params,
-                ))
-    model.train()
-    return scores
-
-
-def decode_meshes(model: CollectionDecoder, state: dict) -> list[tuple[str, PolygonMesh]]:
-    """Decode every mesh of a run as a user gets it: the tokens whose mask channel is
-    positive, the numpy decode, positions back in the original frame.
-
-    Returns
-    -------
-    list of (file name, PolygonMesh)
-    """
-    config = CollectionConfig(**{k: state["config"][k] for k in FIXED_SETTINGS})
-    reduction_params = model.reduction.numpy_params()
-    device = next(model.parameters()).device
-    decoded = []
-    model.eval()
-    with torch.no_grad():
-        for i, card in enumerate(state["meshes"]):
-            out = model(torch.tensor([i], device=device))
-            alive = np.flatnonzero(out.mask[0].cpu().numpy() > 0)
-            emb = _embeddings(out, 0, alive)
-            positions = out.positions[0].double().cpu().numpy()[alive]  # (V', 3)
-            n_raw = count_pairs_below_threshold(
-                emb.adjacency, emb.tau, config.distance, config.adjacency_dim // 2
-            )
-            options = decode_options(config, reduction_params, n_raw, len(alive))
-            mesh = decode(positions, emb, options).mesh
-            centre, scale = np.asarray(card["centre"]), float(card["scale"])
-            decoded.append((card["name"], mesh.with_vertices(mesh.vertices * scale + centre)))
-    return decoded
-
-
-def write_gallery(
-    meshes: Sequence[CollectionMesh], scores: Sequence[MeshScore], path: str | Path,
-    max_rows: int = 12,
-) -> Path:
-    """A PNG of the first ``max_rows`` meshes: original and decoded, side by side."""
-    from spacemesh.evaluate.gallery import GalleryRow, render_gallery
-
-    rows = [
-        GalleryRow(
-            f"{m.name} ({'exact' if s.exact else f'F1 {s.edge_f1:.3f}'})",
-            m.mesh.vertices,
-            {"gt": m.mesh, "ours": s.decoded},
-        )
-        for m, s in list(zip(meshes, scores, strict=True))[:max_rows]
-    ]
-    return render_gallery(
-        rows, path, columns=("gt", "ours"),
-        labels={"gt": "original", "ours": "decoded"}, cell_inches=2.2,
-    )
 
 
 def fit_collection(
