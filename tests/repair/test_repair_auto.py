@@ -373,7 +373,8 @@ def test_unzip_splits_a_fin_off_and_keeps_every_corner_in_place():
     assert {f.kind for f in find_issues(out, "all")} == {"hole"}
 
 
-def test_a_fin_on_a_large_hole_is_split_off_then_the_holes_are_filled_in_place():
+@pytest.mark.parametrize("mode", ["all", "holes"])
+def test_a_fin_on_a_large_hole_is_split_off_then_the_holes_are_filled_in_place(mode):
     mesh = hemisphere(4)
     sub = FaceSubset.of(mesh, np.arange(mesh.n_faces))
     rim = np.zeros(mesh.n_vertices, dtype=bool)
@@ -383,10 +384,10 @@ def test_a_fin_on_a_large_hole_is_split_off_then_the_holes_are_filled_in_place()
     mesh = PolygonMesh.from_faces(np.vstack([mesh.vertices, tip]),
                                   [*mesh.faces, np.array([a, b, mesh.n_vertices])])
     # as one region the fin and the loop beside it are more than the model holds
-    plan = plan_repair(mesh, {"auto": "all"}, SPEC.max_vertices)
+    plan = plan_repair(mesh, {"auto": mode}, SPEC.max_vertices)
     assert isinstance(plan, AutoPlan) and plan.split
     assert all(r.strategy == "in-place" for r in plan.regions)
-    result = run(mesh, {"auto": "all"}, plan=plan)
+    result = run(mesh, {"auto": mode}, plan=plan)
     assert_closed_manifold(result.mesh)
     assert not result.region.any()  # every face kept, the fin's vertices split
     out = result.mesh

@@ -30,8 +30,8 @@ into the surface around it (:func:`spacemesh.geometry.fairing.fair_patch`: a thi
 solve with the ring fixed), so its new vertices continue that surface. A region
 with other defects, or loops that cannot be split into simple ones, is re-generated with
 its ring by one model pass; when it cannot be planned it is refused, naming what it
-holds. With ``all``, when defects and the holes around them make a region that cannot
-be planned, the non-manifold edges and pinched vertices are first split
+holds. With ``all`` or ``holes``, when defects and the holes around them make a region
+that cannot be planned, the non-manifold edges and pinched vertices are first split
 (:func:`unzip_defects`: one vertex per fan, every face kept; a fin still joined at both
 ends is removed, :func:`unpaired_faces`) and the holes this leaves are filled in place.
 """
@@ -730,8 +730,11 @@ def plan_auto(mesh: PolygonMesh, mode: str, n_tokens: int, *, weld: bool = False
     except RegionError as error:
         # defects and holes too close for one region: split the non-manifold edges and
         # pinched vertices first (every face kept), then plan what that leaves
-        split = [f for f in findings if f.kind in SPLIT_KINDS] if mode == "all" else []
-        if not split:  # (only where the holes it opens are filled too)
+        # (not with "defects" alone: the holes a split opens are filled only with holes)
+        split = [] if mode == "defects" else [
+            f for f in (findings if mode == "all" else find_issues(work, "all"))
+            if f.kind in SPLIT_KINDS]
+        if not split:
             raise
         marked = np.zeros(work.n_vertices, dtype=bool)
         for f in split:
