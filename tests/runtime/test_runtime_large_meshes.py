@@ -12,8 +12,7 @@ from spacemesh.runtime.large import MAX_NETWORK_TOKENS, network_vertices
 
 pytest.importorskip("onnxruntime")
 
-from spacemesh.runtime import MeshGenerator, ModelRepository, ModelSpec
-from spacemesh.runtime.repository import default_model_dir
+from spacemesh.runtime import MeshGenerator, ModelSpec
 from spacemesh.topology import check_topology
 
 
@@ -26,13 +25,6 @@ def test_network_vertices_by_mode():
     assert network_vertices(9000, 256, "split", raw=True) == 9000
     with pytest.raises(ValueError, match="large_meshes"):
         network_vertices(1024, 256, "patches?", raw=False)
-
-
-@pytest.fixture(scope="module")
-def shipped():
-    if not default_model_dir().exists():
-        pytest.skip("no shipped model in this checkout")
-    return ModelRepository.load(intra_op_threads=1)
 
 
 def test_the_manifest_chooses_the_mode(shipped):

@@ -7,20 +7,13 @@ import pytest
 
 pytest.importorskip("onnxruntime")
 
-from spacemesh.runtime import MeshGenerator, ModelRepository, ModelSpec
+from spacemesh.runtime import MeshGenerator, ModelSpec
 from spacemesh.runtime.repository import (
     DEFAULT_MODEL_NAME,
     MODEL_ENV,
     default_model_dir,
 )
 from spacemesh.topology import check_topology
-
-
-@pytest.fixture(scope="module")
-def shipped():
-    if not default_model_dir().exists():
-        pytest.skip("no shipped model in this checkout")
-    return ModelRepository.load(intra_op_threads=1)
 
 
 def test_default_is_the_shipped_model_and_verifies(shipped):

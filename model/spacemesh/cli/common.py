@@ -94,3 +94,20 @@ def use_threads(threads: int) -> int:
         The thread count in force, to pass on (onnxruntime's ``intra_op_threads``).
     """
     return limit_threads(threads)
+
+
+def fit_progress(bar) -> Callable[[object], None]:
+    """A fit's per-step callback that advances the tqdm ``bar`` and shows the step's
+    ``loss``, ``edge_f1`` and ``next_accuracy`` (``spacemesh fit`` and
+    ``fit-collection``)."""
+
+    def progress(record) -> None:
+        bar.update(1)
+        bar.set_postfix(
+            loss=f"{record.loss:.4f}",
+            edge_f1=f"{record.edge_f1:.4f}",
+            next_acc=f"{record.next_accuracy:.4f}",
+            refresh=False,
+        )
+
+    return progress

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from spacemesh.cli.common import Threads, app, fail, use_threads
+from spacemesh.cli.common import Threads, app, fail, fit_progress, use_threads
 from spacemesh.errors import SpaceMeshError
 
 
@@ -122,15 +122,7 @@ def fit_collection_command(
         device=device,
     )
     bar = tqdm(desc="fit-collection", unit="step", disable=as_json, leave=False)
-
-    def progress(record) -> None:
-        bar.update(1)
-        bar.set_postfix(
-            loss=f"{record.loss:.4f}",
-            edge_f1=f"{record.edge_f1:.4f}",
-            next_acc=f"{record.next_accuracy:.4f}",
-            refresh=False,
-        )
+    progress = fit_progress(bar)
 
     try:
         result = fit_collection(meshes, out, config, resume=resume, callback=progress)

@@ -1,4 +1,5 @@
-"""Torch weights back from an exported connectivity graph, to fine-tune a shipped model.
+"""Torch weights back from exported connectivity and denoiser graphs, to fine-tune a
+shipped model.
 
 A model repository holds ONNX graphs, not checkpoints, and training runs are never
 committed, so a shipped model would otherwise be a dead end for training. The dynamo
@@ -7,10 +8,10 @@ rest into constants that its node metadata still names: every ``nn.Linear`` beco
 ``MatMul`` with the transposed weight and an ``Add`` of the bias (the fx node of the
 ``MatMul`` names both parameters), the distance prior's ``log_slope`` is folded into
 ``exp(log_slope)`` shaped ``(1, H, 1, 1)`` (the one ``Mul`` constant of that shape), and
-``tau`` is an initializer of its own. :func:`connectivity_weights` reads them all back and
-:func:`load_connectivity` checks the result against the graph itself (the same outputs
-in onnxruntime and in torch), so a graph this reader does not understand is refused,
-not half-loaded.
+``tau`` is an initializer of its own. :func:`graph_weights` reads them all back and
+:func:`load_connectivity` and :func:`load_denoiser` check the result against the graph
+itself (the same outputs in onnxruntime and in torch), so a graph this reader does not
+understand is refused, not half-loaded.
 """
 
 from __future__ import annotations
@@ -35,12 +36,6 @@ def _initializers(graph) -> dict[str, np.ndarray]:
     from onnx import numpy_helper
 
     return {i.name: numpy_helper.to_array(i) for i in graph.initializer}
-
-
-def connectivity_weights(path: str | Path, net: ConnectivityNet) -> dict[str, torch.Tensor]:
-    """The state dict of ``net`` (an instance of the exported architecture) read from a
-    ``connectivity.onnx`` (:func:`graph_weights` with the connectivity prefix)."""
-    return graph_weights(path, net, PREFIX)
 
 
 def graph_weights(path: str | Path, net: torch.nn.Module, prefix: str
@@ -141,22 +136,36 @@ def load_connectivity(path: str | Path, net: ConnectivityNet, volumes: list[torc
     ValueError
         A weight is missing, or the loaded network does not reproduce the graph.
     """
-    import onnxruntime as ort
+    from spacemesh.runtime.backend import CONNECTIVITY_OUTPUTS
 
-    from spacemesh.runtime.backend import CONNECTIVITY_OUTPUTS, volume_names
-
-    net.load_state_dict(connectivity_weights(path, net))
-    was_training = net.training
-    net.eval()
     generator = torch.Generator().manual_seed(0)
     vertices = torch.rand(1, 40, 3, generator=generator) * 2 - 1
     valid = torch.ones(1, 40, dtype=torch.bool)
     valid[0, 35:] = False
-    ours = net(vertices, valid, volumes)
+    return _read_back(path, net, PREFIX, {"vertices": vertices, "valid": valid}, volumes,
+                      list(CONNECTIVITY_OUTPUTS))
+
+
+def _read_back(path: str | Path, net: torch.nn.Module, prefix: str,
+               inputs: dict[str, torch.Tensor], volumes: list[torch.Tensor],
+               outputs: list[str] | None = None) -> float:
+    """Load ``net``'s weights from the graph at ``path`` (:func:`graph_weights`) and
+    check that ``net(*inputs, volumes)`` reproduces the graph's ``outputs`` (all of them
+    when None, in ``net``'s order) in onnxruntime (:func:`_check_parity`)."""
+    import onnxruntime as ort
+
+    from spacemesh.runtime.backend import volume_names
+
+    net.load_state_dict(graph_weights(path, net, prefix))
+    was_training = net.training
+    net.eval()
+    ours = net(*inputs.values(), volumes)
+    if isinstance(ours, torch.Tensor):
+        ours = [ours]
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
-    feeds = {"vertices": vertices.numpy(), "valid": valid.numpy()}
+    feeds = {name: value.numpy() for name, value in inputs.items()}
     feeds.update(zip(volume_names(len(volumes)), (v.numpy() for v in volumes), strict=True))
-    theirs = session.run(list(CONNECTIVITY_OUTPUTS), feeds)
+    theirs = session.run(outputs, feeds)
     net.train(was_training)
     return _check_parity(path, ours, theirs)
 
@@ -201,26 +210,16 @@ def load_denoiser(path: str | Path, net: torch.nn.Module, volumes: list[torch.Te
     ValueError
         A weight is missing, or the loaded network does not reproduce the graph.
     """
-    import onnxruntime as ort
-
-    from spacemesh.runtime.backend import DENOISER_INPUTS, volume_names
+    from spacemesh.runtime.backend import DENOISER_INPUTS
 
     if getattr(net, "local_points", 0):
         raise ValueError("load_denoiser reads a volumes-only denoiser; graft the result "
                          "into a local-point one (spacemesh.nn.denoiser.graft_denoiser)")
-    net.load_state_dict(graph_weights(path, net, "denoiser."))
-    was_training = net.training
-    net.eval()
     generator = torch.Generator().manual_seed(0)
     x_t = torch.randn(1, 40, 4, generator=generator)  # (1, N, 4)
     t = torch.tensor([17], dtype=torch.int64)
-    ours = [net(x_t, t, volumes)]
-    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
-    feeds = dict(zip(DENOISER_INPUTS, (x_t.numpy(), t.numpy()), strict=True))
-    feeds.update(zip(volume_names(len(volumes)), (v.numpy() for v in volumes), strict=True))
-    theirs = session.run(None, feeds)
-    net.train(was_training)
-    return _check_parity(path, ours, theirs)
+    inputs = dict(zip(DENOISER_INPUTS, (x_t, t), strict=True))
+    return _read_back(path, net, "denoiser.", inputs, volumes)
 
 
 def is_model_version(path: str | Path) -> bool:

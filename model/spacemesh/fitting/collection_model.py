@@ -20,7 +20,9 @@ from spacemesh.nn.losses import PermutationReduction
 
 @dataclass(frozen=True)
 class DecoderShape:
-    """Sizes of :class:`CollectionDecoder`.
+    """Sizes of :class:`CollectionDecoder` (made by
+    :meth:`spacemesh.fitting.collection_config.CollectionConfig.shape`, whose fields hold
+    the defaults).
 
     Attributes
     ----------
@@ -42,15 +44,15 @@ class DecoderShape:
 
     n_meshes: int
     n_tokens: int
-    latent_dim: int = 512
-    width: int = 128
-    layers: int = 4
-    heads: int = 4
-    feedforward: int = 256
-    adjacency_dim: int = 16
-    permutation_dim: int = 6
-    reduction: str = "product"
-    position_skip: bool = False
+    latent_dim: int
+    width: int
+    layers: int
+    heads: int
+    feedforward: int
+    adjacency_dim: int
+    permutation_dim: int
+    reduction: str
+    position_skip: bool
 
 
 @dataclass
