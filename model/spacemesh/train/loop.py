@@ -233,9 +233,11 @@ def _base_volumes(model: SpaceMeshModel) -> list[torch.Tensor]:
         return [v.cpu() for v in model.encoder(points)]
 
 
-def _base_denoiser(model: SpaceMeshModel, base: BaseModel) -> None:
+def _base_denoiser(model: SpaceMeshModel, base: BaseModel, volumes: list[torch.Tensor]
+                   ) -> None:
     """Start a diffusion-only run's denoiser from the base's (``warm_start``): its graph is
-    read back into a volumes-only twin, checked against onnxruntime, and grafted."""
+    read back into a volumes-only twin, checked against onnxruntime on ``volumes``
+    (:func:`_base_volumes`), and grafted."""
     from dataclasses import replace
 
     from spacemesh.export.onnx_import import load_denoiser
@@ -244,20 +246,21 @@ def _base_denoiser(model: SpaceMeshModel, base: BaseModel) -> None:
 
     twin_config = replace(model.config, denoiser=replace(model.config.denoiser, local_points=0))
     twin = model_from_config(twin_config).denoiser
-    load_denoiser(base.graph_path("denoiser"), twin, _base_volumes(model))
+    load_denoiser(base.graph_path("denoiser"), twin, volumes)
     device = next(model.denoiser.parameters()).device
     graft_denoiser(twin, model.denoiser.cpu())
     model.denoiser.to(device)
 
 
-def _base_connectivity(model: SpaceMeshModel, base: BaseModel) -> None:
+def _base_connectivity(model: SpaceMeshModel, base: BaseModel, volumes: list[torch.Tensor]
+                       ) -> None:
     """Read the base's connectivity weights into a diffusion-only run's (frozen) network,
-    so that the run's torch model is the whole model its export will be."""
+    so that the run's torch model is the whole model its export will be (checked on
+    ``volumes``, :func:`_base_volumes`)."""
     from spacemesh.export.onnx_import import load_connectivity
 
     device = next(model.connectivity.parameters()).device
-    load_connectivity(base.graph_path("connectivity"), model.connectivity.cpu(),
-                      _base_volumes(model))
+    load_connectivity(base.graph_path("connectivity"), model.connectivity.cpu(), volumes)
     model.connectivity.to(device)
 
 
@@ -439,9 +442,10 @@ class Trainer:
             self.model.encoder.requires_grad_(False)
             self.model.connectivity.requires_grad_(False)
             if self.base is not None and state is None:
-                _base_connectivity(self.model, self.base)
+                volumes = _base_volumes(self.model)
+                _base_connectivity(self.model, self.base, volumes)
                 if config.train.warm_start:
-                    _base_denoiser(self.model, self.base)
+                    _base_denoiser(self.model, self.base, volumes)
                     log(f"denoiser warm-started from {self.base.graph_path('denoiser')}")
         elif self.base is not None:
             self.model.denoiser.requires_grad_(False)
