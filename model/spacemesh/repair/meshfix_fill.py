@@ -27,13 +27,12 @@ RINGS = 5
 
 def faces_around(mesh: PolygonMesh, vertices: BoolArray, rings: int = RINGS) -> BoolArray:
     """(F,) the faces within ``rings`` rings of faces of the ``vertices`` ((V,) bool)."""
+    from spacemesh.geometry.fairing import _faces_touching, _vertices_of
+
     marked = vertices.copy()
-    faces = np.zeros(mesh.n_faces, dtype=bool)
-    for _ in range(rings):
-        faces = np.bincount(mesh.face_of_corner, marked[mesh.face_indices],
-                            minlength=mesh.n_faces) > 0
-        marked[mesh.face_indices[faces[mesh.face_of_corner]]] = True
-    return faces
+    for _ in range(rings - 1):
+        marked |= _vertices_of(mesh, _faces_touching(mesh, marked))
+    return _faces_touching(mesh, marked)
 
 
 def _run_meshfix(mesh: PolygonMesh, faces: BoolArray
