@@ -726,6 +726,8 @@ def _continuation(mesh: PolygonMesh, free: BoolArray, patch: BoolArray,
     surface = _faces_touching(mesh, around) & ~patch
 
     def score(guess: FloatArray) -> float:
+        if not surface.any() or not ring.any():
+            return math.inf  # nothing around the patch to continue
         return float(_surface_distance(mesh, surface, guess[ring]).mean())
 
     best, best_error, kind = start, math.inf, "none"

@@ -856,7 +856,29 @@ def _fair_region(state: _Passes, index: int) -> bool:
     faired, source, _ = fair_patch(mesh, patch, state.origin == index,
                                    patch_edge_length(mesh, patch), report=report)
     state.apply(np.arange(mesh.n_vertices), source, faired, index)
-    return report.get("fairing") in MESHFIX_FAIRINGS and _meshfix_instead(state, index)
+    if report.get("fairing") in MESHFIX_FAIRINGS:
+        return _meshfix_instead(state, index)
+    return PROBE_FILLS and _probes_prefer_meshfix(state, index) and _meshfix_instead(state, index)
+
+
+#: Whether MeshFix's fill also replaces the fairing's patch where probe holes punched
+#: around the hole say it is closer (:func:`spacemesh.repair.probe.prefer_meshfix`).
+PROBE_FILLS = True
+
+
+def _probes_prefer_meshfix(state: _Passes, index: int) -> bool:
+    """Whether, over probe holes punched in the input faces around the region ``index``'s
+    loops, MeshFix's fill is clearly closer than the fairing's
+    (:func:`spacemesh.repair.probe.prefer_meshfix`)."""
+    from spacemesh.geometry.fairing import _faces_subset, patch_loops
+    from spacemesh.repair.probe import prefer_meshfix
+
+    patch = state.made_by == index
+    loops = patch_loops(state.mesh, patch)
+    if not loops:
+        return False
+    known = (state.made_by < 0)[~patch]  # input faces of the mesh with the hole open
+    return prefer_meshfix(_faces_subset(state.mesh, ~patch), loops, known)
 
 
 def _meshfix_instead(state: _Passes, index: int) -> bool:

@@ -1,0 +1,259 @@
+"""Choosing a hole's fill by filling probe holes punched nearby, where the surface is
+known: a local cross-validation of the fills an automatic region of holes can take.
+
+Whether the fairing's patch (:func:`spacemesh.geometry.fairing.fair_patch`) or MeshFix's
+fill (:func:`spacemesh.repair.meshfix_fill.meshfix_fill`) continues a surface better
+depends on the surface: a thin plate continues smooth, curved surfaces, while over
+creases, rims and coarse low-poly surfaces MeshFix's refined least-area fill often lies
+closer. Neither the hole's own surface nor the intact mesh is known, but the surface
+around the hole is. So, as the evaluation punches holes in intact meshes, a few **probe
+holes** of the same size are punched in the input faces around the hole
+(:func:`probe_regions`), each is filled by both methods on its own, and each fill is
+scored against the faces it replaced (:func:`fill_error`). MeshFix's fill is taken for
+the real hole only when it is clearly closer on the probes
+(:data:`MESHFIX_MARGIN`, :func:`prefer_meshfix`).
+
+numpy and scipy (plus the optional ``pymeshfix`` that MeshFix's fill needs); nothing
+here changes the mesh it is given.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from spacemesh.mesh import PolygonMesh
+from spacemesh.typed import BoolArray, FloatArray, IntArray
+
+#: Probe holes punched around a hole.
+PROBES = 4
+#: MeshFix's fill is taken when its summed probe error is below this share of the
+#: fairing's.
+MESHFIX_MARGIN = 0.8
+#: Rings of faces around a probe handed to the fills (enough for the fairing's ring and
+#: MeshFix's five rings).
+PROBE_RINGS = 6
+#: Points per triangle side of the barycentric grids the errors are measured on.
+GRID_STEPS = 4
+#: Nearest triangles (by centroid) searched for each point's closest point.
+NEAREST_TRIANGLES = 8
+
+
+def _grid(corners: FloatArray, steps: int = GRID_STEPS) -> tuple[FloatArray, FloatArray]:
+    """Points on a barycentric grid of each triangle ``corners`` (T, 3, 3), and each
+    point's weight (its triangle's area over the grid's size): (T * G, 3), (T * G,)."""
+    i, j = np.meshgrid(np.arange(steps + 1), np.arange(steps + 1), indexing="ij")
+    keep = i + j <= steps
+    a, b = i[keep] / steps, j[keep] / steps
+    bary = np.stack([1 - a - b, a, b], axis=1)  # (G, 3)
+    points = np.einsum("gk,tkd->tgd", bary, corners).reshape(-1, 3)
+    area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
+                                         corners[:, 2] - corners[:, 0]), axis=1)  # (T,)
+    return points, np.repeat(area / len(bary), len(bary))
+
+
+def surface_distance(points: FloatArray, corners: FloatArray) -> FloatArray:
+    """Distance of each point (N, 3) to the triangles ``corners`` (T, 3, 3): the closest
+    point among the :data:`NEAREST_TRIANGLES` triangles whose centroids are nearest, (N,)."""
+    from spacemesh.geometry.surface_fit import closest_points_on_triangles
+
+    k = min(NEAREST_TRIANGLES, len(corners))
+    _, nearest = cKDTree(corners.mean(axis=1)).query(points, k=k)
+    nearest = np.asarray(nearest).reshape(len(points), k)  # (N, k)
+    repeated = np.repeat(points, k, axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):  # slivers: their sides decide
+        closest = closest_points_on_triangles(repeated, corners[nearest.reshape(-1)])
+    distance = np.linalg.norm(closest - repeated, axis=1).reshape(-1, k)
+    return np.where(np.isfinite(distance), distance, np.inf).min(axis=1)
+
+
+def fill_error(truth: FloatArray, fill: FloatArray) -> float:
+    """Two-sided mean squared distance between the triangles ``truth`` (T, 3, 3) that a
+    probe removed and a fill's triangles ``fill`` (S, 3, 3), each side weighted by area."""
+    if len(truth) == 0 or len(fill) == 0:
+        return float("inf")
+    total = 0.0
+    for source, target in ((truth, fill), (fill, truth)):
+        points, weight = _grid(source)
+        d = surface_distance(points, target)
+        total += float(np.sum(weight * d**2) / max(np.sum(weight), 1e-300))
+    return total
+
+
+#: A probe may hold edges this much sharper (degrees) than the sharpest edge around the
+#: hole: a probe across a rim or crease the hole does not have would judge the fills on
+#: a surface unlike the hole's.
+SHARPNESS_TOLERANCE = 15.0
+#: Rings of faces beyond the faces touching the hole whose edges give its sharpness.
+SHARPNESS_RINGS = 0
+
+
+def sharpest_edge(mesh: PolygonMesh, faces: BoolArray) -> float:
+    """The largest dihedral angle (degrees, 0 for coplanar faces) over the edges joining
+    two of the ``faces`` ((F,) bool), with polygon normals by Newell's formula; 0 without
+    such an edge."""
+    he = mesh.halfedges  # (H, 2)
+    p = mesh.vertices
+    normal = np.zeros((mesh.n_faces, 3))
+    np.add.at(normal, mesh.face_of_corner, np.cross(p[he[:, 0]], p[he[:, 1]]))
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    inside = faces[mesh.face_of_corner]
+    n = max(mesh.n_vertices, 1)
+    key = he[:, 0] * n + he[:, 1]
+    order = np.argsort(key)
+    twin_key = he[:, 1] * n + he[:, 0]
+    at = np.searchsorted(key[order], twin_key)
+    found = (at < len(key)) & (key[order][np.minimum(at, len(key) - 1)] == twin_key)
+    twin = np.where(found, order[np.minimum(at, len(key) - 1)], -1)
+    both = inside & (twin >= 0) & inside[np.maximum(twin, 0)]
+    if not both.any():
+        return 0.0
+    a = normal[mesh.face_of_corner[both]]
+    b = normal[mesh.face_of_corner[twin[both]]]
+    cosine = np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0)
+    return float(np.degrees(np.arccos(cosine)).max())
+
+
+def probe_regions(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
+                  count: int = PROBES) -> list[BoolArray]:
+    """Up to ``count`` probe holes around the hole with the border ``loops``.
+
+    A probe is the faces with a vertex inside a sphere about a vertex near the hole
+    (``count`` centres spread by farthest-point sampling among the nearest candidates),
+    with the hole's radius (the mean distance of its loop vertices to their centroid,
+    times 0.8, as a punched sphere's faces end one ring inside their loop), centred
+    beyond the hole's farthest loop vertex by that radius and two edges. Every face
+    touching a probe's vertices must be ``known`` ((F,) bool: input faces, not a fill),
+    the probe must not touch the hole's loops, and the two rings of faces around it must
+    hold at least as many faces as the probe (a small part would leave the fairing no
+    surface to continue), and no edge of the probe and its ring may be sharper than the
+    sharpest edge between faces touching the hole (and :data:`SHARPNESS_RINGS` rings
+    beyond them) by more than
+    :data:`SHARPNESS_TOLERANCE` (:func:`sharpest_edge`).
+
+    Returns
+    -------
+    list of (F,) bool
+        The faces of each probe.
+    """
+    from spacemesh.geometry.fairing import _faces_touching, _vertices_of, patch_loops
+
+    p = mesh.vertices
+    ring = np.concatenate(loops)
+    centre = p[ring].mean(axis=0)
+    spans = np.linalg.norm(p[ring] - centre, axis=1)
+    radius = 0.8 * float(spans.mean())
+    if radius <= 0:
+        return []
+    edge = float(np.mean([np.linalg.norm(p[loop] - p[np.roll(loop, -1)], axis=1).mean()
+                          for loop in loops]))
+    nearest = float(spans.max()) + radius + 2.0 * edge  # a probe's ring clear of the hole's
+    near_hole = np.zeros(mesh.n_vertices, dtype=bool)
+    near_hole[ring] = True
+    for _ in range(SHARPNESS_RINGS):
+        near_hole |= _vertices_of(mesh, _faces_touching(mesh, near_hole))
+    sharpest = sharpest_edge(mesh, _faces_touching(mesh, near_hole)) + SHARPNESS_TOLERANCE
+    clean = _vertices_of(mesh, known) & ~_vertices_of(mesh, ~known)  # only known faces
+    clean[ring] = False
+    distance = np.linalg.norm(p - centre, axis=1)
+    candidates = np.flatnonzero(clean & (distance > nearest))
+    candidates = candidates[np.argsort(distance[candidates])][: 12 * count]
+    regions: list[BoolArray] = []
+    spread = np.full(len(candidates), np.inf)
+    for tried in range(len(candidates)):
+        if len(regions) == count:
+            break
+        pick = int(np.argmax(spread)) if tried else 0
+        v = int(candidates[pick])
+        spread = np.minimum(spread, np.linalg.norm(p[candidates] - p[v], axis=1))
+        spread[pick] = -np.inf
+        inside = (np.linalg.norm(p - p[v], axis=1) < radius) & _vertices_of(mesh, known)
+        inside[v] = True
+        faces = _faces_touching(mesh, inside)
+        touched = _vertices_of(mesh, faces)
+        if (faces & ~known).any() or touched[ring].any():
+            continue
+        around = _faces_touching(mesh, touched)
+        if (around & ~known).any():
+            continue  # the probe's ring must be known too
+        beyond = _faces_touching(mesh, _vertices_of(mesh, around)) & ~faces
+        if beyond.sum() < max(faces.sum(), 3):
+            continue  # a small part, nearly all probe: no surface around it to continue
+        if sharpest_edge(mesh, around) > sharpest:
+            continue  # across a rim or crease the hole does not have
+        probe_loops = patch_loops(mesh, faces)
+        if probe_loops is None or len(probe_loops) != 1:
+            continue  # not a disc
+        regions.append(faces)
+    return regions
+
+
+def _triangles(mesh: PolygonMesh, faces: BoolArray) -> FloatArray:
+    """The corners of the triangulated ``faces`` of ``mesh``, (T, 3, 3)."""
+    from spacemesh.geometry.fairing import _faces_subset
+
+    triangles, _ = _faces_subset(mesh, faces).triangulate()
+    return mesh.vertices[triangles]
+
+
+def _fair_fill(local: PolygonMesh, loops: list[IntArray]) -> FloatArray | None:
+    """The fairing's fill of the probe: a fan per loop, refined and faired
+    (:func:`spacemesh.geometry.fairing.fair_patch`), as triangle corners."""
+    from spacemesh.geometry.fairing import fair_patch, patch_edge_length
+    from spacemesh.repair.auto import fan_fill
+
+    filled, _ = fan_fill(local, loops)
+    patch = np.arange(filled.n_faces) >= local.n_faces
+    free = np.arange(filled.n_vertices) >= local.n_vertices
+    faired, source, _ = fair_patch(filled, patch, free, patch_edge_length(filled, patch))
+    made = (source < 0) | patch[np.maximum(source, 0)]
+    return _triangles(faired, made)
+
+
+def _meshfix_probe(local: PolygonMesh, loops: list[IntArray]) -> FloatArray | None:
+    """MeshFix's fill of the probe, as triangle corners (None where it has none)."""
+    from spacemesh.repair.meshfix_fill import meshfix_fill
+
+    filled = meshfix_fill(local, loops)
+    if filled is None:
+        return None
+    points, triangles = filled
+    return np.concatenate([local.vertices, points])[triangles]
+
+
+def probe_errors(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
+                 count: int = PROBES) -> tuple[float, float, int]:
+    """The fairing's and MeshFix's summed :func:`fill_error` over the probe holes around
+    the hole ``loops`` of ``mesh`` (its faces ``known`` are input faces), and the number
+    of probes both could fill."""
+    from spacemesh.geometry.fairing import _faces_subset, patch_loops
+    from spacemesh.repair.meshfix_fill import faces_around
+
+    fair_total = meshfix_total = 0.0
+    used = 0
+    for faces in probe_regions(mesh, loops, known, count):
+        from spacemesh.geometry.fairing import _vertices_of
+
+        around = faces_around(mesh, _vertices_of(mesh, faces), PROBE_RINGS)
+        probe_loops = patch_loops(mesh, faces)
+        local = _faces_subset(mesh, around & ~faces)
+        truth = _triangles(mesh, faces)
+        ours = _fair_fill(local, probe_loops)
+        theirs = _meshfix_probe(local, probe_loops)
+        if ours is None or theirs is None:
+            continue
+        fair_total += fill_error(truth, ours)
+        meshfix_total += fill_error(truth, theirs)
+        used += 1
+    return fair_total, meshfix_total, used
+
+
+def prefer_meshfix(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
+                   report: dict | None = None) -> bool:
+    """Whether MeshFix's fill of the hole ``loops`` should replace the fairing's: True
+    when, over the probe holes around it (:func:`probe_errors`), MeshFix's error is below
+    :data:`MESHFIX_MARGIN` times the fairing's. ``report`` receives the errors."""
+    fair_total, meshfix_total, used = probe_errors(mesh, loops, known)
+    if report is not None:
+        report.update(probe_fair=fair_total, probe_meshfix=meshfix_total, probes=used)
+    return used > 0 and meshfix_total < MESHFIX_MARGIN * fair_total

@@ -1,0 +1,117 @@
+"""Choosing a hole's fill by probe holes punched nearby (:mod:`spacemesh.repair.probe`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from auto_meshes import punched
+
+from spacemesh.examples import icosphere
+from spacemesh.geometry.fairing import _vertices_of, patch_loops
+from spacemesh.repair.auto import _loops_of
+from spacemesh.repair.cut import defect_vertices
+from spacemesh.repair.probe import (
+    PROBES,
+    fill_error,
+    prefer_meshfix,
+    probe_errors,
+    probe_regions,
+    surface_distance,
+)
+
+
+def _holed_sphere():
+    mesh = punched(icosphere(4), [[0.0, 0.6, 0.8]], radius=0.3)
+    loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
+    return mesh, loops
+
+
+def test_fill_error_is_zero_on_the_same_surface_and_grows_as_the_square_of_an_offset():
+    sphere = icosphere(2)
+    corners = sphere.vertices[sphere.triangulate()[0]]
+    assert fill_error(corners, corners) == pytest.approx(0.0, abs=1e-20)
+    assert fill_error(corners, corners * 1.1) > fill_error(corners, corners * 1.05) > 0
+    square = np.array([[[0, 0, 0], [1, 0, 0], [1, 1, 0]], [[0, 0, 0], [1, 1, 0], [0, 1, 0]]],
+                      dtype=float)
+    for h in (0.01, 0.02):
+        lifted = square + np.array([0.0, 0.0, h])
+        assert fill_error(square, lifted) == pytest.approx(2 * h * h, rel=1e-9)
+    assert fill_error(square, square[:0]) == np.inf
+    # a point over a triangle's side is measured to the side, not to a corner
+    d = surface_distance(np.array([[0.5, -0.1, 0.0]]), square[:1])
+    assert d[0] == pytest.approx(0.1)
+
+
+def test_probe_holes_are_discs_of_known_faces_clear_of_the_hole():
+    mesh, loops = _holed_sphere()
+    known = np.ones(mesh.n_faces, dtype=bool)
+    regions = probe_regions(mesh, loops, known)
+    assert len(regions) == PROBES
+    ring = np.concatenate(loops)
+    for faces in regions:
+        assert faces.any() and not _vertices_of(mesh, faces)[ring].any()
+        assert len(patch_loops(mesh, faces)) == 1
+    assert not any((a & b).all() for i, a in enumerate(regions) for b in regions[i + 1:])
+    # faces that are not the input's (an earlier fill) are never probed
+    unknown = np.zeros(mesh.n_faces, dtype=bool)
+    for faces in regions:
+        unknown |= faces
+    others = probe_regions(mesh, loops, ~unknown)
+    assert all(not (faces & unknown).any() for faces in others)
+    assert probe_regions(mesh, loops, np.zeros(mesh.n_faces, dtype=bool)) == []
+    assert not prefer_meshfix(mesh, loops, np.zeros(mesh.n_faces, dtype=bool))
+
+
+def test_probes_keep_the_fairing_on_a_sphere():
+    pytest.importorskip("pymeshfix")
+    mesh, loops = _holed_sphere()
+    known = np.ones(mesh.n_faces, dtype=bool)
+    fair, meshfix, used = probe_errors(mesh, loops, known)
+    assert used == PROBES
+    assert 0 < fair < meshfix  # the thin plate continues a sphere; MeshFix's fill is flatter
+    report: dict = {}
+    assert not prefer_meshfix(mesh, loops, known, report=report)
+    assert report["probes"] == PROBES and report["probe_fair"] == pytest.approx(fair)
+
+
+@pytest.mark.parametrize("probing", [True, False])
+def test_an_automatic_region_takes_meshfix_fill_where_the_probes_prefer_it(monkeypatch,
+                                                                           probing):
+    pytest.importorskip("pymeshfix")
+    from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
+
+    from spacemesh.repair import plan_repair, repair_mesh, verify_repair
+
+    # any probe error of MeshFix below 1e9 times the fairing's prefers MeshFix's fill
+    monkeypatch.setattr("spacemesh.repair.probe.MESHFIX_MARGIN", 1e9)
+    monkeypatch.setattr("spacemesh.repair.auto.PROBE_FILLS", probing)
+    mesh = punched(icosphere(3), [[0.0, 0.0, 1.0]], radius=0.4)
+    spec = make_spec()
+    plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)
+    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan)
+    assert verify_repair(plan, result) == []
+    assert_closed_manifold(result.mesh)
+    taken = [f["filled_by"] for f in result.stats.findings]
+    assert (taken == ["meshfix"]) is probing
+
+
+def test_no_probe_covers_a_small_part_and_its_fills_do_not_fail():
+    pytest.importorskip("pymeshfix")
+    from spacemesh.mesh import PolygonMesh
+
+    mesh, loops = _holed_sphere()
+    ring = np.concatenate(loops)
+    small = icosphere(1)  # an 80-face part beyond the hole
+    offset = mesh.vertices[ring].mean(axis=0) * 1.9
+    both = PolygonMesh.from_faces(
+        np.concatenate([mesh.vertices, 0.2 * small.vertices + offset]),
+        [*mesh.faces, *(np.asarray(f) + mesh.n_vertices for f in small.faces)])
+    part = np.arange(both.n_faces) >= mesh.n_faces
+    # only the small part is known: a probe there would be nearly all of it
+    assert probe_regions(both, loops, part) == []
+    assert probe_errors(both, loops, part) == (0.0, 0.0, 0)
+    known = np.ones(both.n_faces, dtype=bool)
+    regions = probe_regions(both, loops, known)
+    assert regions and not any((faces & part).any() for faces in regions)
+    fair, meshfix, used = probe_errors(both, loops, known)
+    assert used == len(regions) and np.isfinite(fair) and np.isfinite(meshfix)
