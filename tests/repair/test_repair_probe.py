@@ -115,3 +115,16 @@ def test_no_probe_covers_a_small_part_and_its_fills_do_not_fail():
     assert regions and not any((faces & part).any() for faces in regions)
     fair, meshfix, used = probe_errors(both, loops, known)
     assert used == len(regions) and np.isfinite(fair) and np.isfinite(meshfix)
+
+
+def test_a_region_patch_falls_into_one_part_per_hole():
+    from spacemesh.repair.auto import _patch_parts
+
+    sphere = icosphere(2)
+    top = sphere.vertices[np.asarray(sphere.faces)].mean(axis=1)[:, 2]  # (F,)
+    patch = (top > 0.9) | (top < -0.9)  # two caps, far apart
+    parts = _patch_parts(sphere, patch)
+    assert len(parts) == 2
+    assert not (parts[0] & parts[1]).any() and ((parts[0] | parts[1]) == patch).all()
+    assert _patch_parts(sphere, np.zeros(sphere.n_faces, dtype=bool)) == []
+    assert len(_patch_parts(sphere, top > -2)) == 1  # a closed mesh is one part

@@ -847,7 +847,10 @@ def _fair_region(state: _Passes, index: int) -> bool:
     """Refine and fair the faces the region ``index`` made into the surface around them
     (:func:`spacemesh.geometry.fairing.fair_patch`), or, where the fairing kept is one of
     :data:`MESHFIX_FAIRINGS`, replace them by MeshFix's fill of the same loops
-    (:func:`_meshfix_instead`); True when MeshFix's fill was taken."""
+    (:func:`_meshfix_instead`); with :data:`PROBE_FILLS`, each hole of the region (each
+    part of its patch, :func:`_patch_parts`) whose probe holes prefer MeshFix's fill
+    (:func:`_probes_prefer_meshfix`) takes it too. True when MeshFix's fill was taken
+    for any of them."""
     from spacemesh.geometry.fairing import fair_patch, patch_edge_length
 
     mesh = state.mesh
@@ -858,39 +861,65 @@ def _fair_region(state: _Passes, index: int) -> bool:
     state.apply(np.arange(mesh.n_vertices), source, faired, index)
     if report.get("fairing") in MESHFIX_FAIRINGS:
         return _meshfix_instead(state, index)
-    return PROBE_FILLS and _probes_prefer_meshfix(state, index) and _meshfix_instead(state, index)
+    if not PROBE_FILLS:
+        return False
+    chosen = np.zeros(state.mesh.n_faces, dtype=bool)
+    for part in _patch_parts(state.mesh, state.made_by == index):
+        if _probes_prefer_meshfix(state, part):
+            chosen |= part
+    return bool(chosen.any()) and _meshfix_instead(state, index, chosen)
 
 
-#: Whether MeshFix's fill also replaces the fairing's patch where probe holes punched
-#: around the hole say it is closer (:func:`spacemesh.repair.probe.prefer_meshfix`).
+#: Whether MeshFix's fill also replaces the fairing's patch of a hole where probe holes
+#: punched around it say it is closer (:func:`spacemesh.repair.probe.prefer_meshfix`).
 PROBE_FILLS = True
 
 
-def _probes_prefer_meshfix(state: _Passes, index: int) -> bool:
-    """Whether, over probe holes punched in the input faces around the region ``index``'s
-    loops, MeshFix's fill is clearly closer than the fairing's
-    (:func:`spacemesh.repair.probe.prefer_meshfix`)."""
+def _patch_parts(mesh: PolygonMesh, patch: BoolArray) -> list[BoolArray]:
+    """The parts of a region's patch ((F,) bool) that share no vertex: one per hole, or
+    per group of holes whose loops touch."""
+    faces = np.flatnonzero(patch)
+    if len(faces) == 0:
+        return []
+    corners = patch[mesh.face_of_corner]
+    rows = np.searchsorted(faces, mesh.face_of_corner[corners])
+    graph = coo_matrix((np.ones(len(rows)), (rows, len(faces) + mesh.face_indices[corners])),
+                       shape=(len(faces) + mesh.n_vertices,) * 2)
+    _, label = connected_components(graph, directed=False)
+    parts = []
+    for value in np.unique(label[: len(faces)]):
+        part = np.zeros(mesh.n_faces, dtype=bool)
+        part[faces[label[: len(faces)] == value]] = True
+        parts.append(part)
+    return parts
+
+
+def _probes_prefer_meshfix(state: _Passes, part: BoolArray) -> bool:
+    """Whether, over probe holes punched in the input faces around the hole that the
+    patch faces ``part`` ((F,) bool) fill, MeshFix's fill is clearly closer than the
+    fairing's (:func:`spacemesh.repair.probe.prefer_meshfix`)."""
     from spacemesh.geometry.fairing import _faces_subset, patch_loops
     from spacemesh.repair.probe import prefer_meshfix
 
-    patch = state.made_by == index
-    loops = patch_loops(state.mesh, patch)
+    loops = patch_loops(state.mesh, part)
     if not loops:
         return False
-    known = (state.made_by < 0)[~patch]  # input faces of the mesh with the hole open
-    return prefer_meshfix(_faces_subset(state.mesh, ~patch), loops, known)
+    known = (state.made_by < 0)[~part]  # input faces of the mesh with the hole open
+    return prefer_meshfix(_faces_subset(state.mesh, ~part), loops, known)
 
 
-def _meshfix_instead(state: _Passes, index: int) -> bool:
-    """Replace the faces the region ``index`` made by MeshFix's fill of its loops
+def _meshfix_instead(state: _Passes, index: int, patch: BoolArray | None = None) -> bool:
+    """Replace the faces ``patch`` ((F,) bool; by default every face) the region
+    ``index`` made by MeshFix's fill of their loops
     (:func:`spacemesh.repair.meshfix_fill.meshfix_fill`); every other face is kept.
     True when it did (False without ``pymeshfix``, or when MeshFix's patch does not
     close exactly these loops)."""
-    from spacemesh.geometry.fairing import _faces_subset, patch_loops
+    from spacemesh.geometry.fairing import _faces_subset, _vertices_of, patch_loops
     from spacemesh.repair.meshfix_fill import meshfix_fill
 
     mesh = state.mesh
-    patch = state.made_by == index
+    if patch is None:
+        patch = state.made_by == index
     loops = patch_loops(mesh, patch)
     if not loops or not patch.any():
         return False
@@ -899,7 +928,8 @@ def _meshfix_instead(state: _Passes, index: int) -> bool:
     if filled is None:
         return False
     points, triangles = filled
-    own = state.origin == index  # the vertices the region made go with its faces
+    # the vertices the region made that no kept face uses go with these faces
+    own = (state.origin == index) & ~_vertices_of(mesh, ~patch)
     vertex_map = np.full(mesh.n_vertices, -1, dtype=np.int64)
     vertex_map[~own] = np.arange(int((~own).sum()))
     ids = np.concatenate([vertex_map, int((~own).sum()) + np.arange(len(points))])
