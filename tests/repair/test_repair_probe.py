@@ -128,3 +128,36 @@ def test_a_region_patch_falls_into_one_part_per_hole():
     assert not (parts[0] & parts[1]).any() and ((parts[0] | parts[1]) == patch).all()
     assert _patch_parts(sphere, np.zeros(sphere.n_faces, dtype=bool)) == []
     assert len(_patch_parts(sphere, top > -2)) == 1  # a closed mesh is one part
+
+
+def test_a_patch_the_guard_held_back_is_replaced_by_the_faired_fan(monkeypatch):
+    from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
+
+    import spacemesh.geometry.fairing as fairing
+    from spacemesh.repair import plan_repair, repair_mesh, verify_repair
+
+    monkeypatch.setattr("spacemesh.repair.auto.PROBE_FILLS", False)
+    real = fairing.fair_patch
+    calls = []
+
+    def held_back_once(*args, **kwargs):
+        out = real(*args, **kwargs)
+        calls.append(kwargs.get("report"))
+        if len(calls) == 1 and kwargs.get("report") is not None:
+            kwargs["report"]["weight"] = 0.5  # as if the model's patch folded
+        return out
+
+    monkeypatch.setattr(fairing, "fair_patch", held_back_once)
+    mesh = punched(icosphere(3), [[0.0, 0.0, 1.0]], radius=0.4)
+    spec = make_spec()
+    plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)
+    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan)
+    assert len(calls) == 2  # the model's patch, then the fan
+    assert verify_repair(plan, result) == []
+    assert_closed_manifold(result.mesh)
+    assert [f["filled_by"] for f in result.stats.findings] == ["fallback"]
+    assert result.stats.fallback == "fan"
+    kept = np.zeros(result.mesh.n_vertices, dtype=bool)
+    kept[result.vertex_map[result.vertex_map >= 0]] = True
+    new = result.mesh.vertices[~kept]
+    assert len(new) >= 5 and np.abs(np.linalg.norm(new, axis=1) - 1).max() < 0.04

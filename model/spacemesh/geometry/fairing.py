@@ -794,7 +794,8 @@ def fair_patch(mesh: PolygonMesh, patch: BoolArray, free: BoolArray, target: flo
     report : dict, optional
         Receives ``ring_error``: how far the ring, freed, lands from the surface around
         it under the fairing kept (:func:`_continuation`; the mean distance, mesh units),
-        and ``fairing``, the name of that fairing.
+        ``fairing``, the name of that fairing, and ``weight``, the share of the move kept
+        (1, or 0.5, 0.25 or 0 where the full move would add a self-intersection).
 
     Returns
     -------
@@ -827,5 +828,9 @@ def fair_patch(mesh: PolygonMesh, patch: BoolArray, free: BoolArray, target: flo
     for weight in (1.0, 0.5, 0.25):
         moved = start + weight * (faired - start)
         if crossings(moved) <= before:
+            if report is not None:
+                report["weight"] = weight
             return mesh.with_vertices(moved), source, added
+    if report is not None:
+        report["weight"] = 0.0
     return mesh, source, added

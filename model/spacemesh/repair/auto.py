@@ -836,6 +836,14 @@ def _filled_by(by_model: int, by_fallback: int) -> str:
     return "fallback" if by_model == 0 else "model-and-fallback"
 
 
+def _replaced_by(replaced: str | None, by: str) -> str:
+    """``filled_by`` once :func:`_fair_region` has replaced the patch by ``replaced``
+    (``meshfix``, ``fan`` -- the fallback -- or None: ``by`` stands)."""
+    if replaced == "meshfix":
+        return "meshfix"
+    return "fallback" if replaced == "fan" else by
+
+
 #: The fairings (:func:`spacemesh.geometry.fairing.fair_patch`'s ``fairing``) whose patch
 #: MeshFix's fill of the same loops replaces: the least-area flat fill, used where both
 #: thin plates overshoot the ring (sharp surroundings), imitates MeshFix's, and MeshFix's
@@ -843,14 +851,22 @@ def _filled_by(by_model: int, by_fallback: int) -> str:
 MESHFIX_FAIRINGS = ("flat",)
 
 
-def _fair_region(state: _Passes, index: int) -> bool:
+def _fair_region(state: _Passes, index: int) -> str | None:
     """Refine and fair the faces the region ``index`` made into the surface around them
-    (:func:`spacemesh.geometry.fairing.fair_patch`), or, where the fairing kept is one of
-    :data:`MESHFIX_FAIRINGS`, replace them by MeshFix's fill of the same loops
-    (:func:`_meshfix_instead`); with :data:`PROBE_FILLS`, each hole of the region (each
-    part of its patch, :func:`_patch_parts`) whose probe holes prefer MeshFix's fill
-    (:func:`_probes_prefer_meshfix`) takes it too. True when MeshFix's fill was taken
-    for any of them."""
+    (:func:`spacemesh.geometry.fairing.fair_patch`).
+
+    Where the fairing kept is one of :data:`MESHFIX_FAIRINGS`, they are replaced by
+    MeshFix's fill of the same loops (:func:`_meshfix_instead`). Where the faired patch
+    could be moved only part of the way (it would cross itself or the surface: the
+    model's tessellation folds once curved), it is replaced by a fan over its loops,
+    refined and faired the same way, when that one moves all the way
+    (:func:`_fan_instead`). With :data:`PROBE_FILLS`, each hole of the region (each part
+    of its patch, :func:`_patch_parts`) whose probe holes prefer MeshFix's fill
+    (:func:`_probes_prefer_meshfix`) then takes it.
+
+    Returns ``"meshfix"`` when MeshFix's fill was taken for any hole of the region,
+    ``"fan"`` when the faired fan replaced the patch, None otherwise.
+    """
     from spacemesh.geometry.fairing import fair_patch, patch_edge_length
 
     mesh = state.mesh
@@ -860,14 +876,56 @@ def _fair_region(state: _Passes, index: int) -> bool:
                                    patch_edge_length(mesh, patch), report=report)
     state.apply(np.arange(mesh.n_vertices), source, faired, index)
     if report.get("fairing") in MESHFIX_FAIRINGS:
-        return _meshfix_instead(state, index)
+        return "meshfix" if _meshfix_instead(state, index) else None
+    replaced = "fan" if report.get("weight", 1.0) < 1.0 and _fan_instead(state, index) else None
     if not PROBE_FILLS:
-        return False
+        return replaced
     chosen = np.zeros(state.mesh.n_faces, dtype=bool)
     for part in _patch_parts(state.mesh, state.made_by == index):
         if _probes_prefer_meshfix(state, part):
             chosen |= part
-    return bool(chosen.any()) and _meshfix_instead(state, index, chosen)
+    if chosen.any() and _meshfix_instead(state, index, chosen):
+        return "meshfix"
+    return replaced
+
+
+def _fan_instead(state: _Passes, index: int) -> bool:
+    """Replace the faces the region ``index`` made by a fan over each of their loops
+    (:func:`fan_fill`), refined and faired (:func:`spacemesh.geometry.fairing.fair_patch`);
+    True when it did: only when that patch is faired all the way (no self-intersection
+    held it back) with a smooth fairing (not one of :data:`MESHFIX_FAIRINGS`)."""
+    from spacemesh.geometry.fairing import (
+        _faces_subset,
+        _vertices_of,
+        fair_patch,
+        patch_edge_length,
+        patch_loops,
+    )
+
+    mesh = state.mesh
+    patch = state.made_by == index
+    loops = patch_loops(mesh, patch)
+    if not loops:
+        return False
+    opened = _faces_subset(mesh, ~patch)
+    filled, _ = fan_fill(opened, loops)  # mesh's vertices, then one centroid a loop
+    fan = np.arange(filled.n_faces) >= opened.n_faces
+    free = np.arange(filled.n_vertices) >= mesh.n_vertices
+    report: dict[str, Any] = {}
+    faired, source, _ = fair_patch(filled, fan, free, patch_edge_length(filled, fan),
+                                   report=report)
+    if report.get("weight", 0.0) < 1.0 or report.get("fairing") in MESHFIX_FAIRINGS:
+        return False
+    own = np.zeros(faired.n_vertices, dtype=bool)  # the region's old vertices, now unused
+    own[: mesh.n_vertices] = (state.origin == index) & ~_vertices_of(mesh, ~patch)
+    ids = np.cumsum(~own) - 1
+    out = PolygonMesh(faired.vertices[~own], ids[faired.face_indices], faired.face_offsets)
+    vertex_map = np.where(own[: mesh.n_vertices], -1, ids[: mesh.n_vertices])
+    kept = np.flatnonzero(~patch)
+    face_source = np.where((source >= 0) & (source < len(kept)),
+                           kept[np.minimum(np.maximum(source, 0), len(kept) - 1)], -1)
+    state.apply(vertex_map.astype(np.int64), face_source.astype(np.int64), out, index)
+    return True
 
 
 #: Whether MeshFix's fill also replaces the fairing's patch of a hole where probe holes
@@ -994,9 +1052,8 @@ def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
             state.results.append(result)
             state.apply(result.vertex_map, result.face_source, result.mesh, index)
             by = _filled_by(result.stats.loops - _polygons(result), _polygons(result))
-            if (fair and all(plan.findings[i].kind == "hole" for i in region.findings)
-                    and _fair_region(state, index)):  # holes touching themselves, ring rebuilt
-                by = "meshfix"
+            if fair and all(plan.findings[i].kind == "hole" for i in region.findings):
+                by = _replaced_by(_fair_region(state, index), by)  # ring rebuilt
         else:
             loops = [state.vertex_map[loop] for i in region.findings
                      for loop in (_loops_of(opened, plan.findings[i].vertices) or [])]
@@ -1023,8 +1080,8 @@ def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
                 state.apply(result.vertex_map, result.face_source, result.mesh, index)
                 by_model += _polygons(result) == 0
             by = _filled_by(by_model, n_wedges - first - by_model)
-            if fair and _fair_region(state, index):
-                by = "meshfix"
+            if fair:
+                by = _replaced_by(_fair_region(state, index), by)
         for i in region.findings:
             outcome[i] = by
         region_reports.append({**region.report(index, work.n_faces),

@@ -85,7 +85,7 @@ def fill_error(truth: FloatArray, fill: FloatArray) -> float:
 #: a surface unlike the hole's.
 SHARPNESS_TOLERANCE = 15.0
 #: Rings of faces beyond the faces touching the hole whose edges give its sharpness.
-SHARPNESS_RINGS = 0
+SHARPNESS_RINGS = 1
 
 
 def sharpest_edge(mesh: PolygonMesh, faces: BoolArray) -> float:
