@@ -399,6 +399,10 @@ def main() -> None:
     parser.add_argument("--no-probe-fills", action="store_true",
                         help="choose MeshFix's fill only where the fairing is flat, not by "
                         "probe holes (spacemesh.repair.auto.PROBE_FILLS; for comparison)")
+    parser.add_argument("--no-lay-onto-fan", action="store_true",
+                        help="keep the fairing of the model's own patch rather than laying "
+                        "it onto the faired fan (spacemesh.repair.auto.LAY_ONTO_FAN; for "
+                        "comparison)")
     parser.add_argument("--out", default=str(ROOT / "docs" / "results"))
     args = parser.parse_args()
     if not MESHES.is_dir():
@@ -410,6 +414,10 @@ def main() -> None:
         import spacemesh.repair.auto
 
         spacemesh.repair.auto.PROBE_FILLS = False
+    if args.no_lay_onto_fan:
+        import spacemesh.repair.auto
+
+        spacemesh.repair.auto.LAY_ONTO_FAN = False
     only = [part for part in args.only.split(",") if part]
     from spacemesh.runtime import MeshGenerator
 
@@ -442,6 +450,7 @@ def main() -> None:
     config = {"model": _shown(model), "model_label": label, "steps": steps, "seed": args.seed,
               "holes": args.holes, "max_vertices": args.max_vertices, "threads": args.threads,
               "split": args.split, "probe_fills": not args.no_probe_fills,
+              "lay_onto_fan": not args.no_lay_onto_fan,
               "only": args.only,
               "seconds": round(time.perf_counter() - start, 1)}
     (out / "repair_holes.json").write_text(json.dumps({"config": config, "rows": rows},

@@ -7,7 +7,7 @@ import pytest
 from auto_meshes import punched
 
 from spacemesh.examples import icosphere
-from spacemesh.geometry.fairing import _vertices_of, patch_loops
+from spacemesh.geometry.fairing import _faces_subset, _vertices_of, patch_loops
 from spacemesh.repair.auto import _loops_of
 from spacemesh.repair.cut import defect_vertices
 from spacemesh.repair.probe import (
@@ -161,3 +161,87 @@ def test_a_patch_the_guard_held_back_is_replaced_by_the_faired_fan(monkeypatch):
     kept[result.vertex_map[result.vertex_map >= 0]] = True
     new = result.mesh.vertices[~kept]
     assert len(new) >= 5 and np.abs(np.linalg.norm(new, axis=1) - 1).max() < 0.04
+
+
+def _state_with_cap(offset):
+    """A _Passes state over an icosphere whose top cap is region 0's patch, with its own
+    vertices moved by ``offset`` ((V, 3) -> (V, 3) function of the positions)."""
+    from spacemesh.repair.auto import _Passes
+
+    sphere = icosphere(3)
+    centre_z = sphere.vertices[np.asarray(sphere.faces)].mean(axis=1)[:, 2]  # (F,)
+    patch = centre_z > 0.75
+    own = _vertices_of(sphere, patch) & ~_vertices_of(sphere, ~patch)
+    p = sphere.vertices.copy()
+    p[own] = offset(p[own])
+    mesh = sphere.with_vertices(p)
+    n_v, n_f = mesh.n_vertices, mesh.n_faces
+    state = _Passes(mesh, np.arange(n_v), np.where(patch, -1, np.arange(n_f)),
+                    np.full(n_f, -1), np.where(own, 0, -1), np.where(patch, 0, -1))
+    return state, own
+
+
+def test_a_spiked_patch_is_laid_onto_the_faired_fan_keeping_its_tessellation():
+    from spacemesh.repair.auto import _faired_fan, _onto_fan
+
+    def spike(x):
+        x = x.copy()
+        x[np.argmax(x[:, 2])] *= 1.3  # the cap's top vertex pulled out
+        return x * 0.97  # and the cap sunk a little
+
+    state, own = _state_with_cap(spike)
+    before = state.mesh
+    error_before = np.abs(np.linalg.norm(before.vertices[own], axis=1) - 1).max()
+    assert error_before > 0.25
+    fan, _, made = _faired_fan(before, state.made_by == 0)
+    assert _onto_fan(state, 0) == "projected"
+    after = state.mesh
+    assert np.array_equal(after.face_indices, before.face_indices)  # same tessellation
+    assert np.array_equal(after.vertices[~own], before.vertices[~own])  # ring kept
+    triangles, source = fan.triangulate()
+    fan_corners = fan.vertices[triangles[made[source]]]
+    assert surface_distance(after.vertices[own], fan_corners).max() < 1e-9  # on the fan
+    error_after = np.abs(np.linalg.norm(after.vertices[own], axis=1) - 1).max()
+    assert error_after < 0.25 * error_before
+
+
+def _dragged(x):
+    x = x.copy()
+    top = np.argmax(x[:, 2])
+    side = np.argmin(x[:, 0])  # the top vertex dragged past a side vertex
+    x[top] = x[side] + (x[side] - x[top]) * 0.5
+    return x
+
+
+def test_a_folded_laid_patch_is_untangled_on_the_fan():
+    from spacemesh.repair.auto import _badly_laid, _faired_fan, _onto_fan
+
+    state, own = _state_with_cap(_dragged)
+    patch = state.made_by == 0
+    fan, _, made = _faired_fan(state.mesh, patch)
+    fan_triangles, _ = _faces_subset(fan, made).triangulate()
+    triangles, _ = _faces_subset(state.mesh, patch).triangulate()
+    before = state.mesh.vertices
+    assert _badly_laid(before, triangles, fan.vertices, fan_triangles)
+    assert _onto_fan(state, 0) == "projected"
+    assert np.array_equal(state.mesh.vertices[~own], before[~own])
+    assert not _badly_laid(state.mesh.vertices, triangles, fan.vertices, fan_triangles)
+
+
+def test_a_patch_that_stays_folded_on_the_fan_is_replaced_by_the_fan(monkeypatch):
+    from repair_testing import assert_closed_manifold
+
+    from spacemesh.repair.auto import _onto_fan
+
+    monkeypatch.setattr("spacemesh.repair.auto.RELAX_ROUNDS", 0)
+    state, _ = _state_with_cap(_dragged)
+    faces_before = state.mesh.n_faces
+    state_before_patch = state.made_by == 0
+    assert _onto_fan(state, 0) == "fan"
+    mesh = state.mesh
+    assert_closed_manifold(mesh)
+    made = state.made_by == 0
+    assert made.any() and (state.face_source[~made] >= 0).all()  # the rest kept
+    assert mesh.n_faces - made.sum() == faces_before - int((state_before_patch).sum())
+    new = mesh.vertices[state.origin == 0]  # the fan's, on a thin plate over the cap
+    assert len(new) >= 3 and np.abs(np.linalg.norm(new, axis=1) - 1).max() < 0.08

@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.sparse import coo_matrix
+from scipy.sparse import coo_matrix, identity
 from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
@@ -860,7 +860,9 @@ def _fair_region(state: _Passes, index: int) -> str | None:
     could be moved only part of the way (it would cross itself or the surface: the
     model's tessellation folds once curved), it is replaced by a fan over its loops,
     refined and faired the same way, when that one moves all the way
-    (:func:`_fan_instead`). With :data:`PROBE_FILLS`, each hole of the region (each part
+    (:func:`_fan_instead`). A patch faired all the way is laid onto that faired fan's
+    surface (:func:`_onto_fan`, with :data:`LAY_ONTO_FAN`), or replaced by it where it
+    would fold there. With :data:`PROBE_FILLS`, each hole of the region (each part
     of its patch, :func:`_patch_parts`) whose probe holes prefer MeshFix's fill
     (:func:`_probes_prefer_meshfix`) then takes it.
 
@@ -877,7 +879,10 @@ def _fair_region(state: _Passes, index: int) -> str | None:
     state.apply(np.arange(mesh.n_vertices), source, faired, index)
     if report.get("fairing") in MESHFIX_FAIRINGS:
         return "meshfix" if _meshfix_instead(state, index) else None
-    replaced = "fan" if report.get("weight", 1.0) < 1.0 and _fan_instead(state, index) else None
+    if report.get("weight", 1.0) < 1.0:
+        replaced = "fan" if _fan_instead(state, index) else None
+    else:
+        replaced = "fan" if LAY_ONTO_FAN and _onto_fan(state, index) == "fan" else None
     if not PROBE_FILLS:
         return replaced
     chosen = np.zeros(state.mesh.n_faces, dtype=bool)
@@ -889,44 +894,157 @@ def _fair_region(state: _Passes, index: int) -> str | None:
     return replaced
 
 
-def _fan_instead(state: _Passes, index: int) -> bool:
-    """Replace the faces the region ``index`` made by a fan over each of their loops
-    (:func:`fan_fill`), refined and faired (:func:`spacemesh.geometry.fairing.fair_patch`);
-    True when it did: only when that patch is faired all the way (no self-intersection
-    held it back) with a smooth fairing (not one of :data:`MESHFIX_FAIRINGS`)."""
-    from spacemesh.geometry.fairing import (
-        _faces_subset,
-        _vertices_of,
-        fair_patch,
-        patch_edge_length,
-        patch_loops,
-    )
+def _faired_fan(mesh: PolygonMesh, patch: BoolArray
+                ) -> tuple[PolygonMesh, IntArray, BoolArray] | None:
+    """A fan over each loop of the ``patch`` faces ((F,) bool) of ``mesh``
+    (:func:`fan_fill`), refined and faired (:func:`spacemesh.geometry.fairing.fair_patch`)
+    one hole (one part of the patch, :func:`_patch_parts`) after the other, so that each
+    hole's fairing reads its own surroundings, with the patch's faces left out.
+
+    Returns the faired mesh (``mesh``'s vertices first, then the fans'), the face of
+    ``mesh`` each of its faces is (-1: the fans'), and its fan faces; None without
+    loops, or where a fan could not be faired all the way (a self-intersection held it
+    back) or only flat (one of :data:`MESHFIX_FAIRINGS`).
+    """
+    from spacemesh.geometry.fairing import _faces_subset, fair_patch, patch_edge_length, patch_loops
+
+    parts = [patch_loops(mesh, part) for part in _patch_parts(mesh, patch)]
+    if not parts or any(not loops for loops in parts):
+        return None
+    current = _faces_subset(mesh, ~patch)  # mesh's vertices, the faces kept
+    source = np.flatnonzero(~patch)  # (F_current,) face of mesh
+    for loops in parts:
+        filled, _ = fan_fill(current, loops)  # current's vertices, then one centroid a loop
+        fan = np.arange(filled.n_faces) >= current.n_faces
+        free = np.arange(filled.n_vertices) >= current.n_vertices
+        report: dict[str, Any] = {}
+        current_faces = current.n_faces
+        current, step, _ = fair_patch(filled, fan, free, patch_edge_length(filled, fan),
+                                      report=report)
+        if report.get("weight", 0.0) < 1.0 or report.get("fairing") in MESHFIX_FAIRINGS:
+            return None
+        kept = (step >= 0) & (step < current_faces)
+        source = np.where(kept, source[np.where(kept, step, 0)], -1)
+    return current, source, source < 0
+
+
+def _fan_instead(state: _Passes, index: int,
+                 fan: tuple[PolygonMesh, IntArray, BoolArray] | None = None) -> bool:
+    """Replace the faces the region ``index`` made by a fan over each of their loops,
+    refined and faired (:func:`_faired_fan`, or ``fan`` when given); True when it did:
+    only when that patch is faired all the way (no self-intersection held it back) with
+    a smooth fairing (not one of :data:`MESHFIX_FAIRINGS`)."""
+    from spacemesh.geometry.fairing import _vertices_of
 
     mesh = state.mesh
     patch = state.made_by == index
-    loops = patch_loops(mesh, patch)
-    if not loops:
+    if fan is None:
+        fan = _faired_fan(mesh, patch)
+    if fan is None:
         return False
-    opened = _faces_subset(mesh, ~patch)
-    filled, _ = fan_fill(opened, loops)  # mesh's vertices, then one centroid a loop
-    fan = np.arange(filled.n_faces) >= opened.n_faces
-    free = np.arange(filled.n_vertices) >= mesh.n_vertices
-    report: dict[str, Any] = {}
-    faired, source, _ = fair_patch(filled, fan, free, patch_edge_length(filled, fan),
-                                   report=report)
-    if report.get("weight", 0.0) < 1.0 or report.get("fairing") in MESHFIX_FAIRINGS:
-        return False
+    faired, face_source, _ = fan
     own = np.zeros(faired.n_vertices, dtype=bool)  # the region's old vertices, now unused
     own[: mesh.n_vertices] = (state.origin == index) & ~_vertices_of(mesh, ~patch)
     ids = np.cumsum(~own) - 1
     out = PolygonMesh(faired.vertices[~own], ids[faired.face_indices], faired.face_offsets)
     vertex_map = np.where(own[: mesh.n_vertices], -1, ids[: mesh.n_vertices])
-    kept = np.flatnonzero(~patch)
-    face_source = np.where((source >= 0) & (source < len(kept)),
-                           kept[np.minimum(np.maximum(source, 0), len(kept) - 1)], -1)
     state.apply(vertex_map.astype(np.int64), face_source.astype(np.int64), out, index)
     return True
 
+
+#: Cosine below which a face of the model's patch, laid onto the faired fan's surface
+#: (:func:`_onto_fan`), counts as folded over against the fan face under it.
+MIN_FOLD_COSINE = 0.2
+#: Share of its mean triangle area below which a laid-on face counts as collapsed.
+MIN_AREA_SHARE = 0.02
+#: Rounds of tangential relaxation (each vertex to the mean of its neighbours, laid
+#: back onto the fan) tried on a laid-on patch with a folded or collapsed face.
+RELAX_ROUNDS = 5
+
+
+def _badly_laid(positions: FloatArray, triangles: IntArray, fan_points: FloatArray,
+                fan_triangles: IntArray) -> bool:
+    """Whether a triangle ``triangles`` (P, 3) at ``positions`` folds over against the
+    fan triangle under its centre (cosine below :data:`MIN_FOLD_COSINE`) or collapses
+    (area below :data:`MIN_AREA_SHARE` of the mean)."""
+    from spacemesh.geometry.surface_fit import nearest_triangles
+
+    if len(triangles) == 0:
+        return False
+    corners = positions[triangles]  # (P, 3, 3)
+    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    area = 0.5 * np.linalg.norm(normal, axis=1)  # (P,)
+    owner, _ = nearest_triangles(corners.mean(axis=1), fan_points, fan_triangles)
+    under = fan_points[fan_triangles[owner]]  # (P, 3, 3)
+    fan_normal = np.cross(under[:, 1] - under[:, 0], under[:, 2] - under[:, 0])
+    cosine = np.einsum("ij,ij->i", normal, fan_normal) / np.maximum(
+        np.linalg.norm(normal, axis=1) * np.linalg.norm(fan_normal, axis=1), 1e-300)
+    return bool(cosine.min() < MIN_FOLD_COSINE or area.min() < MIN_AREA_SHARE * area.mean())
+
+
+def _onto_fan(state: _Passes, index: int) -> str | None:
+    """Lay the faired patch of the region ``index`` onto the surface of the faired fan
+    over the same loops (:func:`_faired_fan`): the model's tessellation, with the
+    geometry of the fairing the probe holes judge (:mod:`spacemesh.repair.probe`).
+
+    The fairing of the model's own patch follows its tessellation: an uneven one bends
+    the thin plate into ridges and spikes (on the dev split the faired fan lay closer to
+    the intact surface on most holes, up to 50 times). Each of the patch's own vertices
+    moves to its closest point on the fan's faces. Where that folds a face over or
+    collapses one (:func:`_badly_laid`), up to :data:`RELAX_ROUNDS` rounds of tangential
+    relaxation are tried; where a face stays folded, or the patch would add a
+    self-intersection, the fan replaces the patch instead (:func:`_fan_instead`).
+
+    Returns ``"projected"``, ``"fan"`` (the fan replaced the patch) or None (no faired
+    fan: the patch stays).
+    """
+    from spacemesh.geometry.fairing import (
+        _faces_subset,
+        _faces_touching,
+        _laplacian,
+        _vertices_of,
+    )
+    from spacemesh.geometry.intersections import self_intersecting_faces
+    from spacemesh.geometry.surface_fit import closest_points_on_triangles, nearest_triangles
+
+    mesh = state.mesh
+    patch = state.made_by == index
+    fan = _faired_fan(mesh, patch)
+    if fan is None:
+        return None
+    faired, _, made = fan
+    fan_points = faired.vertices
+    fan_triangles, _ = _faces_subset(faired, made).triangulate()  # (T, 3)
+    moving = _vertices_of(mesh, patch) & ~_vertices_of(mesh, ~patch)
+    rows = np.flatnonzero(moving)
+
+    def laid_onto_fan(points: FloatArray) -> FloatArray:
+        owner, _ = nearest_triangles(points, fan_points, fan_triangles)
+        return closest_points_on_triangles(points, fan_points[fan_triangles[owner]])
+
+    positions = mesh.vertices.copy()
+    if len(rows):
+        positions[rows] = laid_onto_fan(positions[rows])
+    triangles, _ = _faces_subset(mesh, patch).triangulate()
+    average = identity(mesh.n_vertices, format="csr") - _laplacian(mesh, patch, uniform=True)
+    for _ in range(RELAX_ROUNDS):
+        if not len(rows) or not _badly_laid(positions, triangles, fan_points, fan_triangles):
+            break
+        positions[rows] = laid_onto_fan((average @ positions)[rows])
+    laid = mesh.with_vertices(positions)
+    near = _faces_touching(mesh, _vertices_of(mesh, _faces_touching(mesh, moving)))
+    crossings_before = int(self_intersecting_faces(_faces_subset(mesh, near)).sum())
+    if (_badly_laid(positions, triangles, fan_points, fan_triangles)
+            or int(self_intersecting_faces(_faces_subset(laid, near)).sum())
+            > crossings_before):
+        return "fan" if _fan_instead(state, index, fan) else None
+    state.mesh = laid
+    return "projected"
+
+
+#: Whether a patch faired all the way is laid onto the faired fan's surface
+#: (:func:`_onto_fan`).
+LAY_ONTO_FAN = True
 
 #: Whether MeshFix's fill also replaces the fairing's patch of a hole where probe holes
 #: punched around it say it is closer (:func:`spacemesh.repair.probe.prefer_meshfix`).
