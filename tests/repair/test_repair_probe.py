@@ -13,7 +13,8 @@ from spacemesh.repair.cut import defect_vertices
 from spacemesh.repair.probe import (
     PROBES,
     fill_error,
-    prefer_meshfix,
+    flat_surface,
+    preferred_fill,
     probe_errors,
     probe_regions,
     surface_distance,
@@ -59,19 +60,23 @@ def test_probe_holes_are_discs_of_known_faces_clear_of_the_hole():
     others = probe_regions(mesh, loops, ~unknown)
     assert all(not (faces & unknown).any() for faces in others)
     assert probe_regions(mesh, loops, np.zeros(mesh.n_faces, dtype=bool)) == []
-    assert not prefer_meshfix(mesh, loops, np.zeros(mesh.n_faces, dtype=bool))
+    assert preferred_fill(mesh, loops, np.zeros(mesh.n_faces, dtype=bool)) == "fair"
 
 
 def test_probes_keep_the_fairing_on_a_sphere():
     pytest.importorskip("pymeshfix")
     mesh, loops = _holed_sphere()
     known = np.ones(mesh.n_faces, dtype=bool)
-    fair, meshfix, used = probe_errors(mesh, loops, known)
+    errors = probe_errors(mesh, loops, known)
+    fair, meshfix, used = errors["meshfix"]
     assert used == PROBES
     assert 0 < fair < meshfix  # the thin plate continues a sphere; MeshFix's fill is flatter
+    fair_flat, flat, used_flat = errors["flat"]
+    assert used_flat == PROBES and fair_flat == pytest.approx(fair) and fair < flat
     report: dict = {}
-    assert not prefer_meshfix(mesh, loops, known, report=report)
+    assert preferred_fill(mesh, loops, known, report=report) == "fair"
     assert report["probes"] == PROBES and report["probe_fair"] == pytest.approx(fair)
+    assert report["probe_flat"] == pytest.approx(flat)
 
 
 @pytest.mark.parametrize("probing", [True, False])
@@ -80,10 +85,13 @@ def test_an_automatic_region_takes_meshfix_fill_where_the_probes_prefer_it(monke
     pytest.importorskip("pymeshfix")
     from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
 
+    import spacemesh.repair.probe
     from spacemesh.repair import plan_repair, repair_mesh, verify_repair
 
     # any probe error of MeshFix below 1e9 times the fairing's prefers MeshFix's fill
-    monkeypatch.setattr("spacemesh.repair.probe.MESHFIX_MARGIN", 1e9)
+    monkeypatch.setattr("spacemesh.repair.probe.PROBE_MARGIN", 1e9)
+    monkeypatch.setattr("spacemesh.repair.probe.ALTERNATIVES", {
+        "meshfix": spacemesh.repair.probe.ALTERNATIVES["meshfix"]})
     monkeypatch.setattr("spacemesh.repair.auto.PROBE_FILLS", probing)
     mesh = punched(icosphere(3), [[0.0, 0.0, 1.0]], radius=0.4)
     spec = make_spec()
@@ -109,12 +117,12 @@ def test_no_probe_covers_a_small_part_and_its_fills_do_not_fail():
     part = np.arange(both.n_faces) >= mesh.n_faces
     # only the small part is known: a probe there would be nearly all of it
     assert probe_regions(both, loops, part) == []
-    assert probe_errors(both, loops, part) == (0.0, 0.0, 0)
+    assert probe_errors(both, loops, part) == {"meshfix": (0.0, 0.0, 0), "flat": (0.0, 0.0, 0)}
     known = np.ones(both.n_faces, dtype=bool)
     regions = probe_regions(both, loops, known)
     assert regions and not any((faces & part).any() for faces in regions)
-    fair, meshfix, used = probe_errors(both, loops, known)
-    assert used == len(regions) and np.isfinite(fair) and np.isfinite(meshfix)
+    for fair, other, used in probe_errors(both, loops, known).values():
+        assert used == len(regions) and np.isfinite(fair) and np.isfinite(other)
 
 
 def test_a_region_patch_falls_into_one_part_per_hole():
@@ -245,3 +253,73 @@ def test_a_patch_that_stays_folded_on_the_fan_is_replaced_by_the_fan(monkeypatch
     assert mesh.n_faces - made.sum() == faces_before - int((state_before_patch).sum())
     new = mesh.vertices[state.origin == 0]  # the fan's, on a thin plate over the cap
     assert len(new) >= 3 and np.abs(np.linalg.norm(new, axis=1) - 1).max() < 0.08
+
+
+def test_flat_surface_is_the_least_area_triangulation_of_each_loop():
+    square = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=float)
+    triangles = flat_surface(square, [np.arange(4)])
+    assert triangles.shape == (2, 3) and set(triangles.ravel()) == {0, 1, 2, 3}
+    assert flat_surface(square, [np.arange(2)]) is None
+    assert flat_surface(square, []) is None
+
+
+@pytest.mark.parametrize("probing", [True, False])
+def test_a_hole_whose_probes_prefer_the_flat_fill_is_laid_onto_it(monkeypatch, probing):
+    from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
+
+    import spacemesh.repair.probe as probe
+    from spacemesh.repair import plan_repair, repair_mesh, verify_repair
+
+    # only the flat fill is weighed, and any probe error of it below 1e9 times the
+    # fairing's prefers it
+    monkeypatch.setattr(probe, "ALTERNATIVES", {"flat": probe.ALTERNATIVES["flat"]})
+    monkeypatch.setattr(probe, "PROBE_MARGIN", 1e9)
+    monkeypatch.setattr("spacemesh.repair.auto.PROBE_FILLS", probing)
+    mesh = punched(icosphere(3), [[0.0, 0.0, 1.0]], radius=0.4)
+    loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
+    flat = mesh.vertices[flat_surface(mesh.vertices, loops)]  # (T, 3, 3)
+    spec = make_spec()
+    plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)
+    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan)
+    assert verify_repair(plan, result) == []
+    assert_closed_manifold(result.mesh)
+    kept = np.zeros(result.mesh.n_vertices, dtype=bool)
+    kept[result.vertex_map[result.vertex_map >= 0]] = True
+    new = result.mesh.vertices[~kept]
+    assert len(new) >= 3
+    on_flat = bool(surface_distance(new, flat).max() < 1e-9)
+    assert on_flat is probing  # laid onto the flat fill; else faired over the sphere
+    if not probing:
+        assert np.abs(np.linalg.norm(new, axis=1) - 1).max() < 0.04
+
+
+def test_a_hole_that_cannot_be_laid_onto_the_flat_fill_takes_the_flat_fill(monkeypatch):
+    from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
+
+    import spacemesh.repair.probe as probe
+    from spacemesh.repair import plan_repair, repair_mesh, verify_repair
+
+    monkeypatch.setattr(probe, "ALTERNATIVES", {"flat": probe.ALTERNATIVES["flat"]})
+    monkeypatch.setattr(probe, "PROBE_MARGIN", 1e9)
+    real = __import__("spacemesh.repair.auto", fromlist=["x"])._laid_onto
+    laid: list[int] = []
+
+    def fails_on_flat(mesh, patch, points, triangles):
+        laid.append(len(points))
+        # the flat surface is over the mesh's own vertices; the fan's has its own
+        return None if len(points) == mesh.n_vertices else real(mesh, patch, points,
+                                                                 triangles)
+
+    monkeypatch.setattr("spacemesh.repair.auto._laid_onto", fails_on_flat)
+    mesh = punched(icosphere(3), [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]], radius=0.4)
+    loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
+    spec = make_spec()
+    plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)
+    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan)
+    assert laid  # the flat fill was tried
+    assert verify_repair(plan, result) == []
+    assert_closed_manifold(result.mesh)
+    assert {f["filled_by"] for f in result.stats.findings} == {"fallback"}
+    # no vertex beyond the input's: each hole is the least-area triangulation of its loop
+    assert result.mesh.n_vertices == mesh.n_vertices
+    assert result.mesh.n_faces == mesh.n_faces + sum(len(loop) - 2 for loop in loops)

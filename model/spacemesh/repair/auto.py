@@ -838,10 +838,10 @@ def _filled_by(by_model: int, by_fallback: int) -> str:
 
 def _replaced_by(replaced: str | None, by: str) -> str:
     """``filled_by`` once :func:`_fair_region` has replaced the patch by ``replaced``
-    (``meshfix``, ``fan`` -- the fallback -- or None: ``by`` stands)."""
+    (``meshfix``; ``fan`` or ``flat`` -- the fallback; or None: ``by`` stands)."""
     if replaced == "meshfix":
         return "meshfix"
-    return "fallback" if replaced == "fan" else by
+    return "fallback" if replaced in ("fan", "flat") else by
 
 
 #: The fairings (:func:`spacemesh.geometry.fairing.fair_patch`'s ``fairing``) whose patch
@@ -864,10 +864,13 @@ def _fair_region(state: _Passes, index: int) -> str | None:
     surface (:func:`_onto_fan`, with :data:`LAY_ONTO_FAN`), or replaced by it where it
     would fold there. With :data:`PROBE_FILLS`, each hole of the region (each part
     of its patch, :func:`_patch_parts`) whose probe holes prefer MeshFix's fill
-    (:func:`_probes_prefer_meshfix`) then takes it.
+    (:func:`_probe_choice`) then takes it, and one whose probes prefer the least-area
+    flat fill is laid onto it (:func:`_onto_flat`).
 
     Returns ``"meshfix"`` when MeshFix's fill was taken for any hole of the region,
-    ``"fan"`` when the faired fan replaced the patch, None otherwise.
+    ``"flat"`` when the flat fill replaced the patch of one (:func:`_flat_instead`: the
+    probes prefer it, and the patch could not be laid onto it), ``"fan"`` when the
+    faired fan replaced the patch, None otherwise.
     """
     from spacemesh.geometry.fairing import fair_patch, patch_edge_length
 
@@ -886,9 +889,24 @@ def _fair_region(state: _Passes, index: int) -> str | None:
     if not PROBE_FILLS:
         return replaced
     chosen = np.zeros(state.mesh.n_faces, dtype=bool)
+    flat_parts: list[BoolArray] = []  # parts the flat fill replaces
     for part in _patch_parts(state.mesh, state.made_by == index):
-        if _probes_prefer_meshfix(state, part):
+        choice = _probe_choice(state, part)
+        if choice == "meshfix":
             chosen |= part
+        elif choice == "flat" and not _onto_flat(state, part):
+            flat_parts.append(part)
+    for i, part in enumerate(flat_parts):
+        source = _flat_instead(state, index, part)
+        if source is None:
+            continue
+        replaced = "flat"  # each replacement renumbers the faces: the masks follow
+
+        def follow(mask: BoolArray, source: IntArray = source) -> BoolArray:
+            return np.where(source >= 0, mask[np.maximum(source, 0)], False)
+
+        chosen = follow(chosen)
+        flat_parts[i + 1:] = [follow(later) for later in flat_parts[i + 1:]]
     if chosen.any() and _meshfix_instead(state, index, chosen):
         return "meshfix"
     return replaced
@@ -982,22 +1000,14 @@ def _badly_laid(positions: FloatArray, triangles: IntArray, fan_points: FloatArr
     return bool(cosine.min() < MIN_FOLD_COSINE or area.min() < MIN_AREA_SHARE * area.mean())
 
 
-def _onto_fan(state: _Passes, index: int) -> str | None:
-    """Lay the faired patch of the region ``index`` onto the surface of the faired fan
-    over the same loops (:func:`_faired_fan`): the model's tessellation, with the
-    geometry of the fairing the probe holes judge (:mod:`spacemesh.repair.probe`).
-
-    The fairing of the model's own patch follows its tessellation: an uneven one bends
-    the thin plate into ridges and spikes (on the dev split the faired fan lay closer to
-    the intact surface on most holes, up to 50 times). Each of the patch's own vertices
-    moves to its closest point on the fan's faces. Where that folds a face over or
-    collapses one (:func:`_badly_laid`), up to :data:`RELAX_ROUNDS` rounds of tangential
-    relaxation are tried; where a face stays folded, or the patch would add a
-    self-intersection, the fan replaces the patch instead (:func:`_fan_instead`).
-
-    Returns ``"projected"``, ``"fan"`` (the fan replaced the patch) or None (no faired
-    fan: the patch stays).
-    """
+def _laid_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
+               surface_triangles: IntArray) -> FloatArray | None:
+    """The positions of ``mesh`` with the own vertices of the ``patch`` faces ((F,) bool;
+    those no other face uses) moved to their closest points on the triangles
+    ``surface_triangles`` (T, 3) over ``surface_points`` (P, 3); None where that folds a
+    face over or collapses one (:func:`_badly_laid`) even after :data:`RELAX_ROUNDS`
+    rounds of tangential relaxation (each vertex to the mean of its neighbours, laid
+    back on the surface), or adds a self-intersection near the patch."""
     from spacemesh.geometry.fairing import (
         _faces_subset,
         _faces_touching,
@@ -1007,39 +1017,82 @@ def _onto_fan(state: _Passes, index: int) -> str | None:
     from spacemesh.geometry.intersections import self_intersecting_faces
     from spacemesh.geometry.surface_fit import closest_points_on_triangles, nearest_triangles
 
+    moving = _vertices_of(mesh, patch) & ~_vertices_of(mesh, ~patch)
+    rows = np.flatnonzero(moving)
+
+    def laid(points: FloatArray) -> FloatArray:
+        owner, _ = nearest_triangles(points, surface_points, surface_triangles)
+        return closest_points_on_triangles(points,
+                                           surface_points[surface_triangles[owner]])
+
+    positions = mesh.vertices.copy()
+    if len(rows):
+        positions[rows] = laid(positions[rows])
+    triangles, _ = _faces_subset(mesh, patch).triangulate()
+    average = identity(mesh.n_vertices, format="csr") - _laplacian(mesh, patch, uniform=True)
+    for _ in range(RELAX_ROUNDS):
+        if not len(rows) or not _badly_laid(positions, triangles, surface_points,
+                                            surface_triangles):
+            break
+        positions[rows] = laid((average @ positions)[rows])
+    if _badly_laid(positions, triangles, surface_points, surface_triangles):
+        return None
+    near = _faces_touching(mesh, _vertices_of(mesh, _faces_touching(mesh, moving)))
+    before = int(self_intersecting_faces(_faces_subset(mesh, near)).sum())
+    after = int(self_intersecting_faces(_faces_subset(mesh.with_vertices(positions),
+                                                      near)).sum())
+    return None if after > before else positions
+
+
+def _onto_fan(state: _Passes, index: int) -> str | None:
+    """Lay the faired patch of the region ``index`` onto the surface of the faired fan
+    over the same loops (:func:`_faired_fan`): the model's tessellation, with the
+    geometry of the fairing the probe holes judge (:mod:`spacemesh.repair.probe`).
+
+    The fairing of the model's own patch follows its tessellation: an uneven one bends
+    the thin plate into ridges and spikes (on the dev split the faired fan lay closer to
+    the intact surface on most holes, up to 50 times). Each of the patch's own vertices
+    moves to its closest point on the fan's faces (:func:`_laid_onto`); where a face
+    stays folded there, or the patch would add a self-intersection, the fan replaces the
+    patch instead (:func:`_fan_instead`).
+
+    Returns ``"projected"``, ``"fan"`` (the fan replaced the patch) or None (no faired
+    fan: the patch stays).
+    """
+    from spacemesh.geometry.fairing import _faces_subset
+
     mesh = state.mesh
     patch = state.made_by == index
     fan = _faired_fan(mesh, patch)
     if fan is None:
         return None
     faired, _, made = fan
-    fan_points = faired.vertices
     fan_triangles, _ = _faces_subset(faired, made).triangulate()  # (T, 3)
-    moving = _vertices_of(mesh, patch) & ~_vertices_of(mesh, ~patch)
-    rows = np.flatnonzero(moving)
-
-    def laid_onto_fan(points: FloatArray) -> FloatArray:
-        owner, _ = nearest_triangles(points, fan_points, fan_triangles)
-        return closest_points_on_triangles(points, fan_points[fan_triangles[owner]])
-
-    positions = mesh.vertices.copy()
-    if len(rows):
-        positions[rows] = laid_onto_fan(positions[rows])
-    triangles, _ = _faces_subset(mesh, patch).triangulate()
-    average = identity(mesh.n_vertices, format="csr") - _laplacian(mesh, patch, uniform=True)
-    for _ in range(RELAX_ROUNDS):
-        if not len(rows) or not _badly_laid(positions, triangles, fan_points, fan_triangles):
-            break
-        positions[rows] = laid_onto_fan((average @ positions)[rows])
-    laid = mesh.with_vertices(positions)
-    near = _faces_touching(mesh, _vertices_of(mesh, _faces_touching(mesh, moving)))
-    crossings_before = int(self_intersecting_faces(_faces_subset(mesh, near)).sum())
-    if (_badly_laid(positions, triangles, fan_points, fan_triangles)
-            or int(self_intersecting_faces(_faces_subset(laid, near)).sum())
-            > crossings_before):
+    positions = _laid_onto(mesh, patch, faired.vertices, fan_triangles)
+    if positions is None:
         return "fan" if _fan_instead(state, index, fan) else None
-    state.mesh = laid
+    state.mesh = mesh.with_vertices(positions)
     return "projected"
+
+
+def _onto_flat(state: _Passes, part: BoolArray) -> bool:
+    """Lay the patch faces ``part`` ((F,) bool: one hole's) onto the least-area flat
+    triangulation of their loops (:func:`spacemesh.repair.probe.flat_surface`), where
+    the probe holes prefer that fill (:func:`_probe_choice`); True when it did
+    (:func:`_laid_onto`)."""
+    from spacemesh.geometry.fairing import patch_loops
+    from spacemesh.repair.probe import flat_surface
+
+    mesh = state.mesh
+    loops = patch_loops(mesh, part)
+    triangles = flat_surface(mesh.vertices, loops) if loops else None
+    if triangles is None:
+        return False
+    positions = _laid_onto(mesh, part, mesh.vertices, triangles)
+    if positions is None:
+        return False
+    state.mesh = mesh.with_vertices(positions)
+    return True
 
 
 #: Whether a patch faired all the way is laid onto the faired fan's surface
@@ -1047,7 +1100,7 @@ def _onto_fan(state: _Passes, index: int) -> str | None:
 LAY_ONTO_FAN = True
 
 #: Whether MeshFix's fill also replaces the fairing's patch of a hole where probe holes
-#: punched around it say it is closer (:func:`spacemesh.repair.probe.prefer_meshfix`).
+#: punched around it say it is closer (:func:`spacemesh.repair.probe.preferred_fill`).
 PROBE_FILLS = True
 
 
@@ -1070,18 +1123,18 @@ def _patch_parts(mesh: PolygonMesh, patch: BoolArray) -> list[BoolArray]:
     return parts
 
 
-def _probes_prefer_meshfix(state: _Passes, part: BoolArray) -> bool:
-    """Whether, over probe holes punched in the input faces around the hole that the
-    patch faces ``part`` ((F,) bool) fill, MeshFix's fill is clearly closer than the
-    fairing's (:func:`spacemesh.repair.probe.prefer_meshfix`)."""
+def _probe_choice(state: _Passes, part: BoolArray) -> str:
+    """The fill the probe holes punched in the input faces around the hole that the
+    patch faces ``part`` ((F,) bool) fill prefer: ``"fair"``, ``"meshfix"`` or ``"flat"``
+    (:func:`spacemesh.repair.probe.preferred_fill`)."""
     from spacemesh.geometry.fairing import _faces_subset, patch_loops
-    from spacemesh.repair.probe import prefer_meshfix
+    from spacemesh.repair.probe import preferred_fill
 
     loops = patch_loops(state.mesh, part)
     if not loops:
-        return False
+        return "fair"
     known = (state.made_by < 0)[~part]  # input faces of the mesh with the hole open
-    return prefer_meshfix(_faces_subset(state.mesh, ~part), loops, known)
+    return preferred_fill(_faces_subset(state.mesh, ~part), loops, known)
 
 
 def _meshfix_instead(state: _Passes, index: int, patch: BoolArray | None = None) -> bool:
@@ -1090,7 +1143,7 @@ def _meshfix_instead(state: _Passes, index: int, patch: BoolArray | None = None)
     (:func:`spacemesh.repair.meshfix_fill.meshfix_fill`); every other face is kept.
     True when it did (False without ``pymeshfix``, or when MeshFix's patch does not
     close exactly these loops)."""
-    from spacemesh.geometry.fairing import _faces_subset, _vertices_of, patch_loops
+    from spacemesh.geometry.fairing import _faces_subset, patch_loops
     from spacemesh.repair.meshfix_fill import meshfix_fill
 
     mesh = state.mesh
@@ -1099,26 +1152,60 @@ def _meshfix_instead(state: _Passes, index: int, patch: BoolArray | None = None)
     loops = patch_loops(mesh, patch)
     if not loops or not patch.any():
         return False
-    opened = _faces_subset(mesh, ~patch)
-    filled = meshfix_fill(opened, loops)
-    if filled is None:
-        return False
-    points, triangles = filled
+    filled = meshfix_fill(_faces_subset(mesh, ~patch), loops)
+    return filled is not None and _fill_instead(state, index, patch, *filled) is not None
+
+
+def _flat_instead(state: _Passes, index: int, part: BoolArray) -> IntArray | None:
+    """Replace the patch faces ``part`` ((F,) bool: one hole's) by the least-area flat
+    triangulation of their loops (:func:`spacemesh.repair.probe.flat_surface`, no new
+    vertex), where the probes prefer that fill and the patch could not be laid onto it
+    (:func:`_onto_flat`), when that adds no self-intersection near the hole: the face
+    each new face is (:func:`_fill_instead`), or None when it did not."""
+    from spacemesh.geometry.fairing import patch_loops
+    from spacemesh.repair.probe import flat_surface
+
+    loops = patch_loops(state.mesh, part)
+    triangles = flat_surface(state.mesh.vertices, loops) if loops else None
+    if triangles is None:
+        return None
+    return _fill_instead(state, index, part, np.zeros((0, 3)), triangles, guard=True)
+
+
+def _fill_instead(state: _Passes, index: int, patch: BoolArray, points: FloatArray,
+                  triangles: IntArray, *, guard: bool = False) -> IntArray | None:
+    """Replace the faces ``patch`` ((F,) bool) the region ``index`` made by the
+    ``triangles`` (T, 3) over the current mesh's vertices then the new ``points``
+    (P, 3); every other face is kept. Returns the face of the mesh before each face of
+    the new one is ((F',) int64, -1 for the new faces), or None when it did not
+    replace them: when a triangle uses a vertex that goes with the patch or, with
+    ``guard``, when the new faces add a self-intersection near the hole."""
+    from spacemesh.geometry.fairing import _faces_subset, _faces_touching, _vertices_of
+    from spacemesh.geometry.intersections import self_intersecting_faces
+
+    mesh = state.mesh
     # the vertices the region made that no kept face uses go with these faces
     own = (state.origin == index) & ~_vertices_of(mesh, ~patch)
     vertex_map = np.full(mesh.n_vertices, -1, dtype=np.int64)
     vertex_map[~own] = np.arange(int((~own).sum()))
     ids = np.concatenate([vertex_map, int((~own).sum()) + np.arange(len(points))])
     if (ids[triangles] < 0).any():
-        return False
+        return None
     kept = _faces_subset(mesh, ~patch)
     indices = np.concatenate([vertex_map[kept.face_indices], ids[triangles].reshape(-1)])
     offsets = np.concatenate([kept.face_offsets, kept.face_offsets[-1]
                               + 3 * np.arange(1, len(triangles) + 1)]).astype(np.int64)
     out = PolygonMesh(np.concatenate([mesh.vertices[~own], points]), indices, offsets)
     source = np.concatenate([np.flatnonzero(~patch), np.full(len(triangles), -1)])
+    if guard:
+        def crossings(surface: PolygonMesh, faces: BoolArray) -> int:
+            near = _faces_touching(surface, _vertices_of(surface, faces))
+            return int(self_intersecting_faces(_faces_subset(surface, near)).sum())
+
+        if crossings(out, source < 0) > crossings(mesh, patch):
+            return None
     state.apply(vertex_map, source.astype(np.int64), out, index)
-    return True
+    return source.astype(np.int64)
 
 
 def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True

@@ -11,7 +11,8 @@ holes** of the same size are punched in the input faces around the hole
 (:func:`probe_regions`), each is filled by both methods on its own, and each fill is
 scored against the faces it replaced (:func:`fill_error`). MeshFix's fill is taken for
 the real hole only when it is clearly closer on the probes
-(:data:`MESHFIX_MARGIN`, :func:`prefer_meshfix`).
+(:data:`PROBE_MARGIN`, :func:`preferred_fill`). The least-area flat triangulation of the
+loop is weighed the same way (:data:`ALTERNATIVES`).
 
 numpy and scipy (plus the optional ``pymeshfix`` that MeshFix's fill needs); nothing
 here changes the mesh it is given.
@@ -27,9 +28,9 @@ from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Probe holes punched around a hole.
 PROBES = 4
-#: MeshFix's fill is taken when its summed probe error is below this share of the
+#: An alternative fill is taken when its summed probe error is below this share of the
 #: fairing's.
-MESHFIX_MARGIN = 0.8
+PROBE_MARGIN = 0.8
 #: Rings of faces around a probe handed to the fills (enough for the fairing's ring and
 #: MeshFix's five rings).
 PROBE_RINGS = 6
@@ -221,39 +222,73 @@ def _meshfix_probe(local: PolygonMesh, loops: list[IntArray]) -> FloatArray | No
     return np.concatenate([local.vertices, points])[triangles]
 
 
+def flat_surface(points: FloatArray, loops: list[IntArray]) -> IntArray | None:
+    """The least-area triangulation of each loop
+    (:func:`spacemesh.geometry.fairing.min_area_triangles`) over the ``points`` (V, 3),
+    as rows of point indices (T, 3); None when a loop is longer than
+    :data:`spacemesh.geometry.fairing.MAX_FLAT_LOOP` or shorter than 3."""
+    from spacemesh.geometry.fairing import MAX_FLAT_LOOP, min_area_triangles
+
+    if not loops or any(len(loop) > MAX_FLAT_LOOP or len(loop) < 3 for loop in loops):
+        return None
+    return np.concatenate([loop[min_area_triangles(points[loop])] for loop in loops])
+
+
+def _flat_probe(local: PolygonMesh, loops: list[IntArray]) -> FloatArray | None:
+    """The least-area flat fill of the probe (:func:`flat_surface`), as triangle corners."""
+    triangles = flat_surface(local.vertices, loops)
+    return None if triangles is None else local.vertices[triangles]
+
+
+#: The fills the probes weigh against the fairing's: MeshFix's (triangulated, refined,
+#: faired) and the least-area flat triangulation of the loop, which continues a
+#: piecewise-flat surface (a plate's rim, a low-poly facet) where both others bulge.
+ALTERNATIVES = {"meshfix": _meshfix_probe, "flat": _flat_probe}
+
+
 def probe_errors(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
-                 count: int = PROBES) -> tuple[float, float, int]:
-    """The fairing's and MeshFix's summed :func:`fill_error` over the probe holes around
-    the hole ``loops`` of ``mesh`` (its faces ``known`` are input faces), and the number
-    of probes both could fill."""
-    from spacemesh.geometry.fairing import _faces_subset, patch_loops
+                 count: int = PROBES) -> dict[str, tuple[float, float, int]]:
+    """For each of the :data:`ALTERNATIVES`: the fairing's and its summed
+    :func:`fill_error` over the probe holes around the hole ``loops`` of ``mesh`` (its
+    faces ``known`` are input faces) that both could fill, and the number of those
+    probes."""
+    from spacemesh.geometry.fairing import _faces_subset, _vertices_of, patch_loops
     from spacemesh.repair.meshfix_fill import faces_around
 
-    fair_total = meshfix_total = 0.0
-    used = 0
+    totals = {name: [0.0, 0.0, 0] for name in ALTERNATIVES}
     for faces in probe_regions(mesh, loops, known, count):
-        from spacemesh.geometry.fairing import _vertices_of
-
         around = faces_around(mesh, _vertices_of(mesh, faces), PROBE_RINGS)
         probe_loops = patch_loops(mesh, faces)
         local = _faces_subset(mesh, around & ~faces)
         truth = _triangles(mesh, faces)
         ours = _fair_fill(local, probe_loops)
-        theirs = _meshfix_probe(local, probe_loops)
-        if ours is None or theirs is None:
+        if ours is None:
             continue
-        fair_total += fill_error(truth, ours)
-        meshfix_total += fill_error(truth, theirs)
-        used += 1
-    return fair_total, meshfix_total, used
+        fair_error = fill_error(truth, ours)
+        for name, fill in ALTERNATIVES.items():
+            theirs = fill(local, probe_loops)
+            if theirs is None:
+                continue
+            totals[name][0] += fair_error
+            totals[name][1] += fill_error(truth, theirs)
+            totals[name][2] += 1
+    return {name: (fair, other, int(used)) for name, (fair, other, used) in totals.items()}
 
 
-def prefer_meshfix(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
-                   report: dict | None = None) -> bool:
-    """Whether MeshFix's fill of the hole ``loops`` should replace the fairing's: True
-    when, over the probe holes around it (:func:`probe_errors`), MeshFix's error is below
-    :data:`MESHFIX_MARGIN` times the fairing's. ``report`` receives the errors."""
-    fair_total, meshfix_total, used = probe_errors(mesh, loops, known)
+def preferred_fill(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
+                   report: dict | None = None) -> str:
+    """The fill the probe holes around the hole ``loops`` prefer (:func:`probe_errors`):
+    the alternative (:data:`ALTERNATIVES`) whose error over the probes both could fill
+    is below :data:`PROBE_MARGIN` times the fairing's by the largest factor, else
+    ``"fair"``. ``report`` receives the errors (``probe_fair``, ``probe_<name>``, over
+    the probes MeshFix could fill, and ``probes``)."""
+    errors = probe_errors(mesh, loops, known)
     if report is not None:
-        report.update(probe_fair=fair_total, probe_meshfix=meshfix_total, probes=used)
-    return used > 0 and meshfix_total < MESHFIX_MARGIN * fair_total
+        fair, _, used = errors["meshfix"]
+        report.update(probe_fair=fair, probes=used,
+                      **{f"probe_{name}": other for name, (_, other, _) in errors.items()})
+    best, best_ratio = "fair", PROBE_MARGIN
+    for name, (fair, other, used) in errors.items():
+        if used and other < best_ratio * fair:
+            best, best_ratio = name, other / fair
+    return best
