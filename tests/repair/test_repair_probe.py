@@ -323,3 +323,27 @@ def test_a_hole_that_cannot_be_laid_onto_the_flat_fill_takes_the_flat_fill(monke
     # no vertex beyond the input's: each hole is the least-area triangulation of its loop
     assert result.mesh.n_vertices == mesh.n_vertices
     assert result.mesh.n_faces == mesh.n_faces + sum(len(loop) - 2 for loop in loops)
+
+
+def test_a_fill_that_joins_its_loops_by_a_tube_is_replaced_by_one_disc_a_loop():
+    from repair_testing import assert_closed_manifold
+
+    from spacemesh.repair.auto import _fan_if_not_discs, _Passes, _patch_euler
+    from spacemesh.topology import check_topology
+
+    sphere = icosphere(3)
+    centre_z = sphere.vertices[np.asarray(sphere.faces)].mean(axis=1)[:, 2]  # (F,)
+    band = np.abs(centre_z) < 0.3  # a tube between two loops, as a handle a pass made
+    own = _vertices_of(sphere, band) & ~_vertices_of(sphere, ~band)
+    n_v, n_f = sphere.n_vertices, sphere.n_faces
+    state = _Passes(sphere, np.arange(n_v), np.where(band, -1, np.arange(n_f)),
+                    np.full(n_f, -1), np.where(own, 0, -1), np.where(band, 0, -1))
+    assert _patch_euler(sphere, band) == 0 and len(patch_loops(sphere, band)) == 2
+    assert _fan_if_not_discs(state, 0)
+    made = state.made_by == 0
+    assert _patch_euler(state.mesh, made) == 2  # a disc on each loop
+    assert_closed_manifold(state.mesh)
+    assert check_topology(state.mesh).n_components == 2  # the caps closed off each half
+    # a fill of one disc a loop is left alone
+    disc_state, _ = _state_with_cap(lambda x: x)
+    assert not _fan_if_not_discs(disc_state, 0)

@@ -946,6 +946,38 @@ def _faired_fan(mesh: PolygonMesh, patch: BoolArray
     return current, source, source < 0
 
 
+def _patch_euler(mesh: PolygonMesh, patch: BoolArray) -> int:
+    """The Euler characteristic V - E + F of the ``patch`` faces ((F,) bool) with their
+    own vertices and edges (1 for a disc, 0 for a tube, -1 for a disc with a handle)."""
+    from spacemesh.geometry.fairing import _faces_subset
+
+    sub = _faces_subset(mesh, patch)
+    edges = np.unique(np.sort(sub.halfedges, axis=1), axis=0)
+    return len(np.unique(sub.face_indices)) - len(edges) + sub.n_faces
+
+
+def _fan_if_not_discs(state: _Passes, index: int) -> bool:
+    """Replace the faces the region ``index`` made by a fan over each of their loops
+    (faired, :func:`_faired_fan`, or as it is where it cannot be) when they are not one
+    disc a loop: a fill whose Euler characteristic differs from its number of loops
+    joins them by a tube or a handle (a model pass can splice one in), which changes
+    the genus of the mesh. True when it did."""
+    from spacemesh.geometry.fairing import _faces_subset, patch_loops
+
+    mesh = state.mesh
+    patch = state.made_by == index
+    loops = patch_loops(mesh, patch)
+    if not loops or _patch_euler(mesh, patch) == len(loops):
+        return False
+    fan = _faired_fan(mesh, patch)
+    if fan is None:  # the plain fan: one disc a loop however it lies
+        filled, _ = fan_fill(_faces_subset(mesh, ~patch), loops)
+        source = np.concatenate([np.flatnonzero(~patch),
+                                 np.full(filled.n_faces - int((~patch).sum()), -1)])
+        fan = (filled, source, source < 0)
+    return _fan_instead(state, index, fan)
+
+
 def _fan_instead(state: _Passes, index: int,
                  fan: tuple[PolygonMesh, IntArray, BoolArray] | None = None) -> bool:
     """Replace the faces the region ``index`` made by a fan over each of their loops,
@@ -1172,13 +1204,22 @@ def _flat_instead(state: _Passes, index: int, part: BoolArray) -> IntArray | Non
     return _fill_instead(state, index, part, np.zeros((0, 3)), triangles, guard=True)
 
 
+def _repeated_halfedges(mesh: PolygonMesh) -> int:
+    """How many halfedges of ``mesh`` repeat another's direction between the same two
+    vertices (0 on an oriented manifold mesh)."""
+    he = mesh.halfedges
+    key = he[:, 0] * max(mesh.n_vertices, 1) + he[:, 1]
+    return len(key) - len(np.unique(key))
+
+
 def _fill_instead(state: _Passes, index: int, patch: BoolArray, points: FloatArray,
                   triangles: IntArray, *, guard: bool = False) -> IntArray | None:
     """Replace the faces ``patch`` ((F,) bool) the region ``index`` made by the
     ``triangles`` (T, 3) over the current mesh's vertices then the new ``points``
     (P, 3); every other face is kept. Returns the face of the mesh before each face of
     the new one is ((F',) int64, -1 for the new faces), or None when it did not
-    replace them: when a triangle uses a vertex that goes with the patch or, with
+    replace them: when a triangle uses a vertex that goes with the patch, when a new
+    face repeats an edge the mesh has (:func:`_repeated_halfedges`), or, with
     ``guard``, when the new faces add a self-intersection near the hole."""
     from spacemesh.geometry.fairing import _faces_subset, _faces_touching, _vertices_of
     from spacemesh.geometry.intersections import self_intersecting_faces
@@ -1197,6 +1238,8 @@ def _fill_instead(state: _Passes, index: int, patch: BoolArray, points: FloatArr
                               + 3 * np.arange(1, len(triangles) + 1)]).astype(np.int64)
     out = PolygonMesh(np.concatenate([mesh.vertices[~own], points]), indices, offsets)
     source = np.concatenate([np.flatnonzero(~patch), np.full(len(triangles), -1)])
+    if _repeated_halfedges(out) > _repeated_halfedges(mesh):
+        return None  # a new face repeats an edge of the mesh (one between two loop vertices)
     if guard:
         def crossings(surface: PolygonMesh, faces: BoolArray) -> int:
             near = _faces_touching(surface, _vertices_of(surface, faces))
@@ -1257,7 +1300,10 @@ def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
             state.results.append(result)
             state.apply(result.vertex_map, result.face_source, result.mesh, index)
             by = _filled_by(result.stats.loops - _polygons(result), _polygons(result))
-            if fair and all(plan.findings[i].kind == "hole" for i in region.findings):
+            holes = all(plan.findings[i].kind == "hole" for i in region.findings)
+            if holes and _fan_if_not_discs(state, index):
+                by = "fallback"
+            elif fair and holes:
                 by = _replaced_by(_fair_region(state, index), by)  # ring rebuilt
         else:
             loops = [state.vertex_map[loop] for i in region.findings
@@ -1285,7 +1331,9 @@ def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
                 state.apply(result.vertex_map, result.face_source, result.mesh, index)
                 by_model += _polygons(result) == 0
             by = _filled_by(by_model, n_wedges - first - by_model)
-            if fair:
+            if _fan_if_not_discs(state, index):
+                by = "fallback"
+            elif fair:
                 by = _replaced_by(_fair_region(state, index), by)
         for i in region.findings:
             outcome[i] = by
