@@ -492,6 +492,20 @@ def fit_new_vertices(spliced: Spliced, points: FloatArray, normals: FloatArray,
     return mesh.with_vertices(vertices)
 
 
+#: Samplings tried for a region whose fill has a lower Euler characteristic than the
+#: region's faces (a handle spliced in: 4 of 48 random regions on the dev split,
+#: experiments/check_repair_genus.py); the seed's own sampling first.
+TOPOLOGY_ATTEMPTS = 3
+
+
+def _euler_characteristic(mesh: PolygonMesh, faces: BoolArray) -> int:
+    """The Euler characteristic of the ``faces`` ((F,) bool) of ``mesh`` with their own
+    vertices and edges (1 for a disc)."""
+    from spacemesh.topology import check_topology
+
+    return check_topology(sub_mesh(mesh, np.flatnonzero(faces))).euler_characteristic
+
+
 def repair_mesh(
     mesh: PolygonMesh,
     region: Region | Mapping[str, Any] | BoolArray,
@@ -578,39 +592,44 @@ def repair_mesh(
     mesh = cut.mesh  # the input, or its weld
     timings = {"cut": plan.seconds}
 
-    t0 = time.perf_counter()
-    rng = np.random.default_rng(int(seed))
-    n_pad = patch.n_tokens - len(patch.known)
-    samples = sample_patch(cut, patch, n_points=spec.n_points, normals=spec.normals,
-                           n_hole=max(HOLE_POINTS_PER_TOKEN * n_pad, 64), rng=rng,
-                           hole=plan.hole)
-    known_unit = patch.to_unit(mesh.vertices[patch.known])  # (K, 3)
-    timings["patch"] = time.perf_counter() - t0
+    expected_euler = _euler_characteristic(mesh, cut.region)
+    for attempt in range(TOPOLOGY_ATTEMPTS):
+        t0 = time.perf_counter()
+        rng = np.random.default_rng(int(seed) if attempt == 0 else [int(seed), attempt])
+        n_pad = patch.n_tokens - len(patch.known)
+        samples = sample_patch(cut, patch, n_points=spec.n_points, normals=spec.normals,
+                               n_hole=max(HOLE_POINTS_PER_TOKEN * n_pad, 64), rng=rng,
+                               hole=plan.hole)
+        known_unit = patch.to_unit(mesh.vertices[patch.known])  # (K, 3)
+        timings["patch"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
-    volumes = backend.encode(samples.condition[None])
-    timings["encoder"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        volumes = backend.encode(samples.condition[None])
+        timings["encoder"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
-    result = inpaint_tokens(backend, volumes, known_unit, samples.hole[:n_pad],
-                            spec.schedule.respaced(steps), method=method, rng=rng,
-                            progress=progress,
-                            points=samples.condition[None] if spec.local_points else None)
-    positions = result.tokens[:, :3].astype(np.float64)  # (N, 3)
-    candidates, valid, dropped = select_new_vertices(result, samples, patch.expected_new)
-    timings["sampler"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        result = inpaint_tokens(backend, volumes, known_unit, samples.hole[:n_pad],
+                                spec.schedule.respaced(steps), method=method, rng=rng,
+                                progress=progress,
+                                points=samples.condition[None] if spec.local_points else None)
+        positions = result.tokens[:, :3].astype(np.float64)  # (N, 3)
+        candidates, valid, dropped = select_new_vertices(result, samples, patch.expected_new)
+        timings["sampler"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
-    out = backend.connect(positions[None].astype(np.float32), valid[None], volumes)
-    timings["connectivity"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        out = backend.connect(positions[None].astype(np.float32), valid[None], volumes)
+        timings["connectivity"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
-    flipped = bool(enclosed_volume(mesh) < 0)
-    boundary_tokens = result.known_token[np.searchsorted(patch.known, cut.boundary)]
-    emb = hole_embeddings(out, np.concatenate([boundary_tokens, candidates]), flipped)
-    fill = fill_hole(emb, len(cut.boundary), cut.loop_next, cut.loop_prev, spec.decode)
-    spliced = splice(cut, patch.from_unit(positions[candidates]), fill)
-    timings["splice"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        flipped = bool(enclosed_volume(mesh) < 0)
+        boundary_tokens = result.known_token[np.searchsorted(patch.known, cut.boundary)]
+        emb = hole_embeddings(out, np.concatenate([boundary_tokens, candidates]), flipped)
+        fill = fill_hole(emb, len(cut.boundary), cut.loop_next, cut.loop_prev, spec.decode)
+        spliced = splice(cut, patch.from_unit(positions[candidates]), fill)
+        timings["splice"] = time.perf_counter() - t0
+
+        if _euler_characteristic(spliced.mesh, spliced.face_source < 0) >= expected_euler:
+            break  # no handle spliced in (a handle lowers the Euler characteristic by 2)
 
     t0 = time.perf_counter()
     if fit_patch and spliced.n_new_vertices:

@@ -950,10 +950,9 @@ def _patch_euler(mesh: PolygonMesh, patch: BoolArray) -> int:
     """The Euler characteristic V - E + F of the ``patch`` faces ((F,) bool) with their
     own vertices and edges (1 for a disc, 0 for a tube, -1 for a disc with a handle)."""
     from spacemesh.geometry.fairing import _faces_subset
+    from spacemesh.topology import check_topology
 
-    sub = _faces_subset(mesh, patch)
-    edges = np.unique(np.sort(sub.halfedges, axis=1), axis=0)
-    return len(np.unique(sub.face_indices)) - len(edges) + sub.n_faces
+    return check_topology(_faces_subset(mesh, patch)).euler_characteristic
 
 
 def _fan_if_not_discs(state: _Passes, index: int) -> bool:
