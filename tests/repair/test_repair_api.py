@@ -190,18 +190,18 @@ def test_a_fill_with_a_handle_is_sampled_again(monkeypatch):
 
     mesh, region = icosphere(3), {"vertices": [0]}
     spec = make_spec()
-    real = api._euler_characteristic
+    real = api.patch_euler
     calls: list[int] = []  # the region's, then each fill's
 
     def handle_first(surface, faces):
         calls.append(real(surface, faces))
         return calls[-1] - 2 if len(calls) == 2 else calls[-1]  # the first fill: a handle
 
-    monkeypatch.setattr(api, "_euler_characteristic", handle_first)
+    monkeypatch.setattr(api, "patch_euler", handle_first)
     again = repair_mesh(mesh, region, backend=NoiseBackend(), spec=spec, seed=7)
     assert len(calls) == 3  # the region, then sampled once more with the seed's next stream
     assert_closed_manifold(again.mesh)
-    monkeypatch.setattr(api, "_euler_characteristic", real)
+    monkeypatch.setattr(api, "patch_euler", real)
     first = repair_mesh(mesh, region, backend=NoiseBackend(), spec=spec, seed=7)
     assert not np.array_equal(first.mesh.vertices, again.mesh.vertices)
     assert check_topology(again.mesh).euler_characteristic == 2

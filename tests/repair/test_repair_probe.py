@@ -328,7 +328,7 @@ def test_a_hole_that_cannot_be_laid_onto_the_flat_fill_takes_the_flat_fill(monke
 def test_a_fill_that_joins_its_loops_by_a_tube_is_replaced_by_one_disc_a_loop():
     from repair_testing import assert_closed_manifold
 
-    from spacemesh.repair.auto import _fan_if_not_discs, _Passes, _patch_euler
+    from spacemesh.repair.auto import _fan_if_not_discs, _Passes, patch_euler
     from spacemesh.topology import check_topology
 
     sphere = icosphere(3)
@@ -338,10 +338,10 @@ def test_a_fill_that_joins_its_loops_by_a_tube_is_replaced_by_one_disc_a_loop():
     n_v, n_f = sphere.n_vertices, sphere.n_faces
     state = _Passes(sphere, np.arange(n_v), np.where(band, -1, np.arange(n_f)),
                     np.full(n_f, -1), np.where(own, 0, -1), np.where(band, 0, -1))
-    assert _patch_euler(sphere, band) == 0 and len(patch_loops(sphere, band)) == 2
+    assert patch_euler(sphere, band) == 0 and len(patch_loops(sphere, band)) == 2
     assert _fan_if_not_discs(state, 0)
     made = state.made_by == 0
-    assert _patch_euler(state.mesh, made) == 2  # a disc on each loop
+    assert patch_euler(state.mesh, made) == 2  # a disc on each loop
     assert_closed_manifold(state.mesh)
     assert check_topology(state.mesh).n_components == 2  # the caps closed off each half
     # a fill of one disc a loop is left alone

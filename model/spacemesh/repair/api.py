@@ -31,7 +31,7 @@ from spacemesh.decode import Embeddings
 from spacemesh.geometry import refine_geometry
 from spacemesh.geometry.surface_fit import nearest_triangles
 from spacemesh.mesh import PolygonMesh
-from spacemesh.repair.auto import AutoPlan, plan_auto, repair_auto
+from spacemesh.repair.auto import AutoPlan, patch_euler, plan_auto, repair_auto
 from spacemesh.repair.cut import Cut, cut_region
 from spacemesh.repair.inpaint import InpaintResult, inpaint_tokens
 from spacemesh.repair.patch import (
@@ -498,14 +498,6 @@ def fit_new_vertices(spliced: Spliced, points: FloatArray, normals: FloatArray,
 TOPOLOGY_ATTEMPTS = 3
 
 
-def _euler_characteristic(mesh: PolygonMesh, faces: BoolArray) -> int:
-    """The Euler characteristic of the ``faces`` ((F,) bool) of ``mesh`` with their own
-    vertices and edges (1 for a disc)."""
-    from spacemesh.topology import check_topology
-
-    return check_topology(sub_mesh(mesh, np.flatnonzero(faces))).euler_characteristic
-
-
 def repair_mesh(
     mesh: PolygonMesh,
     region: Region | Mapping[str, Any] | BoolArray,
@@ -592,15 +584,16 @@ def repair_mesh(
     mesh = cut.mesh  # the input, or its weld
     timings = {"cut": plan.seconds}
 
-    expected_euler = _euler_characteristic(mesh, cut.region)
+    expected_euler = patch_euler(mesh, cut.region)
+    n_pad = patch.n_tokens - len(patch.known)
+    known_unit = patch.to_unit(mesh.vertices[patch.known])  # (K, 3)
+    flipped = bool(enclosed_volume(mesh) < 0)
     for attempt in range(TOPOLOGY_ATTEMPTS):
         t0 = time.perf_counter()
         rng = np.random.default_rng(int(seed) if attempt == 0 else [int(seed), attempt])
-        n_pad = patch.n_tokens - len(patch.known)
         samples = sample_patch(cut, patch, n_points=spec.n_points, normals=spec.normals,
                                n_hole=max(HOLE_POINTS_PER_TOKEN * n_pad, 64), rng=rng,
                                hole=plan.hole)
-        known_unit = patch.to_unit(mesh.vertices[patch.known])  # (K, 3)
         timings["patch"] = time.perf_counter() - t0
 
         t0 = time.perf_counter()
@@ -621,14 +614,13 @@ def repair_mesh(
         timings["connectivity"] = time.perf_counter() - t0
 
         t0 = time.perf_counter()
-        flipped = bool(enclosed_volume(mesh) < 0)
         boundary_tokens = result.known_token[np.searchsorted(patch.known, cut.boundary)]
         emb = hole_embeddings(out, np.concatenate([boundary_tokens, candidates]), flipped)
         fill = fill_hole(emb, len(cut.boundary), cut.loop_next, cut.loop_prev, spec.decode)
         spliced = splice(cut, patch.from_unit(positions[candidates]), fill)
         timings["splice"] = time.perf_counter() - t0
 
-        if _euler_characteristic(spliced.mesh, spliced.face_source < 0) >= expected_euler:
+        if patch_euler(spliced.mesh, spliced.face_source < 0) >= expected_euler:
             break  # no handle spliced in (a handle lowers the Euler characteristic by 2)
 
     t0 = time.perf_counter()

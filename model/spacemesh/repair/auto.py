@@ -946,7 +946,7 @@ def _faired_fan(mesh: PolygonMesh, patch: BoolArray
     return current, source, source < 0
 
 
-def _patch_euler(mesh: PolygonMesh, patch: BoolArray) -> int:
+def patch_euler(mesh: PolygonMesh, patch: BoolArray) -> int:
     """The Euler characteristic V - E + F of the ``patch`` faces ((F,) bool) with their
     own vertices and edges (1 for a disc, 0 for a tube, -1 for a disc with a handle)."""
     from spacemesh.geometry.fairing import _faces_subset
@@ -966,7 +966,7 @@ def _fan_if_not_discs(state: _Passes, index: int) -> bool:
     mesh = state.mesh
     patch = state.made_by == index
     loops = patch_loops(mesh, patch)
-    if not loops or _patch_euler(mesh, patch) == len(loops):
+    if not loops or patch_euler(mesh, patch) == len(loops):
         return False
     fan = _faired_fan(mesh, patch)
     if fan is None:  # the plain fan: one disc a loop however it lies
@@ -1061,12 +1061,13 @@ def _laid_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
         positions[rows] = laid(positions[rows])
     triangles, _ = _faces_subset(mesh, patch).triangulate()
     average = identity(mesh.n_vertices, format="csr") - _laplacian(mesh, patch, uniform=True)
-    for _ in range(RELAX_ROUNDS):
-        if not len(rows) or not _badly_laid(positions, triangles, surface_points,
-                                            surface_triangles):
+    bad = _badly_laid(positions, triangles, surface_points, surface_triangles)
+    for _ in range(RELAX_ROUNDS if len(rows) else 0):
+        if not bad:
             break
         positions[rows] = laid((average @ positions)[rows])
-    if _badly_laid(positions, triangles, surface_points, surface_triangles):
+        bad = _badly_laid(positions, triangles, surface_points, surface_triangles)
+    if bad:
         return None
     near = _faces_touching(mesh, _vertices_of(mesh, _faces_touching(mesh, moving)))
     before = int(self_intersecting_faces(_faces_subset(mesh, near)).sum())
