@@ -120,3 +120,35 @@ def test_bad_input_is_one_line_exit_2(tmp_path, mesh_files, make_args, message):
     assert result.exit_code == 2, result.output
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0] and "Traceback" not in result.output
+
+
+def test_the_position_loss_weighs_each_mesh_by_its_own_vertices():
+    import torch
+
+    from spacemesh.fitting.collection import _position_loss
+
+    n = 100
+    target = torch.zeros(2, n, 4)
+    target[..., 3] = -1.0
+    target[0, :4, 3] = 1.0  # a 4-vertex mesh
+    target[1, :80, 3] = 1.0  # an 80-vertex one
+    mask = target[..., 3].clone()  # the mask channel right
+    positions = torch.zeros(2, n, 3)
+    positions[0, :4] = 0.3  # the small mesh's vertices off by 0.3 in each coordinate
+    positions[:, 90:] = 5.0  # the padding's positions are free
+    per_vertex = _position_loss(positions, mask, target, per_vertex=True)
+    assert per_vertex.item() == pytest.approx(0.5 * 0.09)  # its own MSE, halved by the mean
+    positions[0, :4] = 0.0
+    positions[1, :80] = 0.3  # the same error on the large mesh costs the same
+    assert _position_loss(positions, mask, target, per_vertex=True).item() == pytest.approx(
+        0.5 * 0.09)
+    mask[1, 95] = 0.0  # a padding slot's mask wrong: the mask's mean over all slots
+    assert _position_loss(positions, mask, target, per_vertex=True).item() == pytest.approx(
+        0.5 * 0.09 + 1.0 / (2 * n))
+    # over all slots (the earlier runs): the padding's zeros dilute the positions
+    positions[:, 90:] = 0.0
+    mask[1, 95] = -1.0
+    positions[1, :80] = 0.0
+    positions[0, :4] = 0.3
+    assert _position_loss(positions, mask, target, per_vertex=False).item() == pytest.approx(
+        4 * 3 * 0.09 / (2 * n * 4))

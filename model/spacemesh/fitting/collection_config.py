@@ -33,6 +33,9 @@ class CollectionConfig:
     warmup: int = 20  # steps of linear learning-rate warm-up
     clip: float | None = 1.0  # gradient norm clipping (None: off)
     position_weight: float = 1.0  # of the position + mask L2 against the connectivity losses
+    # the position L2 of each mesh over its own vertices (False: over all N slots, where the
+    # padding dilutes a small mesh's positions; the runs before 3 December 2026)
+    per_vertex_positions: bool = True
     embedding_scale: float = 1.0
     false_positive_weight: float | None = 1.0
     false_positive_margin: float = 0.5
