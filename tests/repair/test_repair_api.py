@@ -201,7 +201,28 @@ def test_a_fill_with_a_handle_is_sampled_again(monkeypatch):
     again = repair_mesh(mesh, region, backend=NoiseBackend(), spec=spec, seed=7)
     assert len(calls) == 3  # the region, then sampled once more with the seed's next stream
     assert_closed_manifold(again.mesh)
+    assert again.stats.samplings == 2 and again.stats.handles_added == 0
     monkeypatch.setattr(api, "patch_euler", real)
     first = repair_mesh(mesh, region, backend=NoiseBackend(), spec=spec, seed=7)
     assert not np.array_equal(first.mesh.vertices, again.mesh.vertices)
     assert check_topology(again.mesh).euler_characteristic == 2
+    assert first.stats.samplings == 1 and first.stats.handles_added == 0
+
+
+def test_a_handle_in_every_sampling_is_reported(monkeypatch):
+    import spacemesh.repair.api as api
+
+    mesh, region = icosphere(3), {"vertices": [0]}
+    real = api.patch_euler
+    calls: list[int] = []
+
+    def always_a_handle(surface, faces):
+        calls.append(real(surface, faces))
+        return calls[-1] - 2 if len(calls) > 1 else calls[-1]  # every fill: one handle
+
+    monkeypatch.setattr(api, "patch_euler", always_a_handle)
+    result = repair_mesh(mesh, region, backend=NoiseBackend(), spec=make_spec(), seed=7)
+    assert len(calls) == 1 + api.TOPOLOGY_ATTEMPTS
+    assert result.stats.samplings == api.TOPOLOGY_ATTEMPTS
+    assert result.stats.handles_added == 1
+    assert result.stats.to_dict()["handles_added"] == 1

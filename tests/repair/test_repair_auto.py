@@ -395,3 +395,32 @@ def test_a_fin_on_a_large_hole_is_split_off_then_the_holes_are_filled_in_place(m
     assert np.array_equal(out.vertices[out.face_indices[:n]], mesh.vertices[mesh.face_indices])
     actions = {f["kind"]: f["action"] for f in result.stats.findings}
     assert actions["non-manifold-edges"] == "split" and actions["hole"] == "filled"
+
+
+def test_an_automatic_fill_with_a_handle_takes_the_fan_and_reports_none(monkeypatch):
+    import spacemesh.repair.api as api
+    import spacemesh.repair.auto as auto
+
+    real_api, real_auto = api.patch_euler, auto.patch_euler
+    calls: list[int] = []
+
+    def every_sampling_a_handle(surface, faces):  # a pass: its region, then each sampling
+        calls.append(real_api(surface, faces))
+        return calls[-1] - 2 * bool(len(calls) % (1 + api.TOPOLOGY_ATTEMPTS) != 1)
+
+    monkeypatch.setattr(api, "patch_euler", every_sampling_a_handle)
+    fills: list[int] = []
+
+    def fills_with_a_handle(surface, faces):  # every pass's fill: one handle
+        fills.append(real_auto(surface, faces))
+        return fills[-1] - 2
+
+    monkeypatch.setattr(auto, "patch_euler", fills_with_a_handle)
+    mesh = punched(icosphere(3), [[0.0, 0.0, 1.0]], radius=0.4)
+    result = run(mesh, {"auto": "holes"})
+    assert_closed_manifold(result.mesh)
+    assert check_topology(result.mesh).euler_characteristic == 2
+    stats = result.stats
+    assert fills and [f["filled_by"] for f in stats.findings] == ["fallback"]
+    assert stats.samplings == api.TOPOLOGY_ATTEMPTS * stats.passes  # each pass sampled 3 times
+    assert stats.handles_added == 0  # the fan replaced the handled fills

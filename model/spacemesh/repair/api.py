@@ -142,6 +142,15 @@ class RepairStats:
         orient_faces`).
     flipped_mesh : bool
         The whole mesh was inside out and was reversed.
+    samplings : int
+        Samplings of the region run: more than 1 where a fill that added a handle (its
+        Euler characteristic below the region's) was sampled again, up to
+        :data:`TOPOLOGY_ATTEMPTS` (summed over the passes of an automatic region).
+    handles_added : int
+        Handles the fill kept adds to the mesh (half the drop of its Euler characteristic
+        below the region's): 0 unless every sampling added one. For an automatic region,
+        over the passes whose fill was kept (a region of holes whose fill is not one disc
+        a loop takes the fan instead).
     findings : list of dict
         Automatic regions: every hole and defect found (first
         :data:`spacemesh.repair.auto.MAX_REPORTED`): ``kind``, ``size``, ``vertex``,
@@ -183,6 +192,8 @@ class RepairStats:
     passes: int = 1
     reversed_faces: int = 0
     flipped_mesh: bool = False
+    samplings: int = 1
+    handles_added: int = 0
     findings: list[dict[str, Any]] = field(default_factory=list)
     findings_total: int = 0
     regions: list[dict[str, Any]] = field(default_factory=list)
@@ -620,7 +631,8 @@ def repair_mesh(
         spliced = splice(cut, patch.from_unit(positions[candidates]), fill)
         timings["splice"] = time.perf_counter() - t0
 
-        if patch_euler(spliced.mesh, spliced.face_source < 0) >= expected_euler:
+        drop = expected_euler - patch_euler(spliced.mesh, spliced.face_source < 0)
+        if drop <= 0:
             break  # no handle spliced in (a handle lowers the Euler characteristic by 2)
 
     t0 = time.perf_counter()
@@ -649,7 +661,8 @@ def repair_mesh(
         fallback=fallback, fill=dict(fs),
         inpaint=dropped,
         flipped_orientation=flipped, welded_vertices=plan.welded_vertices,
-        region_share=round(float(cut.region.sum()) / max(mesh.n_faces, 1), 4), seed=int(seed),
+        region_share=round(float(cut.region.sum()) / max(mesh.n_faces, 1), 4),
+        samplings=attempt + 1, handles_added=max(drop, 0) // 2, seed=int(seed),
         steps=steps, method=method, timings=timings,
     )
     vertex_map = spliced.vertex_map if plan.weld_map is None else (
@@ -723,6 +736,7 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
         auto_region=plan.mode, passes=len(passes),
         reversed_faces=int(plan.reversed_faces.sum()),
         flipped_mesh=bool(plan.reversed_faces.size and plan.reversed_faces.all()),
+        samplings=total("samplings"), handles_added=total("handles_added"),
         findings=findings[:MAX_REPORTED], findings_total=len(findings),
         regions=regions[:MAX_REPORTED], seed=seed, steps=steps, method=method,
         timings=timings,

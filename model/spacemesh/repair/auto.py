@@ -977,6 +977,13 @@ def _fan_if_not_discs(state: _Passes, index: int) -> bool:
     return _fan_instead(state, index, fan)
 
 
+def _handles_removed(results: list[Any]) -> None:
+    """Record that the fills of these passes were replaced by one disc a loop
+    (:func:`_fan_if_not_discs`): the handles they added are not in the mesh."""
+    for result in results:
+        result.stats.handles_added = 0
+
+
 def _fan_instead(state: _Passes, index: int,
                  fan: tuple[PolygonMesh, IntArray, BoolArray] | None = None) -> bool:
     """Replace the faces the region ``index`` made by a fan over each of their loops,
@@ -1302,6 +1309,7 @@ def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
             by = _filled_by(result.stats.loops - _polygons(result), _polygons(result))
             holes = all(plan.findings[i].kind == "hole" for i in region.findings)
             if holes and _fan_if_not_discs(state, index):
+                _handles_removed(state.results[before:])
                 by = "fallback"
             elif fair and holes:
                 by = _replaced_by(_fair_region(state, index), by)  # ring rebuilt
@@ -1332,6 +1340,7 @@ def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
                 by_model += _polygons(result) == 0
             by = _filled_by(by_model, n_wedges - first - by_model)
             if _fan_if_not_discs(state, index):
+                _handles_removed(state.results[before:])
                 by = "fallback"
             elif fair:
                 by = _replaced_by(_fair_region(state, index), by)

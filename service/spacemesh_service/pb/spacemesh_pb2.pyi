@@ -169,7 +169,7 @@ class MeshReply(_message.Message):
     def __init__(self, mesh: _Optional[bytes] = ..., format: _Optional[str] = ..., media_type: _Optional[str] = ..., stats: _Optional[_Union[MeshStats, _Mapping]] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., model_name: _Optional[str] = ..., model_version: _Optional[str] = ..., timings: _Optional[_Mapping[str, float]] = ..., batch_size: _Optional[int] = ..., repair: _Optional[_Union[RepairStats, _Mapping]] = ..., start: _Optional[str] = ..., start_time: _Optional[float] = ..., target_vertices: _Optional[int] = ..., samples: _Optional[int] = ..., raw: _Optional[bool] = ..., sample_scores: _Optional[_Iterable[_Union[SampleScore, _Mapping]]] = ..., input_kind: _Optional[str] = ...) -> None: ...
 
 class RepairStats(_message.Message):
-    __slots__ = ("requested_faces", "region_faces", "grown_faces", "removed_vertices", "boundary_vertices", "loops", "new_vertices", "new_faces", "new_face_degrees", "patch_faces", "patch_rings", "known_vertices", "tokens", "candidates", "fallback", "fill", "inpaint", "flipped_orientation", "welded_vertices", "region_share", "auto_region", "passes", "reversed_faces", "flipped_mesh", "findings", "findings_total", "regions")
+    __slots__ = ("requested_faces", "region_faces", "grown_faces", "removed_vertices", "boundary_vertices", "loops", "new_vertices", "new_faces", "new_face_degrees", "patch_faces", "patch_rings", "known_vertices", "tokens", "candidates", "fallback", "fill", "inpaint", "flipped_orientation", "welded_vertices", "region_share", "auto_region", "passes", "reversed_faces", "flipped_mesh", "samplings", "handles_added", "findings", "findings_total", "regions")
     class NewFaceDegreesEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -215,6 +215,8 @@ class RepairStats(_message.Message):
     PASSES_FIELD_NUMBER: _ClassVar[int]
     REVERSED_FACES_FIELD_NUMBER: _ClassVar[int]
     FLIPPED_MESH_FIELD_NUMBER: _ClassVar[int]
+    SAMPLINGS_FIELD_NUMBER: _ClassVar[int]
+    HANDLES_ADDED_FIELD_NUMBER: _ClassVar[int]
     FINDINGS_FIELD_NUMBER: _ClassVar[int]
     FINDINGS_TOTAL_FIELD_NUMBER: _ClassVar[int]
     REGIONS_FIELD_NUMBER: _ClassVar[int]
@@ -242,10 +244,12 @@ class RepairStats(_message.Message):
     passes: int
     reversed_faces: int
     flipped_mesh: bool
+    samplings: int
+    handles_added: int
     findings: _containers.RepeatedCompositeFieldContainer[RepairFinding]
     findings_total: int
     regions: _containers.RepeatedCompositeFieldContainer[RepairRegion]
-    def __init__(self, requested_faces: _Optional[int] = ..., region_faces: _Optional[int] = ..., grown_faces: _Optional[int] = ..., removed_vertices: _Optional[int] = ..., boundary_vertices: _Optional[int] = ..., loops: _Optional[int] = ..., new_vertices: _Optional[int] = ..., new_faces: _Optional[int] = ..., new_face_degrees: _Optional[_Mapping[int, int]] = ..., patch_faces: _Optional[int] = ..., patch_rings: _Optional[int] = ..., known_vertices: _Optional[int] = ..., tokens: _Optional[int] = ..., candidates: _Optional[int] = ..., fallback: _Optional[str] = ..., fill: _Optional[_Mapping[str, int]] = ..., inpaint: _Optional[_Mapping[str, int]] = ..., flipped_orientation: _Optional[bool] = ..., welded_vertices: _Optional[int] = ..., region_share: _Optional[float] = ..., auto_region: _Optional[str] = ..., passes: _Optional[int] = ..., reversed_faces: _Optional[int] = ..., flipped_mesh: _Optional[bool] = ..., findings: _Optional[_Iterable[_Union[RepairFinding, _Mapping]]] = ..., findings_total: _Optional[int] = ..., regions: _Optional[_Iterable[_Union[RepairRegion, _Mapping]]] = ...) -> None: ...
+    def __init__(self, requested_faces: _Optional[int] = ..., region_faces: _Optional[int] = ..., grown_faces: _Optional[int] = ..., removed_vertices: _Optional[int] = ..., boundary_vertices: _Optional[int] = ..., loops: _Optional[int] = ..., new_vertices: _Optional[int] = ..., new_faces: _Optional[int] = ..., new_face_degrees: _Optional[_Mapping[int, int]] = ..., patch_faces: _Optional[int] = ..., patch_rings: _Optional[int] = ..., known_vertices: _Optional[int] = ..., tokens: _Optional[int] = ..., candidates: _Optional[int] = ..., fallback: _Optional[str] = ..., fill: _Optional[_Mapping[str, int]] = ..., inpaint: _Optional[_Mapping[str, int]] = ..., flipped_orientation: _Optional[bool] = ..., welded_vertices: _Optional[int] = ..., region_share: _Optional[float] = ..., auto_region: _Optional[str] = ..., passes: _Optional[int] = ..., reversed_faces: _Optional[int] = ..., flipped_mesh: _Optional[bool] = ..., samplings: _Optional[int] = ..., handles_added: _Optional[int] = ..., findings: _Optional[_Iterable[_Union[RepairFinding, _Mapping]]] = ..., findings_total: _Optional[int] = ..., regions: _Optional[_Iterable[_Union[RepairRegion, _Mapping]]] = ...) -> None: ...
 
 class RepairFinding(_message.Message):
     __slots__ = ("kind", "size", "vertex", "region", "action", "filled_by")
