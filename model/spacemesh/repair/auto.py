@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import itertools
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -955,12 +956,14 @@ def patch_euler(mesh: PolygonMesh, patch: BoolArray) -> int:
     return check_topology(_faces_subset(mesh, patch)).euler_characteristic
 
 
-def _fan_if_not_discs(state: _Passes, index: int) -> bool:
+def _fan_if_not_discs(state: _Passes, index: int, passes: Sequence[Any] = ()) -> bool:
     """Replace the faces the region ``index`` made by a fan over each of their loops
     (faired, :func:`_faired_fan`, or as it is where it cannot be) when they are not one
     disc a loop: a fill whose Euler characteristic differs from its number of loops
     joins them by a tube or a handle (a model pass can splice one in), which changes
-    the genus of the mesh. True when it did."""
+    the genus of the mesh. True when it did; then the region's ``passes`` (their
+    :class:`spacemesh.repair.api.RepairResult`) report no handle added, as none of
+    their fill is left."""
     from spacemesh.geometry.fairing import _faces_subset, patch_loops
 
     mesh = state.mesh
@@ -974,14 +977,10 @@ def _fan_if_not_discs(state: _Passes, index: int) -> bool:
         source = np.concatenate([np.flatnonzero(~patch),
                                  np.full(filled.n_faces - int((~patch).sum()), -1)])
         fan = (filled, source, source < 0)
-    return _fan_instead(state, index, fan)
-
-
-def _handles_removed(results: list[Any]) -> None:
-    """Record that the fills of these passes were replaced by one disc a loop
-    (:func:`_fan_if_not_discs`): the handles they added are not in the mesh."""
-    for result in results:
+    replaced = _fan_instead(state, index, fan)
+    for result in passes if replaced else ():
         result.stats.handles_added = 0
+    return replaced
 
 
 def _fan_instead(state: _Passes, index: int,
@@ -1308,8 +1307,7 @@ def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
             state.apply(result.vertex_map, result.face_source, result.mesh, index)
             by = _filled_by(result.stats.loops - _polygons(result), _polygons(result))
             holes = all(plan.findings[i].kind == "hole" for i in region.findings)
-            if holes and _fan_if_not_discs(state, index):
-                _handles_removed(state.results[before:])
+            if holes and _fan_if_not_discs(state, index, state.results[before:]):
                 by = "fallback"
             elif fair and holes:
                 by = _replaced_by(_fair_region(state, index), by)  # ring rebuilt
@@ -1339,8 +1337,7 @@ def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
                 state.apply(result.vertex_map, result.face_source, result.mesh, index)
                 by_model += _polygons(result) == 0
             by = _filled_by(by_model, n_wedges - first - by_model)
-            if _fan_if_not_discs(state, index):
-                _handles_removed(state.results[before:])
+            if _fan_if_not_discs(state, index, state.results[before:]):
                 by = "fallback"
             elif fair:
                 by = _replaced_by(_fair_region(state, index), by)
