@@ -99,6 +99,8 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--resume", action="store_true")
     parser.add_argument("--list", action="store_true", help="Only print the meshes.")
+    parser.add_argument("--lr", type=float, help="Decoder learning rate (default 3e-3).")
+    parser.add_argument("--code-lr", type=float, help="Codes' learning rate (default 3e-2).")
     args = parser.parse_args()
     work = Path("/tmp/fit-collection-meshes")
     if args.collection in ("bar10", "dev10"):
@@ -115,6 +117,9 @@ def main() -> None:
                "--threads", str(args.threads), "--json"]
     if args.resume:
         command.append("--resume")
+    for flag, value in (("--lr", args.lr), ("--code-lr", args.code_lr)):
+        if value is not None:
+            command += [flag, str(value)]
     done = subprocess.run(command, capture_output=True, text=True)
     if done.returncode not in (0, 1):
         sys.exit(done.stderr.strip())

@@ -78,6 +78,8 @@ def test_decode_writes_the_meshes(trained, mesh_files, tmp_path):
 
 
 def test_resume_continues_the_step_count(mesh_files, tmp_path):
+    import torch
+
     out = tmp_path / "run"
     first = run(*mesh_files, "--out", str(out), "--json", "--threads", "1", "--max-steps", "3")
     assert first.exit_code == 1, first.output  # not exact after 3 steps
@@ -85,9 +87,12 @@ def test_resume_continues_the_step_count(mesh_files, tmp_path):
     again = run(*mesh_files, "--out", str(out), "--threads", "1", "--max-steps", "3")
     assert again.exit_code == 2 and "--resume" in again.stderr
     resumed = run(*mesh_files, "--out", str(out), "--json", "--threads", "1",
-                  "--max-steps", "5", "--resume")
+                  "--max-steps", "5", "--resume", "--lr", "1e-4", "--code-lr", "2e-3")
     summary = json.loads(resumed.stdout.strip().splitlines()[-1])
     assert summary["iterations"] == 5
+    # the resumed steps ran at this call's learning rates, not the checkpoint's
+    groups = torch.load(out / "checkpoint.pt", weights_only=False)["optimizer"]["param_groups"]
+    assert [(g["base"], g["lr"]) for g in groups] == [(2e-3, 2e-3 * 5 / 20), (1e-4, 1e-4 * 5 / 20)]
     assert (out / "log.csv").read_text().count("\n") == 1 + 5
     other = run(*mesh_files[:2], "--out", str(out), "--threads", "1", "--max-steps", "6",
                 "--resume")

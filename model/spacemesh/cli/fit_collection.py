@@ -62,6 +62,18 @@ def fit_collection_command(
         int, typer.Option(min=1, help="Largest mesh accepted (the paper pads to 2000).")
     ] = 2000,
     batch_size: Annotated[int, typer.Option(min=1, help="Meshes per step.")] = 16,
+    lr: Annotated[
+        float | None,
+        typer.Option(min=1e-7, max=1.0, show_default=False,
+                     help="Learning rate of the decoder (default 3e-3); a resumed run "
+                     "takes this call's."),
+    ] = None,
+    code_lr: Annotated[
+        float | None,
+        typer.Option(min=1e-7, max=1.0, show_default=False,
+                     help="Learning rate of the latent codes and the positional "
+                     "embedding (default 3e-2)."),
+    ] = None,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     gallery_rows: Annotated[int, typer.Option(min=0, help="Meshes in gallery.png.")] = 12,
     threads: Threads = 0,
@@ -120,6 +132,7 @@ def fit_collection_command(
         max_seconds=None if max_minutes is None else 60.0 * max_minutes,
         threads=threads,
         device=device,
+        **{k: v for k, v in (("lr", lr), ("code_lr", code_lr)) if v is not None},
     )
     bar = tqdm(desc="fit-collection", unit="step", disable=as_json, leave=False)
     progress = fit_progress(bar)

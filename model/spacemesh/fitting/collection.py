@@ -273,6 +273,8 @@ def fit_collection(
                                   {"params": rest, "lr": config.lr, "base": config.lr}])
     if state is not None:
         optimizer.load_state_dict(state["optimizer"])
+        for group, base in zip(optimizer.param_groups, (code_lr, config.lr), strict=True):
+            group["base"] = base  # this call's rates, not the checkpoint's
     batches = _Batches(meshes, n_tokens, config.device)
     rng = np.random.default_rng(config.seed + step)
     generator = torch.Generator().manual_seed(config.seed + step)
