@@ -44,7 +44,8 @@ def test_an_automatic_region_can_take_meshfix_fill_and_keeps_the_rest(monkeypatc
 
     # every fairing replaced, so that each hole goes through MeshFix's fill
     monkeypatch.setattr("spacemesh.repair.auto.MESHFIX_FAIRINGS",
-                        ("thin-plate", "thin-plate-uniform", "membrane", "flat", "planar"))
+                        ("tri-harmonic", "thin-plate", "thin-plate-uniform", "membrane",
+                         "flat", "planar"))
     mesh = punched(icosphere(3), [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]], radius=0.4)
     spec = make_spec()
     plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)

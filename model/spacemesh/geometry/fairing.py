@@ -11,18 +11,19 @@ model's wedges), which on a curved surface is a flat or folded patch. Here the p
    towards Delaunay triangles, so that the patch has the density of the surface around
    it; quads, pentagons and the hole's boundary edges are never split;
 2. **faired** (:func:`fair_positions`): its vertices are moved to the solution of the
-   discrete bi-Laplace equation ``L^2 x = 0`` (cotangent weights, re-read once from
-   the first solution) with every other vertex fixed:
-   the boundary ring and the ring of faces beyond it define the position and the
-   slope the patch continues (a thin-plate surface, a sparse solve); uniform weights
-   or a membrane (``L x = 0``, within the hull of the ring), and around a sharp ring
+   discrete tri-Laplace equation ``L^3 x = 0`` or bi-Laplace equation ``L^2 x = 0``
+   (cotangent weights, re-read once from the first solution) with every other vertex
+   fixed: the boundary ring and the rings of faces beyond it define the position, the
+   slope and (tri-harmonic) the curvature the patch continues (a sparse solve); uniform
+   weights or a membrane (``L x = 0``, within the hull of the ring), and around a sharp ring
    (flat clusters of faces meeting at a crease) a piecewise-planar continuation
    (:func:`planar_positions`), are the other candidates; the one kept
    (:func:`_continuation`) best predicts the ring itself when the ring is freed too,
-   measured against the input's surface around it (a thin plate that overshoots the
-   box of the ring, as over a hole across sharp edges, is never kept; when both thin
-   plates overshoot, the membrane is projected onto the least-area triangulation of
-   the hole's loops, :func:`flat_positions`, the flat fill MeshFix-like tools make);
+   measured against the input's surface around it (a tri-harmonic or thin-plate
+   surface that overshoots the box of the ring, as over a hole across sharp edges, is
+   never kept; when all of them overshoot, the membrane is projected onto the
+   least-area triangulation of the hole's loops, :func:`flat_positions`, the flat fill
+   MeshFix-like tools make);
 3. **guarded** (:func:`fair_patch`): the faired positions are kept only where they make no
    new self-intersection near the patch (the move is halved up to twice, else undone).
 
@@ -32,10 +33,11 @@ numpy and scipy only; no face outside the patch changes, and its topology is kep
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import spsolve
+from scipy.sparse.linalg import MatrixRankWarning, spsolve
 
 from spacemesh.geometry.intersections import self_intersecting_faces
 from spacemesh.geometry.surface_fit import closest_points_on_triangles
@@ -322,7 +324,8 @@ def fair_positions(mesh: PolygonMesh, free: BoolArray, order: int = 2,
     """Positions with the ``free`` vertices solving ``L^order x = 0``, the rest fixed.
 
     ``order`` 1 is a membrane (each free vertex at the mean of its neighbours), 2 a
-    thin plate, whose boundary conditions are the fixed ring and the ring beyond it.
+    thin plate, whose boundary conditions are the fixed ring and the ring beyond it, 3
+    the tri-harmonic surface, which reads a third ring and continues the curvature.
     Only the faces within ``order`` rings of the free vertices are read. A free part
     that no fixed vertex reaches keeps its positions.
 
@@ -330,7 +333,7 @@ def fair_positions(mesh: PolygonMesh, free: BoolArray, order: int = 2,
     ----------
     mesh : PolygonMesh
     free : (V,) bool
-    order : {1, 2}
+    order : {1, 2, 3}
     weights : {"cotangent", "uniform"}
         Cotangent weights (re-read from the first solution, :data:`FAIR_SOLVES` solves)
         or the uniform umbrella (one solve).
@@ -356,8 +359,10 @@ def fair_positions(mesh: PolygonMesh, free: BoolArray, order: int = 2,
         a = system[rows][:, rows].tocsc()
         rhs = -(system[rows][:, fixed] @ positions[fixed])
         try:
-            solved = np.asarray(spsolve(a, rhs)).reshape(len(rows), 3)
-        except RuntimeError:  # a singular system (a part with no fixed vertex)
+            with warnings.catch_warnings():
+                warnings.simplefilter("error", MatrixRankWarning)
+                solved = np.asarray(spsolve(a, rhs)).reshape(len(rows), 3)
+        except (RuntimeError, MatrixRankWarning):  # singular: a part no fixed vertex reaches
             break
         if not np.isfinite(solved).all():
             break
@@ -692,10 +697,16 @@ def flat_positions(mesh: PolygonMesh, free: BoolArray, patch: BoolArray, base: F
     return out
 
 
-#: The smooth fairings tried, gentlest last: (order, weights) of :func:`fair_positions`.
-SMOOTH_FAIRINGS = ((2, "cotangent"), (2, "uniform"), (1, "uniform"))
+#: The smooth fairings tried, stiffest first, gentlest last: (order, weights) of
+#: :func:`fair_positions`. The tri-harmonic ``L^3 x = 0`` also continues the curvature
+#: of the surface around the hole (C2 where the thin plate is C1: Botsch & Kobbelt
+#: 2004), which on the dev holes over smooth surfaces (a torus, spikes, a knight) came
+#: closer to the intact surface, up to ten times; over sharp surroundings it
+#: overshoots more, and the ring's box and ring score (:func:`_continuation`) then
+#: keep a gentler one.
+SMOOTH_FAIRINGS = ((3, "cotangent"), (2, "cotangent"), (2, "uniform"), (1, "uniform"))
 #: Their names in reports.
-FAIRING_NAMES = ("thin-plate", "thin-plate-uniform", "membrane")
+FAIRING_NAMES = ("tri-harmonic", "thin-plate", "thin-plate-uniform", "membrane")
 
 
 def _continuation(mesh: PolygonMesh, free: BoolArray, patch: BoolArray,
@@ -710,10 +721,10 @@ def _continuation(mesh: PolygonMesh, free: BoolArray, patch: BoolArray,
     the hole stays within the ring's box (:func:`_contained`), a later one taken only
     when its score is below :data:`SMOOTH_MARGIN` times the best so far, and, around a
     sharp ring, the piecewise-planar continuation (:func:`planar_positions`), taken when
-    its score is below :data:`PLANAR_MARGIN` times the smooth one's. When neither thin
-    plate stays within the box (sharp surroundings), the membrane is replaced by the
-    flat fill (:func:`flat_positions`: closer to the intact surface on every such dev
-    hole). ``start`` when no candidate stays within the box.
+    its score is below :data:`PLANAR_MARGIN` times the smooth one's. When neither the
+    tri-harmonic surface nor a thin plate stays within the box (sharp surroundings),
+    the membrane is replaced by the flat fill (:func:`flat_positions`: closer to the
+    intact surface on every such dev hole). ``start`` when no candidate stays within the box.
 
     Returns the positions, the ring error of the candidate kept (of the membrane for
     the flat fill; infinite for ``start``) and its name (:data:`FAIRING_NAMES`, ``flat``,
@@ -731,12 +742,12 @@ def _continuation(mesh: PolygonMesh, free: BoolArray, patch: BoolArray,
         return float(_surface_distance(mesh, surface, guess[ring]).mean())
 
     best, best_error, kind = start, math.inf, "none"
-    plate = False  # whether a thin plate stays within the box
+    plate = False  # whether a tri-harmonic or thin-plate surface stays within the box
     for (order, weights), name in zip(SMOOTH_FAIRINGS, FAIRING_NAMES, strict=True):
         faired = fair_positions(mesh, free, order, weights)
         if not _contained(mesh, free, start, faired):
             continue
-        plate |= order == 2
+        plate |= order >= 2
         error = score(fair_positions(mesh, wider, order, weights))
         if error < SMOOTH_MARGIN * best_error:
             best, best_error, kind = faired, error, name
