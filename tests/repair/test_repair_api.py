@@ -209,6 +209,32 @@ def test_a_fill_with_a_handle_is_sampled_again(monkeypatch):
     assert first.stats.samplings == 1 and first.stats.handles_added == 0
 
 
+def test_of_samplings_that_all_add_handles_the_one_with_fewest_is_kept(monkeypatch):
+    import spacemesh.repair.api as api
+
+    mesh, region = icosphere(3), {"vertices": [0]}
+    real_euler, real_splice = api.patch_euler, api.splice
+    handles = iter([0, 2, 1, 2])  # the region itself, then the three samplings
+    spliced = []
+
+    def euler(surface, faces):
+        return real_euler(surface, faces) - 2 * next(handles)
+
+    def recording_splice(*args, **kwargs):
+        spliced.append(real_splice(*args, **kwargs))
+        return spliced[-1]
+
+    monkeypatch.setattr(api, "patch_euler", euler)
+    monkeypatch.setattr(api, "splice", recording_splice)
+    result = repair_mesh(mesh, region, backend=NoiseBackend(), spec=make_spec(), seed=7,
+                         fit_patch=False)
+    assert result.stats.samplings == 3 and result.stats.handles_added == 1
+    kept, last = spliced[1].mesh, spliced[2].mesh
+    assert not np.array_equal(kept.vertices, last.vertices)  # the samplings differ
+    assert np.array_equal(result.mesh.vertices, kept.vertices)
+    assert np.array_equal(result.mesh.face_indices, kept.face_indices)
+
+
 def test_a_handle_in_every_sampling_is_reported(monkeypatch):
     import spacemesh.repair.api as api
 

@@ -148,7 +148,8 @@ class RepairStats:
         :data:`TOPOLOGY_ATTEMPTS` (summed over the passes of an automatic region).
     handles_added : int
         Handles the fill kept adds to the mesh (half the drop of its Euler characteristic
-        below the region's): 0 unless every sampling added one. For an automatic region,
+        below the region's): 0 unless every sampling added one, and then the sampling
+        with the fewest is kept (the first of those with as few). For an automatic region,
         over the passes whose fill was kept (a region of holes whose fill is not one disc
         a loop takes the fan instead).
     findings : list of dict
@@ -599,6 +600,7 @@ def repair_mesh(
     n_pad = patch.n_tokens - len(patch.known)
     known_unit = patch.to_unit(mesh.vertices[patch.known])  # (K, 3)
     flipped = bool(enclosed_volume(mesh) < 0)
+    fewest: tuple[Any, ...] | None = None
     for attempt in range(TOPOLOGY_ATTEMPTS):
         t0 = time.perf_counter()
         rng = np.random.default_rng(int(seed) if attempt == 0 else [int(seed), attempt])
@@ -632,8 +634,11 @@ def repair_mesh(
         timings["splice"] = time.perf_counter() - t0
 
         drop = expected_euler - patch_euler(spliced.mesh, spliced.face_source < 0)
+        if fewest is None or drop < fewest[0]:  # the sampling with the fewest handles
+            fewest = (drop, samples, candidates, dropped, fill, spliced)
         if drop <= 0:
             break  # no handle spliced in (a handle lowers the Euler characteristic by 2)
+    drop, samples, candidates, dropped, fill, spliced = fewest
 
     t0 = time.perf_counter()
     if fit_patch and spliced.n_new_vertices:
