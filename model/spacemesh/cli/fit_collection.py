@@ -29,6 +29,11 @@ def _decode_run(run: Path, output: Path | None, device: str) -> None:
         typer.echo(f"wrote {path} ({mesh.n_vertices} vertices, {mesh.n_faces} faces)")
 
 
+
+def _rate_option(help_text: str) -> typer.models.OptionInfo:
+    """A learning-rate option: optional (the setting's default when not given), in (0, 1]."""
+    return typer.Option(min=1e-7, max=1.0, show_default=False, help=help_text)
+
 @app.command("fit-collection")
 def fit_collection_command(
     mesh_paths: Annotated[
@@ -63,16 +68,12 @@ def fit_collection_command(
     ] = 2000,
     batch_size: Annotated[int, typer.Option(min=1, help="Meshes per step.")] = 16,
     lr: Annotated[
-        float | None,
-        typer.Option(min=1e-7, max=1.0, show_default=False,
-                     help="Learning rate of the decoder (default 3e-3); a resumed run "
-                     "takes this call's."),
+        float | None, _rate_option("Learning rate of the decoder (default 3e-3); a resumed "
+                                   "run takes this call's.")
     ] = None,
     code_lr: Annotated[
-        float | None,
-        typer.Option(min=1e-7, max=1.0, show_default=False,
-                     help="Learning rate of the latent codes and the positional "
-                     "embedding (default 3e-2)."),
+        float | None, _rate_option("Learning rate of the latent codes and the positional "
+                                   "embedding (default 3e-2).")
     ] = None,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     gallery_rows: Annotated[int, typer.Option(min=0, help="Meshes in gallery.png.")] = 12,
