@@ -151,9 +151,13 @@ def open_cases(max_vertices: int):
 #: sampling floor (the intact mesh against itself) larger than most fills' differences.
 FINE_SAMPLES = 200_000
 #: Independent samplings whose fine CDs are averaged for ours and MeshFix, the pair the
-#: bar compares: one sampling's noise (about 0.001 x1e-3 on a 0.35 CD) is as large as
-#: the differences between two nearly equal fills.
+#: bar compares, where they are close (:data:`CLOSE`): one sampling's noise (about
+#: 0.001 x1e-3 on a 0.35 CD) is as large as the differences between two nearly equal
+#: fills.
 FINE_SAMPLINGS = 3
+#: Relative difference between ours' and MeshFix's one-sampling fine CDs below which
+#: both are sampled :data:`FINE_SAMPLINGS` times.
+CLOSE = 0.1
 #: Ours and MeshFix count as equal on the fine CD when their means differ by at most
 #: this many standard errors of the difference (or agree to three decimals).
 NOISE_ERRORS = 2.0
@@ -227,15 +231,31 @@ def evaluate_punched(name: str, group: str, mesh, region, generator, seed: int,
         if pred is not None:
             row.update(score(pred, mesh, region, kept_keys, reference, centre, scale,
                              seed + 1))
-            samplings = FINE_SAMPLINGS if method in ("ours", "meshfix") else 1
-            fines = [fine_chamfer(pred, fine, centre, scale, seed + 1 + k)
-                     for k in range(samplings)]
-            row["cd_fine"] = float(np.mean(fines))
-            if samplings > 1:
-                row["cd_fine_se"] = float(np.std(fines, ddof=1) / math.sqrt(samplings))
+            row["cd_fine"] = fine_chamfer(pred, fine, centre, scale, seed + 1)
             outputs[method] = pred
         rows.append(row)
+    resample_close_pair(rows, outputs, fine, centre, scale, seed)
     return rows, outputs
+
+
+def resample_close_pair(rows: list[dict], outputs: dict, fine, centre, scale,
+                        seed: int) -> None:
+    """Where ours' and MeshFix's fine CDs are within :data:`CLOSE` of each other, make
+    each the mean of :data:`FINE_SAMPLINGS` samplings, with its standard error
+    (``cd_fine_se``); farther apart, one sampling's noise cannot change the verdict."""
+    pair = {r["method"]: r for r in rows if r["method"] in ("ours", "meshfix")
+            and math.isfinite(r.get("cd_fine", math.nan))}
+    if len(pair) < 2:
+        return
+    a, b = pair["ours"]["cd_fine"], pair["meshfix"]["cd_fine"]
+    if abs(a - b) > CLOSE * max(a, b):
+        return
+    for method, row in pair.items():
+        fines = [row["cd_fine"]] + [fine_chamfer(outputs[method], fine, centre, scale,
+                                                 seed + 1 + k)
+                                    for k in range(1, FINE_SAMPLINGS)]
+        row["cd_fine"] = float(np.mean(fines))
+        row["cd_fine_se"] = float(np.std(fines, ddof=1) / math.sqrt(FINE_SAMPLINGS))
 
 
 def evaluate_open(name: str, mesh, generator, seed: int, steps: int | None) -> list[dict]:
@@ -312,9 +332,10 @@ def write_report(rows: list[dict], config: dict, out: Path, gallery: Path | None
         "- `fine CD`: the same Chamfer distance with 200,000 points a side (x1e-3). With the "
         "paper's 10,000, the intact mesh itself scores the `floor` column of the per-mesh "
         "table, which is larger than most differences between fills; the fine CD's floor "
-        "is 20 times smaller. Ours and MeshFix: the mean of three independent samplings "
-        "(one sampling's noise, about 0.001 on a CD of 0.35, is as large as the difference "
-        "between two nearly equal fills).",
+        "is 20 times smaller. Ours and MeshFix, where within 10 % of each other: the mean "
+        "of three independent samplings, ± its standard error (one sampling's noise, "
+        "about 0.001 on a CD of 0.35, is as large as the difference between two nearly "
+        "equal fills).",
         "",
         "| set | method | cases (scored) | CD mean | CD median | fine CD | F1 | region CD "
         "| outside | manifold | watertight | valid | seconds |",
@@ -427,6 +448,10 @@ def main() -> None:
                         help="keep the fairing of the model's own patch rather than laying "
                         "it onto the faired fan (spacemesh.repair.auto.LAY_ONTO_FAN; for "
                         "comparison)")
+    parser.add_argument("--no-fit-laid", action="store_true",
+                        help="leave the patch laid onto the faired fan interpolating its "
+                        "surface rather than fitted to it (spacemesh.repair.auto.FIT_LAID; "
+                        "for comparison)")
     parser.add_argument("--out", default=str(ROOT / "docs" / "results"))
     args = parser.parse_args()
     if not MESHES.is_dir():
@@ -442,6 +467,10 @@ def main() -> None:
         import spacemesh.repair.auto
 
         spacemesh.repair.auto.LAY_ONTO_FAN = False
+    if args.no_fit_laid:
+        import spacemesh.repair.auto
+
+        spacemesh.repair.auto.FIT_LAID = False
     only = [part for part in args.only.split(",") if part]
     from spacemesh.runtime import MeshGenerator
 
@@ -474,7 +503,7 @@ def main() -> None:
     config = {"model": _shown(model), "model_label": label, "steps": steps, "seed": args.seed,
               "holes": args.holes, "max_vertices": args.max_vertices, "threads": args.threads,
               "split": args.split, "probe_fills": not args.no_probe_fills,
-              "lay_onto_fan": not args.no_lay_onto_fan,
+              "lay_onto_fan": not args.no_lay_onto_fan, "fit_laid": not args.no_fit_laid,
               "only": args.only,
               "seconds": round(time.perf_counter() - start, 1)}
     (out / "repair_holes.json").write_text(json.dumps({"config": config, "rows": rows},

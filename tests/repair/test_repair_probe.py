@@ -189,28 +189,58 @@ def _state_with_cap(offset):
     return state, own
 
 
-def test_a_spiked_patch_is_laid_onto_the_faired_fan_keeping_its_tessellation():
+def _spike(x):
+    x = x.copy()
+    x[np.argmax(x[:, 2])] *= 1.3  # the cap's top vertex pulled out
+    return x * 0.97  # and the cap sunk a little
+
+
+def _laid_cap(monkeypatch, fit: bool):
+    """The spiked cap laid onto its faired fan (with or without the least-squares fit):
+    the state before and after, the cap's own vertices, and the fan's triangles."""
+    import spacemesh.repair.auto
     from spacemesh.repair.auto import _faired_fan, _onto_fan
 
-    def spike(x):
-        x = x.copy()
-        x[np.argmax(x[:, 2])] *= 1.3  # the cap's top vertex pulled out
-        return x * 0.97  # and the cap sunk a little
-
-    state, own = _state_with_cap(spike)
+    monkeypatch.setattr(spacemesh.repair.auto, "FIT_LAID", fit)
+    state, own = _state_with_cap(_spike)
     before = state.mesh
-    error_before = np.abs(np.linalg.norm(before.vertices[own], axis=1) - 1).max()
-    assert error_before > 0.25
     fan, _, made = _faired_fan(before, state.made_by == 0)
     assert _onto_fan(state, 0) == "projected"
-    after = state.mesh
+    triangles, source = fan.triangulate()
+    return before, state.mesh, own, fan.vertices[triangles[made[source]]]
+
+
+def test_a_spiked_patch_is_laid_onto_the_faired_fan_keeping_its_tessellation(monkeypatch):
+    before, after, own, fan_corners = _laid_cap(monkeypatch, fit=False)
+    error_before = np.abs(np.linalg.norm(before.vertices[own], axis=1) - 1).max()
+    assert error_before > 0.25
     assert np.array_equal(after.face_indices, before.face_indices)  # same tessellation
     assert np.array_equal(after.vertices[~own], before.vertices[~own])  # ring kept
-    triangles, source = fan.triangulate()
-    fan_corners = fan.vertices[triangles[made[source]]]
     assert surface_distance(after.vertices[own], fan_corners).max() < 1e-9  # on the fan
     error_after = np.abs(np.linalg.norm(after.vertices[own], axis=1) - 1).max()
     assert error_after < 0.25 * error_before
+
+
+def test_a_laid_patch_fitted_to_the_fan_lies_closer_to_it_than_one_interpolating_it(
+        monkeypatch):
+    from spacemesh.repair.probe import fill_error
+
+    _, laid, own, fan_corners = _laid_cap(monkeypatch, fit=False)
+    before, fitted, _, _ = _laid_cap(monkeypatch, fit=True)
+    assert np.array_equal(fitted.face_indices, before.face_indices)  # same tessellation
+    assert np.array_equal(fitted.vertices[~own], before.vertices[~own])  # ring kept
+    patch = np.zeros(before.n_faces, dtype=bool)
+    patch[np.unique(before.face_of_corner[own[before.face_indices]])] = True
+
+    def corners(mesh):
+        triangles, _ = _faces_subset(mesh, patch).triangulate()
+        return mesh.vertices[triangles]
+
+    # moved off the fan's surface by about a chord's sag, and no farther from it as a
+    # surface (tests/core/test_surface_fit.py measures the fit on a coarse sphere)
+    off = surface_distance(fitted.vertices[own], fan_corners)
+    assert 1e-6 < off.max() < 0.02
+    assert fill_error(fan_corners, corners(fitted)) <= fill_error(fan_corners, corners(laid))
 
 
 def _dragged(x):
@@ -304,11 +334,11 @@ def test_a_hole_that_cannot_be_laid_onto_the_flat_fill_takes_the_flat_fill(monke
     real = __import__("spacemesh.repair.auto", fromlist=["x"])._laid_onto
     laid: list[int] = []
 
-    def fails_on_flat(mesh, patch, points, triangles):
+    def fails_on_flat(mesh, patch, points, triangles, **options):
         laid.append(len(points))
         # the flat surface is over the mesh's own vertices; the fan's has its own
         return None if len(points) == mesh.n_vertices else real(mesh, patch, points,
-                                                                 triangles)
+                                                                 triangles, **options)
 
     monkeypatch.setattr("spacemesh.repair.auto._laid_onto", fails_on_flat)
     mesh = punched(icosphere(3), [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]], radius=0.4)

@@ -1038,13 +1038,17 @@ def _badly_laid(positions: FloatArray, triangles: IntArray, fan_points: FloatArr
 
 
 def _laid_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
-               surface_triangles: IntArray) -> FloatArray | None:
+               surface_triangles: IntArray, *, fit: bool = False) -> FloatArray | None:
     """The positions of ``mesh`` with the own vertices of the ``patch`` faces ((F,) bool;
     those no other face uses) moved to their closest points on the triangles
     ``surface_triangles`` (T, 3) over ``surface_points`` (P, 3); None where that folds a
     face over or collapses one (:func:`_badly_laid`) even after :data:`RELAX_ROUNDS`
     rounds of tangential relaxation (each vertex to the mean of its neighbours, laid
-    back on the surface), or adds a self-intersection near the patch."""
+    back on the surface), or adds a self-intersection near the patch. With ``fit``
+    (:data:`FIT_LAID`), the laid vertices then move so that the patch approximates the
+    surface in the least-squares sense rather than interpolating it
+    (:func:`spacemesh.geometry.surface_fit.fit_to_surface`: a coarse patch laid on a
+    dome otherwise sinks into it), kept where that folds or collapses no face."""
     from spacemesh.geometry.fairing import (
         _faces_subset,
         _faces_touching,
@@ -1052,7 +1056,11 @@ def _laid_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
         _vertices_of,
     )
     from spacemesh.geometry.intersections import self_intersecting_faces
-    from spacemesh.geometry.surface_fit import closest_points_on_triangles, nearest_triangles
+    from spacemesh.geometry.surface_fit import (
+        closest_points_on_triangles,
+        fit_to_surface,
+        nearest_triangles,
+    )
 
     moving = _vertices_of(mesh, patch) & ~_vertices_of(mesh, ~patch)
     rows = np.flatnonzero(moving)
@@ -1075,6 +1083,11 @@ def _laid_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
         bad = _badly_laid(positions, triangles, surface_points, surface_triangles)
     if bad:
         return None
+    if fit and len(rows):
+        fitted = fit_to_surface(positions, triangles, moving, surface_points,
+                                surface_triangles)
+        if not _badly_laid(fitted, triangles, surface_points, surface_triangles):
+            positions = fitted
     near = _faces_touching(mesh, _vertices_of(mesh, _faces_touching(mesh, moving)))
     before = int(self_intersecting_faces(_faces_subset(mesh, near)).sum())
     after = int(self_intersecting_faces(_faces_subset(mesh.with_vertices(positions),
@@ -1106,7 +1119,7 @@ def _onto_fan(state: _Passes, index: int) -> str | None:
         return None
     faired, _, made = fan
     fan_triangles, _ = _faces_subset(faired, made).triangulate()  # (T, 3)
-    positions = _laid_onto(mesh, patch, faired.vertices, fan_triangles)
+    positions = _laid_onto(mesh, patch, faired.vertices, fan_triangles, fit=FIT_LAID)
     if positions is None:
         return "fan" if _fan_instead(state, index, fan) else None
     state.mesh = mesh.with_vertices(positions)
@@ -1136,6 +1149,9 @@ def _onto_flat(state: _Passes, part: BoolArray) -> bool:
 #: Whether a patch faired all the way is laid onto the faired fan's surface
 #: (:func:`_onto_fan`).
 LAY_ONTO_FAN = True
+#: Whether the patch laid onto the faired fan is then fitted to its surface in the
+#: least-squares sense (:func:`_laid_onto`).
+FIT_LAID = True
 
 #: Whether MeshFix's fill also replaces the fairing's patch of a hole where probe holes
 #: punched around it say it is closer (:func:`spacemesh.repair.probe.preferred_fill`).
