@@ -459,17 +459,13 @@ def main() -> None:
     from spacemesh.evaluate.runner import pin_threads
 
     pin_threads(args.threads)
-    if args.no_probe_fills:
-        import spacemesh.repair.auto
+    import spacemesh.repair.auto
 
+    if args.no_probe_fills:
         spacemesh.repair.auto.PROBE_FILLS = False
     if args.no_lay_onto_fan:
-        import spacemesh.repair.auto
-
         spacemesh.repair.auto.LAY_ONTO_FAN = False
     if args.no_fit_laid:
-        import spacemesh.repair.auto
-
         spacemesh.repair.auto.FIT_LAID = False
     only = [part for part in args.only.split(",") if part]
     from spacemesh.runtime import MeshGenerator

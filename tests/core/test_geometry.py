@@ -16,7 +16,7 @@ from spacemesh.geometry import (
     fit_vertices,
     refine_geometry,
 )
-from spacemesh.geometry.fitting import barycentric, estimate_point_normals
+from spacemesh.geometry.fitting import barycentric, estimate_point_normals, fit_to_surface
 from spacemesh.geometry.intersections import intersecting_triangles, self_intersecting_faces
 from spacemesh.geometry.stage import split_longest_edges
 from spacemesh.mesh import PolygonMesh
@@ -232,3 +232,21 @@ def test_noise_is_measured_and_smoothed():
         return np.abs(np.linalg.norm(moved, axis=1) - 1).mean()
 
     assert error(FitOptions(noise_spring=5.0)) < 0.8 * error(FitOptions(noise_spring=0.0))
+
+
+def test_a_coarse_sphere_fitted_to_a_fine_one_lies_closer_than_one_laid_on_it():
+    from spacemesh.geometry.surface_fit import nearest_triangles
+
+    coarse, fine = icosphere(1), icosphere(4)  # both with every vertex on the unit sphere
+    triangles = coarse.face_indices.reshape(-1, 3)
+    fine_triangles = fine.face_indices.reshape(-1, 3)
+    samples, _ = sample_surface(fine, 4000, np.random.default_rng(0))
+    moving = np.ones(coarse.n_vertices, dtype=bool)
+    moving[:3] = False
+    fitted = fit_to_surface(coarse.vertices, triangles, moving, fine.vertices, fine_triangles)
+    before = float(nearest_triangles(samples, coarse.vertices, triangles)[1].mean())
+    after = float(nearest_triangles(samples, fitted, triangles)[1].mean())
+    assert after < 0.5 * before  # chords no longer all inside the sphere
+    radius = np.linalg.norm(fitted[moving], axis=1)
+    assert radius.min() > 1.0  # the fitted vertices stand off the surface, outwards
+    np.testing.assert_array_equal(fitted[~moving], coarse.vertices[~moving])

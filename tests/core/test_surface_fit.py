@@ -10,9 +10,7 @@ from spacemesh.data.sampling import sample_surface
 from spacemesh.examples import icosphere
 from spacemesh.geometry.surface_fit import (
     QuadFit,
-    barycentric,
     closest_points_on_triangles,
-    fit_to_surface,
     nearest_triangles,
     quad_fit_errors,
     squared_distances,
@@ -127,33 +125,3 @@ def test_quad_fit_follows_a_flip():
     back_before, back_after = fit.errors(pairs, np.array([[c, d, b, a]]))
     assert back_before[0] == pytest.approx(after[0], rel=1e-9, abs=1e-15)
     assert back_after[0] == pytest.approx(before[0], abs=1e-15)
-
-
-def test_barycentric_coordinates_rebuild_points_inside_their_triangles():
-    rng = np.random.default_rng(3)
-    corners = rng.normal(size=(200, 3, 3))
-    weights = rng.dirichlet(np.ones(3), size=200)  # (200, 3), each row sums to 1
-    points = np.einsum("mk,mkd->md", weights, corners)
-    np.testing.assert_allclose(barycentric(points, corners), weights, atol=1e-9)
-
-
-def _mean_squared_gap(samples: np.ndarray, positions: np.ndarray,
-                      triangles: np.ndarray) -> float:
-    _, gap = nearest_triangles(samples, positions, triangles)
-    return float(gap.mean())
-
-
-def test_a_coarse_sphere_fitted_to_a_fine_one_lies_closer_than_one_laid_on_it():
-    coarse, fine = icosphere(1), icosphere(4)  # both with every vertex on the unit sphere
-    triangles = coarse.face_indices.reshape(-1, 3)
-    fine_triangles = fine.face_indices.reshape(-1, 3)
-    samples, _ = sample_surface(fine, 4000, np.random.default_rng(0))
-    moving = np.ones(coarse.n_vertices, dtype=bool)
-    moving[:3] = False
-    fitted = fit_to_surface(coarse.vertices, triangles, moving, fine.vertices, fine_triangles)
-    before = _mean_squared_gap(samples, coarse.vertices, triangles)
-    after = _mean_squared_gap(samples, fitted, triangles)
-    assert after < 0.5 * before  # chords no longer all inside the sphere
-    radius = np.linalg.norm(fitted[moving], axis=1)
-    assert radius.min() > 1.0  # the fitted vertices stand off the surface, outwards
-    np.testing.assert_array_equal(fitted[~moving], coarse.vertices[~moving])

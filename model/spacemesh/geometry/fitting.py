@@ -40,7 +40,11 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
-from spacemesh.geometry.surface_fit import closest_points_on_triangles, nearest_triangles
+from spacemesh.geometry.surface_fit import (
+    _subtriangle_centroids,
+    closest_points_on_triangles,
+    nearest_triangles,
+)
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Neighbours of the plane fit of :func:`estimate_point_normals`.
@@ -199,6 +203,16 @@ def _edges(triangles: IntArray) -> IntArray:
     return np.unique(np.sort(pairs, axis=1), axis=0)
 
 
+def _incidence(edges: IntArray, n_vertices: int) -> sp.csr_matrix:
+    """``(E, N)`` rows ``v_a - v_b`` of the edges: ``D^T D`` is the springs' graph
+    Laplacian."""
+    m = len(edges)
+    return sp.csr_matrix(
+        (np.tile([1.0, -1.0], m), (np.repeat(np.arange(m), 2), edges.reshape(-1))),
+        shape=(m, n_vertices),
+    )
+
+
 def fit_energy_terms(
     positions: FloatArray, triangles: IntArray, points: FloatArray, normals: FloatArray,
     tree: cKDTree, options: FitOptions,
@@ -277,12 +291,8 @@ def fit_energy_terms(
 
     # springs over the edges
     if options.spring_weight > 0 and len(edges):
-        m = len(edges)
-        incidence = sp.csr_matrix(
-            (np.tile([1.0, -1.0], m), (np.repeat(np.arange(m), 2), edges.reshape(-1))),
-            shape=(m, n),
-        )
-        weight = options.spring_weight / m
+        incidence = _incidence(edges, n)
+        weight = options.spring_weight / len(edges)
         laplacian = (incidence.T @ incidence) * weight
         blocks.append(sp.kron(laplacian, sp.identity(3), format="csr"))
         energy += weight * float(np.sum((incidence @ positions) ** 2))
@@ -370,3 +380,78 @@ def fit_vertices(
         x[unknown] = solution
         positions = x.reshape(-1, 3)
     return positions, energies
+
+
+# ---------------------------------------------------------------------- fitting to a mesh
+#: Rounds of :func:`fit_to_surface` (closest points, then one linear solve, each).
+FIT_ROUNDS = 3
+#: Weight of the springs along the edges in :func:`fit_to_surface`, against one
+#: surface sample of average area (keeps vertices no sample reaches in place, and the
+#: tessellation even).
+FIT_SPRING = 0.05
+#: Samples per surface triangle in :func:`fit_to_surface`: the centroids of its
+#: subdivision into this squared.
+FIT_SAMPLE_LEVEL = 3
+
+
+def fit_to_surface(positions: FloatArray, triangles: IntArray, moving: BoolArray,
+                   surface_points: FloatArray, surface_triangles: IntArray,
+                   rounds: int = FIT_ROUNDS, spring: float = FIT_SPRING) -> FloatArray:
+    """Move the ``moving`` vertices so that the triangles best approximate a surface
+    given as a mesh, in the least-squares sense, rather than interpolate it.
+
+    Vertices laid onto a curved surface make chords that all fall on one side of it
+    (a coarse patch on a dome sinks into it). This is the points -> mesh and spring
+    terms of :func:`fit_vertices` (Hoppe et al. 1993), with the points spread evenly
+    over the surface's triangles and weighted by their area: each round finds every
+    sample's closest point and its barycentric coordinates, then solves the linear
+    least-squares problem for the positions. No tangent planes: the surface is known,
+    and its planes would pull the vertices back onto it.
+
+    Parameters
+    ----------
+    positions : (V, 3) float
+    triangles : (T, 3) int
+        The triangles fitted (the other vertices they use stay fixed).
+    moving : (V,) bool
+    surface_points : (P, 3) float
+    surface_triangles : (S, 3) int
+        The surface approximated.
+    rounds : int
+    spring : float
+        :data:`FIT_SPRING`.
+
+    Returns
+    -------
+    (V, 3) float64
+    """
+    x = np.asarray(positions, dtype=np.float64).copy()
+    rows = np.flatnonzero(moving)
+    if len(rows) == 0 or len(triangles) == 0 or len(surface_triangles) == 0:
+        return x
+    corners = surface_points[surface_triangles]  # (S, 3, 3)
+    weights = _subtriangle_centroids(FIT_SAMPLE_LEVEL)  # (G, 3)
+    samples = np.einsum("gk,skd->sgd", weights, corners).reshape(-1, 3)  # (S G, 3)
+    area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
+                                         corners[:, 2] - corners[:, 0]), axis=1)
+    mass = np.repeat(area, len(weights))
+    mass = mass / max(float(mass.mean()), 1e-300)  # (S G,), mean 1
+    n = len(x)
+    incidence = _incidence(_edges(triangles), n)
+    springs = spring * (incidence.T @ incidence)  # (V, V)
+    fixed = ~moving
+    for _ in range(rounds):
+        owner, _ = nearest_triangles(samples, x, triangles)
+        under = x[triangles[owner]]  # (M, 3, 3)
+        bary = barycentric(closest_points_on_triangles(samples, under), under)  # (M, 3)
+        basis = _point_rows(triangles[owner], bary, n)  # (M, V)
+        weighted = sp.diags(mass) @ basis
+        normal = (basis.T @ weighted + springs).tocsr()
+        rhs = weighted.T @ samples  # (V, 3)
+        a = normal[rows][:, rows].tocsc()
+        b = rhs[rows] - normal[rows][:, fixed] @ x[fixed]
+        solved = np.asarray(spsolve(a, b)).reshape(len(rows), 3)
+        if not np.isfinite(solved).all():
+            break
+        x[rows] = solved
+    return x

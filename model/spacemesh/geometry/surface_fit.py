@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from spacemesh.typed import BoolArray, FloatArray, IntArray
+from spacemesh.typed import FloatArray, IntArray
 
 #: Every triangle is sampled at the centroids of its subdivision into this squared.
 SAMPLE_LEVEL = 4
@@ -275,101 +275,3 @@ class QuadFit:
         self._version[np.union1d(self.owner[moved], new)] += 1
         self.owner[moved] = new
 
-
-# ---------------------------------------------------------------------- fitting a mesh
-#: Rounds of :func:`fit_to_surface` (closest points, then one linear solve, each).
-FIT_ROUNDS = 3
-#: Weight of the springs along the edges in :func:`fit_to_surface`, against one
-#: surface sample of average area (keeps vertices no sample reaches in place, and the
-#: tessellation even).
-FIT_SPRING = 0.05
-#: Samples per surface triangle in :func:`fit_to_surface`: the centroids of its
-#: subdivision into this squared.
-FIT_SAMPLE_LEVEL = 3
-
-
-def barycentric(points: FloatArray, corners: FloatArray) -> FloatArray:
-    """Barycentric coordinates of each point (M, 3) in its triangle ``corners`` (M, 3, 3),
-    clipped to the triangle, (M, 3); a degenerate triangle gives its first corner."""
-    a = corners[:, 0]
-    v0, v1, v2 = corners[:, 1] - a, corners[:, 2] - a, points - a
-    d00, d01, d11 = _dot(v0, v0), _dot(v0, v1), _dot(v1, v1)
-    d20, d21 = _dot(v2, v0), _dot(v2, v1)
-    denominator = d00 * d11 - d01 * d01
-    ok = denominator > DEGENERATE * np.maximum(d00, d11) ** 2
-    safe = np.where(ok, denominator, 1.0)
-    v = np.where(ok, (d11 * d20 - d01 * d21) / safe, 0.0)
-    w = np.where(ok, (d00 * d21 - d01 * d20) / safe, 0.0)
-    out = np.clip(np.column_stack([1.0 - v - w, v, w]), 0.0, None)
-    return out / np.maximum(out.sum(axis=1, keepdims=True), 1e-300)
-
-
-def fit_to_surface(positions: FloatArray, triangles: IntArray, moving: BoolArray,
-                   surface_points: FloatArray, surface_triangles: IntArray,
-                   rounds: int = FIT_ROUNDS, spring: float = FIT_SPRING) -> FloatArray:
-    """Move the ``moving`` vertices so that the triangles best approximate a surface in
-    the least-squares sense, rather than interpolate it.
-
-    Vertices laid onto a curved surface make chords that all fall on one side of it
-    (a coarse patch on a dome sinks into it). This minimises the area-weighted squared
-    distance from points spread over the surface to the triangles, plus weak springs
-    along the edges (Hoppe et al. 1993, *Mesh optimization*, with the connectivity
-    fixed): each round finds every sample's closest point and its barycentric
-    coordinates, then solves the linear least-squares problem for the positions.
-
-    Parameters
-    ----------
-    positions : (V, 3) float
-    triangles : (T, 3) int
-        The triangles fitted (the other vertices they use stay fixed).
-    moving : (V,) bool
-    surface_points : (P, 3) float
-    surface_triangles : (S, 3) int
-        The surface approximated.
-    rounds : int
-    spring : float
-        :data:`FIT_SPRING`.
-
-    Returns
-    -------
-    (V, 3) float64
-    """
-    import scipy.sparse as sp
-    from scipy.sparse.linalg import spsolve
-
-    x = np.asarray(positions, dtype=np.float64).copy()
-    rows = np.flatnonzero(moving)
-    if len(rows) == 0 or len(triangles) == 0 or len(surface_triangles) == 0:
-        return x
-    corners = surface_points[surface_triangles]  # (S, 3, 3)
-    weights = _subtriangle_centroids(FIT_SAMPLE_LEVEL)  # (G, 3)
-    samples = np.einsum("gk,skd->sgd", weights, corners).reshape(-1, 3)  # (S G, 3)
-    area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
-                                         corners[:, 2] - corners[:, 0]), axis=1)
-    mass = np.repeat(area, len(weights))
-    mass = mass / max(float(mass.mean()), 1e-300)  # (S G,), mean 1
-    n = len(x)
-    edges = np.unique(np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]],
-                                              triangles[:, [2, 0]]]), axis=1), axis=0)
-    adjacency = sp.coo_matrix((np.ones(2 * len(edges)),
-                               (np.concatenate([edges[:, 0], edges[:, 1]]),
-                                np.concatenate([edges[:, 1], edges[:, 0]]))), shape=(n, n)).tocsr()
-    springs = sp.diags(np.asarray(adjacency.sum(axis=1)).ravel()) - adjacency  # (V, V)
-    fixed = ~moving
-    for _ in range(rounds):
-        owner, _ = nearest_triangles(samples, x, triangles)
-        under = x[triangles[owner]]
-        bary = barycentric(closest_points_on_triangles(samples, under), under)  # (M, 3)
-        basis = sp.coo_matrix((bary.ravel(), (np.repeat(np.arange(len(samples)), 3),
-                                              triangles[owner].ravel())),
-                              shape=(len(samples), n)).tocsr()
-        weighted = sp.diags(mass) @ basis
-        normal = (basis.T @ weighted + spring * springs).tocsr()
-        rhs = basis.T @ (mass[:, None] * samples)
-        a = normal[rows][:, rows].tocsc()
-        b = rhs[rows] - normal[rows][:, fixed] @ x[fixed]
-        solved = np.asarray(spsolve(a, b)).reshape(len(rows), 3)
-        if not np.isfinite(solved).all():
-            break
-        x[rows] = solved
-    return x

@@ -1047,7 +1047,7 @@ def _laid_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
     back on the surface), or adds a self-intersection near the patch. With ``fit``
     (:data:`FIT_LAID`), the laid vertices then move so that the patch approximates the
     surface in the least-squares sense rather than interpolating it
-    (:func:`spacemesh.geometry.surface_fit.fit_to_surface`: a coarse patch laid on a
+    (:func:`spacemesh.geometry.fitting.fit_to_surface`: a coarse patch laid on a
     dome otherwise sinks into it), kept where that folds or collapses no face."""
     from spacemesh.geometry.fairing import (
         _faces_subset,
@@ -1055,12 +1055,9 @@ def _laid_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
         _laplacian,
         _vertices_of,
     )
+    from spacemesh.geometry.fitting import fit_to_surface
     from spacemesh.geometry.intersections import self_intersecting_faces
-    from spacemesh.geometry.surface_fit import (
-        closest_points_on_triangles,
-        fit_to_surface,
-        nearest_triangles,
-    )
+    from spacemesh.geometry.surface_fit import closest_points_on_triangles, nearest_triangles
 
     moving = _vertices_of(mesh, patch) & ~_vertices_of(mesh, ~patch)
     rows = np.flatnonzero(moving)
