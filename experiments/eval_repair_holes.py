@@ -452,6 +452,10 @@ def main() -> None:
                         help="leave the patch laid onto the faired fan interpolating its "
                         "surface rather than fitted to it (spacemesh.repair.auto.FIT_LAID; "
                         "for comparison)")
+    parser.add_argument("--no-unchecked-fills", action="store_true",
+                        help="keep the partly faired patch of a hole no probe fits around "
+                        "rather than taking MeshFix's fill (spacemesh.repair.auto."
+                        "UNCHECKED_FILLS; for comparison)")
     parser.add_argument("--out", default=str(ROOT / "docs" / "results"))
     args = parser.parse_args()
     if not MESHES.is_dir():
@@ -467,6 +471,8 @@ def main() -> None:
         spacemesh.repair.auto.LAY_ONTO_FAN = False
     if args.no_fit_laid:
         spacemesh.repair.auto.FIT_LAID = False
+    if args.no_unchecked_fills:
+        spacemesh.repair.auto.UNCHECKED_FILLS = False
     only = [part for part in args.only.split(",") if part]
     from spacemesh.runtime import MeshGenerator
 
@@ -500,6 +506,7 @@ def main() -> None:
               "holes": args.holes, "max_vertices": args.max_vertices, "threads": args.threads,
               "split": args.split, "probe_fills": not args.no_probe_fills,
               "lay_onto_fan": not args.no_lay_onto_fan, "fit_laid": not args.no_fit_laid,
+              "unchecked_fills": not args.no_unchecked_fills,
               "only": args.only,
               "seconds": round(time.perf_counter() - start, 1)}
     (out / "repair_holes.json").write_text(json.dumps({"config": config, "rows": rows},

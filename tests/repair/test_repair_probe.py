@@ -171,6 +171,63 @@ def test_a_patch_the_guard_held_back_is_replaced_by_the_faired_fan(monkeypatch):
     assert len(new) >= 5 and np.abs(np.linalg.norm(new, axis=1) - 1).max() < 0.04
 
 
+def _always_held_back(monkeypatch):
+    """Make every fairing of a patch report that a self-intersection held it back."""
+    import spacemesh.geometry.fairing as fairing
+
+    real = fairing.fair_patch
+
+    def held_back(*args, **kwargs):
+        out = real(*args, **kwargs)
+        if kwargs.get("report") is not None:
+            kwargs["report"]["weight"] = 0.5
+        return out
+
+    monkeypatch.setattr(fairing, "fair_patch", held_back)
+
+
+@pytest.mark.parametrize("unchecked", [True, False])
+def test_a_held_back_patch_with_no_probe_takes_meshfix_fill(monkeypatch, unchecked):
+    pytest.importorskip("pymeshfix")
+    from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
+
+    from spacemesh.repair import plan_repair, repair_mesh, verify_repair
+
+    monkeypatch.setattr("spacemesh.repair.auto.UNCHECKED_FILLS", unchecked)
+    _always_held_back(monkeypatch)
+    mesh = punched(icosphere(2), [[0.0, 0.0, 1.0]], radius=0.6)
+    loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
+    assert probe_regions(mesh, loops, np.ones(mesh.n_faces, dtype=bool)) == []
+    spec = make_spec()
+    plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)
+    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan)
+    assert verify_repair(plan, result) == []
+    assert_closed_manifold(result.mesh)
+    taken = [f["filled_by"] for f in result.stats.findings]
+    assert (taken == ["meshfix"]) is unchecked
+
+
+def test_a_held_back_patch_with_no_probe_takes_the_flat_fill_without_meshfix(monkeypatch):
+    from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
+
+    from spacemesh.repair import plan_repair, repair_mesh, verify_repair
+
+    _always_held_back(monkeypatch)
+    monkeypatch.setattr("spacemesh.repair.meshfix_fill.meshfix_fill", lambda *a, **k: None)
+    mesh = punched(icosphere(2), [[0.0, 0.0, 1.0]], radius=0.6)
+    loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
+    spec = make_spec()
+    plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)
+    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan)
+    assert verify_repair(plan, result) == []
+    assert_closed_manifold(result.mesh)
+    flat = mesh.vertices[flat_surface(mesh.vertices, loops)]
+    kept = np.zeros(result.mesh.n_vertices, dtype=bool)
+    kept[result.vertex_map[result.vertex_map >= 0]] = True
+    new = result.mesh.vertices[~kept]  # the model's patch, laid onto the flat fill
+    assert len(new) > 0 and surface_distance(new, flat).max() < 1e-9
+
+
 def _state_with_cap(offset):
     """A _Passes state over an icosphere whose top cap is region 0's patch, with its own
     vertices moved by ``offset`` ((V, 3) -> (V, 3) function of the positions)."""

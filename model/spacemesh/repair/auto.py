@@ -883,8 +883,10 @@ def _fair_region(state: _Passes, index: int) -> str | None:
     state.apply(np.arange(mesh.n_vertices), source, faired, index)
     if report.get("fairing") in MESHFIX_FAIRINGS:
         return "meshfix" if _meshfix_instead(state, index) else None
+    held_back = False  # the patch left is moved only part of the way to its fairing
     if report.get("weight", 1.0) < 1.0:
         replaced = "fan" if _fan_instead(state, index) else None
+        held_back = replaced is None
     else:
         replaced = "fan" if LAY_ONTO_FAN and _onto_fan(state, index) == "fan" else None
     if not PROBE_FILLS:
@@ -892,7 +894,7 @@ def _fair_region(state: _Passes, index: int) -> str | None:
     chosen = np.zeros(state.mesh.n_faces, dtype=bool)
     flat_parts: list[BoolArray] = []  # parts the flat fill replaces
     for part in _patch_parts(state.mesh, state.made_by == index):
-        choice = _probe_choice(state, part)
+        choice = _probe_choice(state, part, held_back=held_back)
         if choice == "meshfix":
             chosen |= part
         elif choice == "flat" and not _onto_flat(state, part):
@@ -1153,6 +1155,9 @@ FIT_LAID = True
 #: Whether MeshFix's fill also replaces the fairing's patch of a hole where probe holes
 #: punched around it say it is closer (:func:`spacemesh.repair.probe.preferred_fill`).
 PROBE_FILLS = True
+#: Whether a hole whose patch could be faired only part of the way, and around which
+#: no probe hole fits, takes MeshFix's fill (or the flat one) (:func:`_probe_choice`).
+UNCHECKED_FILLS = True
 
 
 def _patch_parts(mesh: PolygonMesh, patch: BoolArray) -> list[BoolArray]:
@@ -1174,18 +1179,30 @@ def _patch_parts(mesh: PolygonMesh, patch: BoolArray) -> list[BoolArray]:
     return parts
 
 
-def _probe_choice(state: _Passes, part: BoolArray) -> str:
+def _probe_choice(state: _Passes, part: BoolArray, held_back: bool = False) -> str:
     """The fill the probe holes punched in the input faces around the hole that the
     patch faces ``part`` ((F,) bool) fill prefer: ``"fair"``, ``"meshfix"`` or ``"flat"``
-    (:func:`spacemesh.repair.probe.preferred_fill`)."""
+    (:func:`spacemesh.repair.probe.preferred_fill`).
+
+    Where the patch is ``held_back`` (its fairing could be applied only part of the
+    way, as the full move would cross the surface, and no faired fan replaced it) and
+    no probe hole fits around it, nothing read from the input confirms the fairing:
+    with :data:`UNCHECKED_FILLS`, MeshFix's fill is taken (``"meshfix"``), or the flat
+    one where MeshFix has none (``"flat"``)."""
     from spacemesh.geometry.fairing import _faces_subset, patch_loops
+    from spacemesh.repair.meshfix_fill import meshfix_fill
     from spacemesh.repair.probe import preferred_fill
 
     loops = patch_loops(state.mesh, part)
     if not loops:
         return "fair"
     known = (state.made_by < 0)[~part]  # input faces of the mesh with the hole open
-    return preferred_fill(_faces_subset(state.mesh, ~part), loops, known)
+    opened = _faces_subset(state.mesh, ~part)
+    report: dict[str, Any] = {}
+    choice = preferred_fill(opened, loops, known, report=report)
+    if not (UNCHECKED_FILLS and held_back and report["probe_holes"] == 0):
+        return choice
+    return "meshfix" if meshfix_fill(opened, loops) is not None else "flat"
 
 
 def _meshfix_instead(state: _Passes, index: int, patch: BoolArray | None = None) -> bool:

@@ -281,11 +281,13 @@ def preferred_fill(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
     the alternative (:data:`ALTERNATIVES`) whose error over the probes both could fill
     is below :data:`PROBE_MARGIN` times the fairing's by the largest factor, else
     ``"fair"``. ``report`` receives the errors (``probe_fair``, ``probe_<name>``, over
-    the probes MeshFix could fill, and ``probes``)."""
+    the probes MeshFix could fill, and ``probes``) and ``probe_holes``, the number of
+    probes the fairing and at least one alternative filled."""
     errors = probe_errors(mesh, loops, known)
     if report is not None:
-        fair, _, used = errors["meshfix"]
+        fair, _, used = errors.get("meshfix", (0.0, 0.0, 0))
         report.update(probe_fair=fair, probes=used,
+                      probe_holes=max((count for _, _, count in errors.values()), default=0),
                       **{f"probe_{name}": other for name, (_, other, _) in errors.items()})
     best, best_ratio = "fair", PROBE_MARGIN
     for name, (fair, other, used) in errors.items():
