@@ -866,7 +866,8 @@ def _fair_region(state: _Passes, index: int) -> str | None:
     would fold there. With :data:`PROBE_FILLS`, each hole of the region (each part
     of its patch, :func:`_patch_parts`) whose probe holes prefer MeshFix's fill
     (:func:`_probe_choice`) then takes it, and one whose probes prefer the least-area
-    flat fill is laid onto it (:func:`_onto_flat`).
+    flat fill is laid onto it (:func:`_onto_flat`); a patch left held back around which
+    no probe fits takes MeshFix's fill too (:data:`UNCHECKED_FILLS`).
 
     Returns ``"meshfix"`` when MeshFix's fill was taken for any hole of the region,
     ``"flat"`` when the flat fill replaced the patch of one (:func:`_flat_instead`: the
