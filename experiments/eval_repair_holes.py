@@ -456,6 +456,10 @@ def main() -> None:
                         help="keep the partly faired patch of a hole no probe fits around "
                         "rather than taking MeshFix's fill (spacemesh.repair.auto."
                         "UNCHECKED_FILLS; for comparison)")
+    parser.add_argument("--meshfix-margin", type=float, default=None,
+                        help="take MeshFix's fill where its probe error is below this "
+                        "times the fairing's (spacemesh.repair.probe.MESHFIX_MARGIN, "
+                        "2.0; 0.8 before session 17; for comparison)")
     parser.add_argument("--out", default=str(ROOT / "docs" / "results"))
     args = parser.parse_args()
     if not MESHES.is_dir():
@@ -473,6 +477,10 @@ def main() -> None:
         spacemesh.repair.auto.FIT_LAID = False
     if args.no_unchecked_fills:
         spacemesh.repair.auto.UNCHECKED_FILLS = False
+    import spacemesh.repair.probe
+
+    if args.meshfix_margin is not None:
+        spacemesh.repair.probe.MESHFIX_MARGIN = args.meshfix_margin
     only = [part for part in args.only.split(",") if part]
     from spacemesh.runtime import MeshGenerator
 
@@ -507,6 +515,7 @@ def main() -> None:
               "split": args.split, "probe_fills": not args.no_probe_fills,
               "lay_onto_fan": not args.no_lay_onto_fan, "fit_laid": not args.no_fit_laid,
               "unchecked_fills": not args.no_unchecked_fills,
+              "meshfix_margin": spacemesh.repair.probe.MESHFIX_MARGIN,
               "only": args.only,
               "seconds": round(time.perf_counter() - start, 1)}
     (out / "repair_holes.json").write_text(json.dumps({"config": config, "rows": rows},

@@ -79,6 +79,25 @@ def test_probes_keep_the_fairing_on_a_sphere():
     assert report["probe_flat"] == pytest.approx(flat)
 
 
+@pytest.mark.parametrize("errors, preferred", [
+    # (fairing's, alternative's summed probe error, probes) per alternative
+    ({"meshfix": (1.0, 1.5, 4), "flat": (1.0, 1.5, 4)}, "meshfix"),  # cannot tell apart
+    ({"meshfix": (1.0, 2.5, 4), "flat": (1.0, 0.9, 4)}, "fair"),  # fairing clearly closer
+    ({"meshfix": (1.0, 1.9, 4), "flat": (1.0, 0.5, 4)}, "flat"),  # flat clearly closer
+    ({"meshfix": (1.0, 1.5, 0), "flat": (0.0, 0.0, 0)}, "fair"),  # no probe
+])
+def test_meshfix_fill_is_taken_unless_the_probes_favour_the_fairing_by_its_margin(
+        monkeypatch, errors, preferred):
+    import spacemesh.repair.probe as probe
+
+    monkeypatch.setattr(probe, "probe_errors", lambda *args, **kwargs: errors)
+    assert probe.MESHFIX_MARGIN == 2.0 and probe.PROBE_MARGIN == 0.8
+    mesh, loops = _holed_sphere()
+    report: dict = {}
+    assert preferred_fill(mesh, loops, np.ones(mesh.n_faces, bool), report) == preferred
+    assert report["probe_holes"] == max(used for _, _, used in errors.values())
+
+
 @pytest.mark.parametrize("probing", [True, False])
 def test_an_automatic_region_takes_meshfix_fill_where_the_probes_prefer_it(monkeypatch,
                                                                            probing):
@@ -89,7 +108,7 @@ def test_an_automatic_region_takes_meshfix_fill_where_the_probes_prefer_it(monke
     from spacemesh.repair import plan_repair, repair_mesh, verify_repair
 
     # any probe error of MeshFix below 1e9 times the fairing's prefers MeshFix's fill
-    monkeypatch.setattr("spacemesh.repair.probe.PROBE_MARGIN", 1e9)
+    monkeypatch.setattr("spacemesh.repair.probe.MESHFIX_MARGIN", 1e9)
     monkeypatch.setattr("spacemesh.repair.probe.ALTERNATIVES", {
         "meshfix": spacemesh.repair.probe.ALTERNATIVES["meshfix"]})
     monkeypatch.setattr("spacemesh.repair.auto.PROBE_FILLS", probing)

@@ -10,9 +10,10 @@ around the hole is. So, as the evaluation punches holes in intact meshes, a few 
 holes** of the same size are punched in the input faces around the hole
 (:func:`probe_regions`), each is filled by both methods on its own, and each fill is
 scored against the faces it replaced (:func:`fill_error`). MeshFix's fill is taken for
-the real hole only when it is clearly closer on the probes
-(:data:`PROBE_MARGIN`, :func:`preferred_fill`). The least-area flat triangulation of the
-loop is weighed the same way (:data:`ALTERNATIVES`).
+the real hole unless the fairing's is clearly closer on the probes
+(:data:`MESHFIX_MARGIN`, :func:`preferred_fill`). The least-area flat triangulation of the
+loop is weighed the same way, taken only when clearly closer (:data:`PROBE_MARGIN`,
+:data:`ALTERNATIVES`).
 
 numpy and scipy (plus the optional ``pymeshfix`` that MeshFix's fill needs); nothing
 here changes the mesh it is given.
@@ -29,8 +30,13 @@ from spacemesh.typed import BoolArray, FloatArray, IntArray
 #: Probe holes punched around a hole.
 PROBES = 4
 #: An alternative fill is taken when its summed probe error is below this share of the
-#: fairing's.
+#: fairing's ...
 PROBE_MARGIN = 0.8
+#: ... except MeshFix's fill, the established tool's, which is taken unless the
+#: fairing's summed probe error is below 1 / MESHFIX_MARGIN of MeshFix's: where the
+#: probes cannot tell the two apart, the hole is filled as MeshFix fills it
+#: (docs/REPAIR.md, step 5, session 17).
+MESHFIX_MARGIN = 2.0
 #: Rings of faces around a probe handed to the fills (enough for the fairing's ring and
 #: MeshFix's five rings).
 PROBE_RINGS = 6
@@ -279,8 +285,9 @@ def preferred_fill(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
                    report: dict | None = None) -> str:
     """The fill the probe holes around the hole ``loops`` prefer (:func:`probe_errors`):
     the alternative (:data:`ALTERNATIVES`) whose error over the probes both could fill
-    is below :data:`PROBE_MARGIN` times the fairing's by the largest factor, else
-    ``"fair"``. ``report`` receives the errors (``probe_fair``, ``probe_<name>``, over
+    is below its margin times the fairing's (:data:`MESHFIX_MARGIN` for MeshFix's fill,
+    :data:`PROBE_MARGIN` for the others) by the largest factor, else ``"fair"``.
+    ``report`` receives the errors (``probe_fair``, ``probe_<name>``, over
     the probes MeshFix could fill, and ``probes``) and ``probe_holes``, the number of
     probes the fairing and at least one alternative filled."""
     errors = probe_errors(mesh, loops, known)
@@ -289,8 +296,9 @@ def preferred_fill(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
         report.update(probe_fair=fair, probes=used,
                       probe_holes=max((count for _, _, count in errors.values()), default=0),
                       **{f"probe_{name}": other for name, (_, other, _) in errors.items()})
-    best, best_ratio = "fair", PROBE_MARGIN
+    best, best_ratio = "fair", 1.0
     for name, (fair, other, used) in errors.items():
-        if used and other < best_ratio * fair:
-            best, best_ratio = name, other / fair
+        margin = MESHFIX_MARGIN if name == "meshfix" else PROBE_MARGIN
+        if used and other < best_ratio * margin * fair:
+            best, best_ratio = name, other / (margin * fair)
     return best
