@@ -459,7 +459,7 @@ def main() -> None:
     parser.add_argument("--meshfix-margin", type=float, default=None,
                         help="take MeshFix's fill where its probe error is below this "
                         "times the fairing's (spacemesh.repair.probe.MESHFIX_MARGIN, "
-                        "2.0; 0.8 before session 17; for comparison)")
+                        "0.8; 2.0 was tried in session 17; for comparison)")
     parser.add_argument("--out", default=str(ROOT / "docs" / "results"))
     args = parser.parse_args()
     if not MESHES.is_dir():

@@ -81,17 +81,17 @@ def test_probes_keep_the_fairing_on_a_sphere():
 
 @pytest.mark.parametrize("errors, preferred", [
     # (fairing's, alternative's summed probe error, probes) per alternative
-    ({"meshfix": (1.0, 1.5, 4), "flat": (1.0, 1.5, 4)}, "meshfix"),  # cannot tell apart
-    ({"meshfix": (1.0, 2.5, 4), "flat": (1.0, 0.9, 4)}, "fair"),  # fairing clearly closer
-    ({"meshfix": (1.0, 1.9, 4), "flat": (1.0, 0.5, 4)}, "flat"),  # flat clearly closer
-    ({"meshfix": (1.0, 1.5, 0), "flat": (0.0, 0.0, 0)}, "fair"),  # no probe
+    ({"meshfix": (1.0, 0.9, 4), "flat": (1.0, 0.85, 4)}, "fair"),  # cannot tell apart
+    ({"meshfix": (1.0, 0.7, 4), "flat": (1.0, 0.9, 4)}, "meshfix"),  # MeshFix's closer
+    ({"meshfix": (1.0, 0.7, 4), "flat": (1.0, 0.5, 4)}, "flat"),  # closer by more
+    ({"meshfix": (1.0, 0.7, 0), "flat": (0.0, 0.0, 0)}, "fair"),  # no probe
 ])
-def test_meshfix_fill_is_taken_unless_the_probes_favour_the_fairing_by_its_margin(
+def test_an_alternative_is_taken_where_the_probes_favour_it_by_its_margin(
         monkeypatch, errors, preferred):
     import spacemesh.repair.probe as probe
 
     monkeypatch.setattr(probe, "probe_errors", lambda *args, **kwargs: errors)
-    assert probe.MESHFIX_MARGIN == 2.0 and probe.PROBE_MARGIN == 0.8
+    assert probe.MESHFIX_MARGIN == 0.8 and probe.PROBE_MARGIN == 0.8
     mesh, loops = _holed_sphere()
     report: dict = {}
     assert preferred_fill(mesh, loops, np.ones(mesh.n_faces, bool), report) == preferred
