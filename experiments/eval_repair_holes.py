@@ -468,6 +468,7 @@ def main() -> None:
 
     pin_threads(args.threads)
     import spacemesh.repair.auto
+    import spacemesh.repair.probe
 
     if args.no_probe_fills:
         spacemesh.repair.auto.PROBE_FILLS = False
@@ -477,8 +478,6 @@ def main() -> None:
         spacemesh.repair.auto.FIT_LAID = False
     if args.no_unchecked_fills:
         spacemesh.repair.auto.UNCHECKED_FILLS = False
-    import spacemesh.repair.probe
-
     if args.meshfix_margin is not None:
         spacemesh.repair.probe.MESHFIX_MARGIN = args.meshfix_margin
     only = [part for part in args.only.split(",") if part]

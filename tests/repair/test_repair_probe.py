@@ -27,6 +27,28 @@ def _holed_sphere():
     return mesh, loops
 
 
+def _holes_filled(mesh):
+    """``mesh`` repaired with ``{"auto": "holes"}`` by the noise stand-in model, checked
+    (``verify_repair`` clean, closed and manifold): its RepairResult."""
+    from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
+
+    from spacemesh.repair import plan_repair, repair_mesh, verify_repair
+
+    spec = make_spec()
+    plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)
+    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan)
+    assert verify_repair(plan, result) == []
+    assert_closed_manifold(result.mesh)
+    return result
+
+
+def _new_vertices(result):
+    """The positions of the vertices a repair added (no input vertex maps to them)."""
+    kept = np.zeros(result.mesh.n_vertices, dtype=bool)
+    kept[result.vertex_map[result.vertex_map >= 0]] = True
+    return result.mesh.vertices[~kept]
+
+
 def test_fill_error_is_zero_on_the_same_surface_and_grows_as_the_square_of_an_offset():
     sphere = icosphere(2)
     corners = sphere.vertices[sphere.triangulate()[0]]
@@ -102,10 +124,7 @@ def test_an_alternative_is_taken_where_the_probes_favour_it_by_its_margin(
 def test_an_automatic_region_takes_meshfix_fill_where_the_probes_prefer_it(monkeypatch,
                                                                            probing):
     pytest.importorskip("pymeshfix")
-    from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
-
     import spacemesh.repair.probe
-    from spacemesh.repair import plan_repair, repair_mesh, verify_repair
 
     # any probe error of MeshFix below 1e9 times the fairing's prefers MeshFix's fill
     monkeypatch.setattr("spacemesh.repair.probe.MESHFIX_MARGIN", 1e9)
@@ -113,11 +132,7 @@ def test_an_automatic_region_takes_meshfix_fill_where_the_probes_prefer_it(monke
         "meshfix": spacemesh.repair.probe.ALTERNATIVES["meshfix"]})
     monkeypatch.setattr("spacemesh.repair.auto.PROBE_FILLS", probing)
     mesh = punched(icosphere(3), [[0.0, 0.0, 1.0]], radius=0.4)
-    spec = make_spec()
-    plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)
-    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan)
-    assert verify_repair(plan, result) == []
-    assert_closed_manifold(result.mesh)
+    result = _holes_filled(mesh)
     taken = [f["filled_by"] for f in result.stats.findings]
     assert (taken == ["meshfix"]) is probing
 
@@ -158,10 +173,7 @@ def test_a_region_patch_falls_into_one_part_per_hole():
 
 
 def test_a_patch_the_guard_held_back_is_replaced_by_the_faired_fan(monkeypatch):
-    from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
-
     import spacemesh.geometry.fairing as fairing
-    from spacemesh.repair import plan_repair, repair_mesh, verify_repair
 
     monkeypatch.setattr("spacemesh.repair.auto.PROBE_FILLS", False)
     real = fairing.fair_patch
@@ -176,17 +188,11 @@ def test_a_patch_the_guard_held_back_is_replaced_by_the_faired_fan(monkeypatch):
 
     monkeypatch.setattr(fairing, "fair_patch", held_back_once)
     mesh = punched(icosphere(3), [[0.0, 0.0, 1.0]], radius=0.4)
-    spec = make_spec()
-    plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)
-    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan)
+    result = _holes_filled(mesh)
     assert len(calls) == 2  # the model's patch, then the fan
-    assert verify_repair(plan, result) == []
-    assert_closed_manifold(result.mesh)
     assert [f["filled_by"] for f in result.stats.findings] == ["fallback"]
     assert result.stats.fallback == "fan"
-    kept = np.zeros(result.mesh.n_vertices, dtype=bool)
-    kept[result.vertex_map[result.vertex_map >= 0]] = True
-    new = result.mesh.vertices[~kept]
+    new = _new_vertices(result)
     assert len(new) >= 5 and np.abs(np.linalg.norm(new, axis=1) - 1).max() < 0.04
 
 
@@ -208,42 +214,25 @@ def _always_held_back(monkeypatch):
 @pytest.mark.parametrize("unchecked", [True, False])
 def test_a_held_back_patch_with_no_probe_takes_meshfix_fill(monkeypatch, unchecked):
     pytest.importorskip("pymeshfix")
-    from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
-
-    from spacemesh.repair import plan_repair, repair_mesh, verify_repair
 
     monkeypatch.setattr("spacemesh.repair.auto.UNCHECKED_FILLS", unchecked)
     _always_held_back(monkeypatch)
     mesh = punched(icosphere(2), [[0.0, 0.0, 1.0]], radius=0.6)
     loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
     assert probe_regions(mesh, loops, np.ones(mesh.n_faces, dtype=bool)) == []
-    spec = make_spec()
-    plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)
-    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan)
-    assert verify_repair(plan, result) == []
-    assert_closed_manifold(result.mesh)
+    result = _holes_filled(mesh)
     taken = [f["filled_by"] for f in result.stats.findings]
     assert (taken == ["meshfix"]) is unchecked
 
 
 def test_a_held_back_patch_with_no_probe_takes_the_flat_fill_without_meshfix(monkeypatch):
-    from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
-
-    from spacemesh.repair import plan_repair, repair_mesh, verify_repair
-
     _always_held_back(monkeypatch)
     monkeypatch.setattr("spacemesh.repair.meshfix_fill.meshfix_fill", lambda *a, **k: None)
     mesh = punched(icosphere(2), [[0.0, 0.0, 1.0]], radius=0.6)
     loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
-    spec = make_spec()
-    plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)
-    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan)
-    assert verify_repair(plan, result) == []
-    assert_closed_manifold(result.mesh)
+    result = _holes_filled(mesh)
     flat = mesh.vertices[flat_surface(mesh.vertices, loops)]
-    kept = np.zeros(result.mesh.n_vertices, dtype=bool)
-    kept[result.vertex_map[result.vertex_map >= 0]] = True
-    new = result.mesh.vertices[~kept]  # the model's patch, laid onto the flat fill
+    new = _new_vertices(result)  # the model's patch, laid onto the flat fill
     assert len(new) > 0 and surface_distance(new, flat).max() < 1e-9
 
 
@@ -371,10 +360,7 @@ def test_flat_surface_is_the_least_area_triangulation_of_each_loop():
 
 @pytest.mark.parametrize("probing", [True, False])
 def test_a_hole_whose_probes_prefer_the_flat_fill_is_laid_onto_it(monkeypatch, probing):
-    from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
-
     import spacemesh.repair.probe as probe
-    from spacemesh.repair import plan_repair, repair_mesh, verify_repair
 
     # only the flat fill is weighed, and any probe error of it below 1e9 times the
     # fairing's prefers it
@@ -384,14 +370,8 @@ def test_a_hole_whose_probes_prefer_the_flat_fill_is_laid_onto_it(monkeypatch, p
     mesh = punched(icosphere(3), [[0.0, 0.0, 1.0]], radius=0.4)
     loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
     flat = mesh.vertices[flat_surface(mesh.vertices, loops)]  # (T, 3, 3)
-    spec = make_spec()
-    plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)
-    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan)
-    assert verify_repair(plan, result) == []
-    assert_closed_manifold(result.mesh)
-    kept = np.zeros(result.mesh.n_vertices, dtype=bool)
-    kept[result.vertex_map[result.vertex_map >= 0]] = True
-    new = result.mesh.vertices[~kept]
+    result = _holes_filled(mesh)
+    new = _new_vertices(result)
     assert len(new) >= 3
     on_flat = bool(surface_distance(new, flat).max() < 1e-9)
     assert on_flat is probing  # laid onto the flat fill; else faired over the sphere
@@ -400,10 +380,7 @@ def test_a_hole_whose_probes_prefer_the_flat_fill_is_laid_onto_it(monkeypatch, p
 
 
 def test_a_hole_that_cannot_be_laid_onto_the_flat_fill_takes_the_flat_fill(monkeypatch):
-    from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
-
     import spacemesh.repair.probe as probe
-    from spacemesh.repair import plan_repair, repair_mesh, verify_repair
 
     monkeypatch.setattr(probe, "ALTERNATIVES", {"flat": probe.ALTERNATIVES["flat"]})
     monkeypatch.setattr(probe, "PROBE_MARGIN", 1e9)
@@ -419,12 +396,8 @@ def test_a_hole_that_cannot_be_laid_onto_the_flat_fill_takes_the_flat_fill(monke
     monkeypatch.setattr("spacemesh.repair.auto._laid_onto", fails_on_flat)
     mesh = punched(icosphere(3), [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]], radius=0.4)
     loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
-    spec = make_spec()
-    plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)
-    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan)
+    result = _holes_filled(mesh)
     assert laid  # the flat fill was tried
-    assert verify_repair(plan, result) == []
-    assert_closed_manifold(result.mesh)
     assert {f["filled_by"] for f in result.stats.findings} == {"fallback"}
     # no vertex beyond the input's: each hole is the least-area triangulation of its loop
     assert result.mesh.n_vertices == mesh.n_vertices

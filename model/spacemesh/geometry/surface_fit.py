@@ -274,4 +274,3 @@ class QuadFit:
         new, _ = nearest_triangles(self.points[moved], self.positions, self.triangles)
         self._version[np.union1d(self.owner[moved], new)] += 1
         self.owner[moved] = new
-
