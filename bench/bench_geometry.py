@@ -29,8 +29,8 @@ def main() -> None:
     from spacemesh.evaluate.runner import pin_threads
 
     pin_threads(args.threads)
-    from spacemesh.data.sampling import sample_surface
     from spacemesh.examples import cube_quads, prism, torus_grid
+    from spacemesh.primitives import sample_surface
     from spacemesh.runtime import MeshGenerator
 
     generator = MeshGenerator.from_repository(args.model, intra_op_threads=args.threads)

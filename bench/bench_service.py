@@ -71,8 +71,8 @@ def export_model(args: argparse.Namespace, directory: Path) -> tuple[Path, Any]:
 
 def torus_cloud(count: int) -> np.ndarray:
     """``count`` points on a torus (major radius 2, minor 0.7), in a non-unit frame."""
-    from spacemesh.data.sampling import sample_surface
     from spacemesh.examples import torus_grid
+    from spacemesh.primitives import sample_surface
 
     mesh = torus_grid(48, 24)
     points, _ = sample_surface(mesh, count, np.random.default_rng(0))

@@ -42,9 +42,8 @@ STAGES = ("connectivity", "extraction", "geometry", "report")
 
 def make_cloud(path: Path) -> None:
     """The benchmark's points (the generator shape of seed 11, index 0) in ``path``."""
-    from spacemesh.data.normalize import normalize
-    from spacemesh.data.sampling import sample_surface
     from spacemesh.data.synth import SynthConfig, make_shape
+    from spacemesh.primitives import normalize, sample_surface
 
     config = SynthConfig(count=1, seed=11, style="qem", vertex_min=1024, vertex_max=2048,
                          points=POINTS)

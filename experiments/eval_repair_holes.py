@@ -77,8 +77,8 @@ def close_holes_meshlab(mesh):
     """PyMeshLab's close-holes filter (every hole, whatever its size) on the triangles."""
     import pymeshlab
 
-    from spacemesh.data.validate import triangles_of
     from spacemesh.mesh import PolygonMesh
+    from spacemesh.primitives import triangles_of
 
     tri, _ = triangles_of(mesh)
     ms = pymeshlab.MeshSet()

@@ -67,9 +67,8 @@ def real_shapes(meshes: Path, limit: int | None) -> list[tuple[str, object, np.n
 
 def synth_shapes(count: int, seed: int) -> list[tuple[str, object, np.ndarray]]:
     """Generator shapes (qem style) of 1,024 to 2,048 vertices."""
-    from spacemesh.data.normalize import normalize
-    from spacemesh.data.sampling import sample_surface
     from spacemesh.data.synth import SynthConfig, make_shape
+    from spacemesh.primitives import normalize, sample_surface
 
     config = SynthConfig(count=count, seed=seed, style="qem", vertex_min=1024,
                          vertex_max=2048, points=POINTS)

@@ -209,23 +209,6 @@ class PolygonMesh:
         length = np.linalg.norm(normal, axis=1, keepdims=True)
         return normal / np.where(length > 0, length, 1.0)
 
-    def triangulate(self) -> tuple[IntArray, IntArray]:
-        """Triangulate every face, keeping its orientation.
-
-        Convex faces are fanned; non-convex faces are ear-clipped in their best-fit
-        plane (see :func:`spacemesh.triangulate.triangulate_polygon`).
-
-        Returns
-        -------
-        triangles : (T, 3) int64
-            Triangles, counter-clockwise like their faces.
-        source_face : (T,) int64
-            The face each triangle came from.
-        """
-        from spacemesh.triangulate import triangulate_faces
-
-        return triangulate_faces(self)
-
     def __repr__(self) -> str:
         return (
             f"PolygonMesh(n_vertices={self.n_vertices}, n_faces={self.n_faces}, "

@@ -13,6 +13,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import edge_keys
 from spacemesh.typed import IntArray
 
 
@@ -95,24 +96,6 @@ class TopologyReport:
             genus=self.genus,
         )
         return data
-
-
-def edge_keys(halfedges: IntArray, n_vertices: int) -> IntArray:
-    """(S,) integer key ``min * V + max`` of the undirected edge of each vertex pair.
-
-    Parameters
-    ----------
-    halfedges : (S, 2) int
-        Vertex pairs, in either order.
-    n_vertices : int
-
-    Returns
-    -------
-    (S,) int64
-    """
-    lo = np.minimum(halfedges[:, 0], halfedges[:, 1])
-    hi = np.maximum(halfedges[:, 0], halfedges[:, 1])
-    return lo * max(n_vertices, 1) + hi
 
 
 def count_vertex_fans(mesh: PolygonMesh) -> IntArray:

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from spacemesh.data.sampling import sample_surface
 from spacemesh.examples import icosphere
 from spacemesh.mesh import PolygonMesh
 from spacemesh.metrics import Reference, score_mesh, topology_flags
+from spacemesh.primitives import sample_surface
 
 pytest.importorskip("pymeshlab")
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from spacemesh.geometry.crossing import quad_diagonal_pairs, segments_cross, uncrossed
+from spacemesh.decode.crossing import quad_diagonal_pairs, segments_cross, uncrossed
 
 SQUARE = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0.02], [0, 1, 0]], dtype=np.float64)
 SIDES_AND_DIAGONALS = np.array([[0, 1], [1, 2], [2, 3], [0, 3], [0, 2], [1, 3]])

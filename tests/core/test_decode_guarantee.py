@@ -5,7 +5,7 @@ vertex positions (generic, snapped into coincident clusters, collinear, coplanar
 coincident, partly NaN), adjacency embeddings (free, derived from the positions, with
 duplicated rows), thresholds (quantiles of the drawn distances, or non-finite),
 permutation embeddings (free, constant: ties everywhere) and every decode option. The
-refinement's triangle operations (:func:`spacemesh.geometry.refinement.flip_diagonals`)
+refinement's triangle operations (:func:`spacemesh.decode.refinement.flip_diagonals`)
 get a property test of their own on drawn convex polyhedra, where hypothesis finds in a
 few examples the quads whose flips would double an edge.
 
@@ -28,14 +28,15 @@ from hypothesis.extra import numpy as hnp
 from scipy.spatial import ConvexHull, QhullError
 
 from spacemesh.decode import DecodeOptions, Embeddings, decode
+from spacemesh.decode.refinement import flip_diagonals
 from spacemesh.encode import connectivity_from_faces
 from spacemesh.geometry import GeometryOptions, refine_geometry
 from spacemesh.geometry.intersections import self_intersecting_faces, self_intersection_fraction
-from spacemesh.geometry.refinement import flip_diagonals
 from spacemesh.halfedge import HalfedgeMesh
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import edge_keys
 from spacemesh.spacetime import distance_operands, pairwise_distance
-from spacemesh.topology import check_topology, edge_keys
+from spacemesh.topology import check_topology
 from tests.validity import assert_valid_mesh
 
 #: Bounded, reproducible runs: the same examples every time, seconds in all.

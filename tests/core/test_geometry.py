@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from spacemesh.data.sampling import sample_surface
 from spacemesh.examples import cube_quads, icosphere
 from spacemesh.geometry import (
     FitOptions,
@@ -20,6 +19,7 @@ from spacemesh.geometry.fitting import barycentric, estimate_point_normals, fit_
 from spacemesh.geometry.intersections import intersecting_triangles, self_intersecting_faces
 from spacemesh.geometry.stage import split_longest_edges
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import sample_surface
 from spacemesh.topology import check_topology
 
 
@@ -235,7 +235,7 @@ def test_noise_is_measured_and_smoothed():
 
 
 def test_a_coarse_sphere_fitted_to_a_fine_one_lies_closer_than_one_laid_on_it():
-    from spacemesh.geometry.surface_fit import nearest_triangles
+    from spacemesh.primitives.closest import nearest_triangles
 
     coarse, fine = icosphere(1), icosphere(4)  # both with every vertex on the unit sphere
     triangles = coarse.face_indices.reshape(-1, 3)

@@ -1,5 +1,5 @@
 """The decoded mesh refined: removed vertices put back, diagonals flipped
-(:mod:`spacemesh.geometry.refinement`, ``DecodeOptions.reinsert``, ``flip``,
+(:mod:`spacemesh.decode.refinement`, ``DecodeOptions.reinsert``, ``flip``,
 ``flat_delaunay_degrees``)."""
 
 from __future__ import annotations
@@ -9,15 +9,15 @@ from dataclasses import replace
 import numpy as np
 
 from spacemesh.connectivity import Connectivity
-from spacemesh.decode import DecodeOptions, decode
+from spacemesh.decode import DecodeOptions, decode, refinement
+from spacemesh.decode.refinement import flip_diagonals, reinsert_vertices
 from spacemesh.encode import encode_connectivity
 from spacemesh.examples import icosphere
-from spacemesh.geometry import refinement
-from spacemesh.geometry.refinement import flip_diagonals, reinsert_vertices
 from spacemesh.mesh import PolygonMesh
 from spacemesh.metrics.connectivity import edge_f1_score, next_accuracy
+from spacemesh.primitives import edge_keys
 from spacemesh.spacetime import distance_operands
-from spacemesh.topology import check_topology, edge_keys
+from spacemesh.topology import check_topology
 
 
 def _operands(points: np.ndarray):
@@ -184,7 +184,7 @@ def _flipped_edges(mesh: PolygonMesh, count: int) -> tuple[Connectivity, list[tu
 
 
 def _surface_points(mesh: PolygonMesh, count: int = 2000) -> np.ndarray:
-    from spacemesh.data.sampling import sample_surface
+    from spacemesh.primitives import sample_surface
 
     points, _ = sample_surface(mesh, count, np.random.default_rng(4))
     return points.astype(np.float64)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from spacemesh.decode import DecodeOptions, decode
+from spacemesh.decode.splitting import split_long_faces
 from spacemesh.encode import encode_connectivity
 from spacemesh.examples import cube_quads, prism
-from spacemesh.geometry.splitting import split_long_faces
 from spacemesh.spacetime import distance_operands, pairwise_distance
 from spacemesh.topology import check_topology
 

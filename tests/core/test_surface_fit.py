@@ -1,4 +1,5 @@
-"""How triangles fit a point cloud (:mod:`spacemesh.geometry.surface_fit`): closest points,
+"""How triangles fit a point cloud (:mod:`spacemesh.primitives.closest`,
+:mod:`spacemesh.decode.quad_fit`): closest points,
 nearest triangles and the quad errors the decode's fit flips read."""
 
 from __future__ import annotations
@@ -6,13 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from spacemesh.data.sampling import sample_surface
+from spacemesh.decode.quad_fit import QuadFit, quad_fit_errors
 from spacemesh.examples import icosphere
-from spacemesh.geometry.surface_fit import (
-    QuadFit,
+from spacemesh.primitives import sample_surface
+from spacemesh.primitives.closest import (
     closest_points_on_triangles,
     nearest_triangles,
-    quad_fit_errors,
     squared_distances,
 )
 

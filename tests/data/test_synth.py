@@ -14,6 +14,7 @@ import pytest
 from spacemesh.data.shards import SPLITS, MeshRecord, first_records, open_dataset
 from spacemesh.data.synth import SynthConfig, make_shape, synthesize
 from spacemesh.data.validate import validate_mesh
+from spacemesh.primitives import triangulate_faces
 
 trimesh = pytest.importorskip("trimesh")
 
@@ -22,7 +23,7 @@ SMALL = {"vertex_min": 32, "vertex_max": 96, "points": 64, "shard_size": 4}
 
 def independent_check(record: MeshRecord) -> None:
     """Closed, manifold, outward: trimesh and a vertex-link walk on the triangulated mesh."""
-    triangles, _ = record.mesh.triangulate()
+    triangles, _ = triangulate_faces(record.mesh)
     tm = trimesh.Trimesh(record.mesh.vertices, triangles, process=False)
     assert tm.is_watertight
     assert tm.is_winding_consistent

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-from spacemesh.data.sampling import sample_surface
 from spacemesh.examples import cube_quads, icosphere, torus_grid
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import sample_surface
 
 pytest.importorskip("pymeshlab")
 

@@ -13,8 +13,8 @@ import pytest
 from spacemesh.examples import icosphere, torus_grid
 from spacemesh.io import export_mesh, load_mesh
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import triangulate_manifold
 from spacemesh.topology import check_topology
-from spacemesh.triangulate import triangulate_manifold
 
 #: Where the test meshes sit: about 1e6 from the origin, with float64 fractions.
 FAR = np.array([1_000_000.123456789, -999_999.87654321, 1_000_000.5])

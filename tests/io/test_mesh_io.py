@@ -20,8 +20,8 @@ from spacemesh.io import (
 )
 from spacemesh.io.errors import MeshFormatError, UnsupportedFormatError
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import triangulate_faces
 from spacemesh.topology import check_topology
-from spacemesh.triangulate import triangulate_faces
 
 
 # ---------------------------------------------------------------------- test meshes

@@ -7,18 +7,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import spacemesh.triangulate as tri
+import spacemesh.primitives.triangles as tri
 from spacemesh.decode import DecodeOptions, Embeddings, decode
 from spacemesh.examples import torus_grid
 from spacemesh.mesh import PolygonMesh
-from spacemesh.spacetime import pairwise_distance
-from spacemesh.topology import check_topology
-from spacemesh.triangulate import (
+from spacemesh.primitives import (
     newell_normal,
     triangulate_faces,
     triangulate_manifold,
     triangulate_polygon,
 )
+from spacemesh.spacetime import pairwise_distance
+from spacemesh.topology import check_topology
 
 L_SHAPE = np.array(
     [[0, 0, 0], [2, 0, 0], [2, 1, 0], [1, 1, 0], [1, 2, 0], [0, 2, 0]], dtype=np.float64
@@ -197,7 +197,7 @@ def test_mixed_mesh_matches_per_polygon(backend):
         assert triangles[source == f].tolist() == expected.tolist()
     normals = triangle_normals(mesh.vertices, triangles)
     assert np.all(np.einsum("ij,ij->i", normals, mesh.face_normals()[source]) > 0)
-    assert mesh.triangulate()[0].tolist() == triangles.tolist()
+    assert triangulate_faces(mesh)[0].tolist() == triangles.tolist()
 
 
 def test_convex_faces_avoid_zero_area_fan_triangles():

@@ -19,8 +19,8 @@ from spacemesh.geometry.fairing import (
     planar_positions,
     refine_patch,
 )
-from spacemesh.geometry.surface_fit import closest_points_on_triangles
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives.closest import closest_points_on_triangles
 from spacemesh.repair.auto import _loops_of, fan_fill
 from spacemesh.repair.cut import defect_vertices
 from spacemesh.topology import check_topology

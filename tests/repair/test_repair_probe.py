@@ -7,7 +7,8 @@ import pytest
 from auto_meshes import punched
 
 from spacemesh.examples import icosphere
-from spacemesh.geometry.fairing import _faces_subset, _vertices_of, patch_loops
+from spacemesh.geometry.fairing import patch_loops
+from spacemesh.primitives import faces_subset, triangulate_faces, vertices_of
 from spacemesh.repair.auto import _loops_of
 from spacemesh.repair.cut import defect_vertices
 from spacemesh.repair.probe import (
@@ -51,7 +52,7 @@ def _new_vertices(result):
 
 def test_fill_error_is_zero_on_the_same_surface_and_grows_as_the_square_of_an_offset():
     sphere = icosphere(2)
-    corners = sphere.vertices[sphere.triangulate()[0]]
+    corners = sphere.vertices[triangulate_faces(sphere)[0]]
     assert fill_error(corners, corners) == pytest.approx(0.0, abs=1e-20)
     assert fill_error(corners, corners * 1.1) > fill_error(corners, corners * 1.05) > 0
     square = np.array([[[0, 0, 0], [1, 0, 0], [1, 1, 0]], [[0, 0, 0], [1, 1, 0], [0, 1, 0]]],
@@ -72,7 +73,7 @@ def test_probe_holes_are_discs_of_known_faces_clear_of_the_hole():
     assert len(regions) == PROBES
     ring = np.concatenate(loops)
     for faces in regions:
-        assert faces.any() and not _vertices_of(mesh, faces)[ring].any()
+        assert faces.any() and not vertices_of(mesh, faces)[ring].any()
         assert len(patch_loops(mesh, faces)) == 1
     assert not any((a & b).all() for i, a in enumerate(regions) for b in regions[i + 1:])
     # faces that are not the input's (an earlier fill) are never probed
@@ -244,7 +245,7 @@ def _state_with_cap(offset):
     sphere = icosphere(3)
     centre_z = sphere.vertices[np.asarray(sphere.faces)].mean(axis=1)[:, 2]  # (F,)
     patch = centre_z > 0.75
-    own = _vertices_of(sphere, patch) & ~_vertices_of(sphere, ~patch)
+    own = vertices_of(sphere, patch) & ~vertices_of(sphere, ~patch)
     p = sphere.vertices.copy()
     p[own] = offset(p[own])
     mesh = sphere.with_vertices(p)
@@ -271,7 +272,7 @@ def _laid_cap(monkeypatch, fit: bool):
     before = state.mesh
     fan, _, made = _faired_fan(before, state.made_by == 0)
     assert _onto_fan(state, 0) == "projected"
-    triangles, source = fan.triangulate()
+    triangles, source = triangulate_faces(fan)
     return before, state.mesh, own, fan.vertices[triangles[made[source]]]
 
 
@@ -298,7 +299,7 @@ def test_a_laid_patch_fitted_to_the_fan_lies_closer_to_it_than_one_interpolating
     patch[np.unique(before.face_of_corner[own[before.face_indices]])] = True
 
     def corners(mesh):
-        triangles, _ = _faces_subset(mesh, patch).triangulate()
+        triangles, _ = triangulate_faces(faces_subset(mesh, patch))
         return mesh.vertices[triangles]
 
     # moved off the fan's surface by about a chord's sag, and no farther from it as a
@@ -322,8 +323,8 @@ def test_a_folded_laid_patch_is_untangled_on_the_fan():
     state, own = _state_with_cap(_dragged)
     patch = state.made_by == 0
     fan, _, made = _faired_fan(state.mesh, patch)
-    fan_triangles, _ = _faces_subset(fan, made).triangulate()
-    triangles, _ = _faces_subset(state.mesh, patch).triangulate()
+    fan_triangles, _ = triangulate_faces(faces_subset(fan, made))
+    triangles, _ = triangulate_faces(faces_subset(state.mesh, patch))
     before = state.mesh.vertices
     assert _badly_laid(before, triangles, fan.vertices, fan_triangles)
     assert _onto_fan(state, 0) == "projected"
@@ -413,7 +414,7 @@ def test_a_fill_that_joins_its_loops_by_a_tube_is_replaced_by_one_disc_a_loop():
     sphere = icosphere(3)
     centre_z = sphere.vertices[np.asarray(sphere.faces)].mean(axis=1)[:, 2]  # (F,)
     band = np.abs(centre_z) < 0.3  # a tube between two loops, as a handle a pass made
-    own = _vertices_of(sphere, band) & ~_vertices_of(sphere, ~band)
+    own = vertices_of(sphere, band) & ~vertices_of(sphere, ~band)
     n_v, n_f = sphere.n_vertices, sphere.n_faces
     state = _Passes(sphere, np.arange(n_v), np.where(band, -1, np.arange(n_f)),
                     np.full(n_f, -1), np.where(own, 0, -1), np.where(band, 0, -1))

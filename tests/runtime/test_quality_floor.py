@@ -27,10 +27,10 @@ import pytest
 
 pytest.importorskip("onnxruntime")
 
-from spacemesh.data.sampling import sample_surface
 from spacemesh.examples import cube_quads, prism, torus_grid
 from spacemesh.metrics.compare import MetricOptions, Reference, score_mesh
 from spacemesh.metrics.sampling import apply_normalisation, normalisation
+from spacemesh.primitives import sample_surface
 from spacemesh.runtime import MeshGenerator
 from spacemesh.runtime.repository import default_model_dir
 from spacemesh.topology import check_topology

@@ -7,8 +7,8 @@ import pytest
 
 pytest.importorskip("onnxruntime")
 
-from spacemesh.data.validate import signed_volume
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import signed_volume
 from spacemesh.runtime import GenerateRequest, MeshGenerator
 from spacemesh.runtime.options import GenerateOptions, OptionError
 from spacemesh.runtime.pipeline import (

@@ -6,9 +6,9 @@ import httpx
 import numpy as np
 import pytest
 
-from spacemesh.data.sampling import sample_surface
 from spacemesh.examples import torus_grid
 from spacemesh.io import load_mesh
+from spacemesh.primitives import sample_surface
 from spacemesh.runtime import default_model_dir
 from spacemesh.runtime.repository import MANIFEST, resolve_version_dir
 from spacemesh.topology import check_topology

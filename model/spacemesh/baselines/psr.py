@@ -8,7 +8,7 @@ closed one a user wants, and trimming would only open holes.
 
 PSR* is the paper's compact variant: the PSR mesh brought down to (about) the vertex
 count of our output for the same shape by QEM edge collapse with the topology kept,
-:func:`spacemesh.data.importer.decimate` (the paper remeshed isotropically; both give
+:func:`spacemesh.primitives.decimate` (the paper remeshed isotropically; both give
 a mesh of the same size, and QEM keeps the features better).
 """
 
@@ -16,8 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from spacemesh.data.importer import decimate
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import decimate
+from spacemesh.topology import check_topology
 from spacemesh.typed import FloatArray
 
 #: Octree depth of the reconstruction.
@@ -72,4 +73,5 @@ def psr_star(psr_mesh: PolygonMesh, target_vertices: int) -> PolygonMesh:
     -------
     PolygonMesh
     """
-    return decimate(psr_mesh, max(4, int(target_vertices)))
+    return decimate(psr_mesh, max(4, int(target_vertices)),
+                    genus=check_topology(psr_mesh).genus or 0)

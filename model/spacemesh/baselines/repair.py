@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from spacemesh.data.validate import triangles_of
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import triangles_of
 
 
 def meshfix(mesh: PolygonMesh, *, keep_largest: bool = True) -> PolygonMesh:

@@ -3,8 +3,7 @@
 - :mod:`~spacemesh.data.shapes`: random CAD-like solids (manifold3d CSG).
 - :mod:`~spacemesh.data.styles`: tessellation styles (qem, planar, isotropic, quad).
 - :mod:`~spacemesh.data.validate`: the strict validator every stored shape passes.
-- :mod:`~spacemesh.data.normalize`: normalisation and z-y-x ordering.
-- :mod:`~spacemesh.data.sampling`: conditioning point clouds with normals.
+- :mod:`~spacemesh.data.normalize`: z-y-x ordering and the canonical stored form.
 - :mod:`~spacemesh.data.shards`: the shard format, manifest and :func:`open_dataset`.
 - :mod:`~spacemesh.data.synth`: parallel, resumable generation.
 - :mod:`~spacemesh.data.importer`: folders of user meshes into the same format.

@@ -28,8 +28,10 @@ import numpy as np
 
 from spacemesh.data.pipeline import prepare_shape
 from spacemesh.data.shards import SHARD_PATTERN, write_manifest, write_shard
-from spacemesh.data.validate import MIN_ALTITUDE, MIN_EDGE, triangles_of
+from spacemesh.data.validate import MIN_ALTITUDE, MIN_EDGE
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import decimate
+from spacemesh.topology import check_topology
 
 #: File name suffixes that are imported (case-insensitive).
 MESH_SUFFIXES = (".obj", ".off", ".ply", ".stl", ".glb", ".gltf")
@@ -156,42 +158,6 @@ def flip_caps(mesh: PolygonMesh, max_rounds: int = 8) -> PolygonMesh:
     return PolygonMesh.from_faces(v, tri)
 
 
-def decimate(mesh: PolygonMesh, max_vertices: int) -> PolygonMesh:
-    """QEM-decimate a mesh with more than ``max_vertices`` vertices (topology kept).
-
-    Parameters
-    ----------
-    mesh : PolygonMesh
-    max_vertices : int
-
-    Returns
-    -------
-    PolygonMesh
-        Triangulated and decimated, or ``mesh`` itself when it is small enough.
-    """
-    if mesh.n_vertices <= max_vertices:
-        return mesh
-    import pymeshlab
-
-    from spacemesh.topology import check_topology
-
-    tri, _ = triangles_of(mesh)
-    genus = check_topology(mesh).genus or 0
-    meshset = pymeshlab.MeshSet()
-    meshset.add_mesh(pymeshlab.Mesh(vertex_matrix=mesh.vertices, face_matrix=tri.astype(np.int32)))
-    meshset.meshing_decimation_quadric_edge_collapse(
-        targetfacenum=max(4, 2 * max_vertices - 4 + 4 * genus),
-        qualitythr=0.5,
-        preservenormal=True,
-        preservetopology=True,
-        optimalplacement=True,
-        planarquadric=True,
-        autoclean=True,
-    )
-    current = meshset.current_mesh()
-    return PolygonMesh.from_faces(current.vertex_matrix(), current.face_matrix())
-
-
 def _file_rng(relative: str, seed: int) -> np.random.Generator:
     digest = hashlib.sha256(relative.encode("utf-8")).digest()
     return np.random.default_rng([seed, int.from_bytes(digest[:8], "big")])
@@ -245,7 +211,7 @@ def import_file(
         try:
             cleaned = flip_caps(weld_close_vertices(mesh) if weld else mesh)
             if target is not None:
-                cleaned = decimate(cleaned, target)
+                cleaned = decimate(cleaned, target, genus=check_topology(cleaned).genus or 0)
         except Exception as error:  # pymeshlab raises its own types
             return None, [f"processing_error: {error}"]
         shape, attempt_causes = prepare_shape(

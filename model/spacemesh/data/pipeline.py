@@ -11,10 +11,10 @@ import numpy as np
 
 from spacemesh.data.features import shape_features
 from spacemesh.data.normalize import canonical
-from spacemesh.data.sampling import sample_surface
 from spacemesh.data.shards import split_of
 from spacemesh.data.validate import validate_mesh
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import sample_surface
 from spacemesh.topology import check_topology
 
 

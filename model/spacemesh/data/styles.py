@@ -27,14 +27,13 @@ from collections.abc import Callable
 import numpy as np
 
 from spacemesh.data.shapes import solid_to_mesh
+from spacemesh.geometry.policy import FLAT_FLIP_DEGREES
 from spacemesh.mesh import PolygonMesh
 from spacemesh.typed import IntArray
 
 #: Oversampling of the dense mesh that QEM starts from (vertices per target vertex).
 QEM_DENSITY = 3.0
 
-#: Triangles whose normals are within this angle count as coplanar for the flips.
-FLAT_FLIP_DEGREES = 1.0
 
 #: Passes of pymeshlab's flip filter at most (one pass does not re-queue the edges its
 #: flips make non-Delaunay; three to four passes settle the qem shapes).
@@ -439,10 +438,6 @@ STYLES: dict[str, Callable[..., PolygonMesh]] = {
     "isotropic": isotropic,
     "quad": quad,
 }
-
-
-#: Styles whose meshes are all triangles (a model trained on them should output triangles).
-TRIANGLE_STYLES = ("qem", "isotropic")
 
 
 def segments_for(style: str, target_vertices: int, rng: np.random.Generator) -> int:

@@ -51,6 +51,7 @@ from __future__ import annotations
 import numpy as np
 
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import signed_volume, triangles_of
 from spacemesh.topology import check_topology
 from spacemesh.typed import FloatArray, IntArray
 
@@ -87,40 +88,6 @@ def _scale(vertices: FloatArray) -> float:
         return 1.0
     extent = float(np.ptp(vertices, axis=0).max()) / 2
     return extent if extent > 0 else 1.0
-
-
-def triangles_of(mesh: PolygonMesh) -> tuple[IntArray, IntArray]:
-    """Triangles of a polygon mesh and the face each comes from.
-
-    Parameters
-    ----------
-    mesh : PolygonMesh
-
-    Returns
-    -------
-    triangles : (T, 3) int64
-    source_face : (T,) int64
-    """
-    if mesh.is_triangle_mesh():
-        return mesh.face_indices.reshape(-1, 3), np.arange(mesh.n_faces, dtype=np.int64)
-    return mesh.triangulate()
-
-
-def signed_volume(mesh: PolygonMesh) -> float:
-    """Signed enclosed volume (positive for a closed mesh oriented outward).
-
-    Parameters
-    ----------
-    mesh : PolygonMesh
-
-    Returns
-    -------
-    float
-    """
-    tri, _ = triangles_of(mesh)
-    v = mesh.vertices - mesh.vertices.mean(axis=0)
-    a, b, c = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]  # (T, 3) each
-    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
 
 
 def has_duplicate_positions(vertices: FloatArray, tolerance: float) -> bool:

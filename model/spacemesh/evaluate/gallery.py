@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from spacemesh.data.validate import signed_volume
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import signed_volume
 from spacemesh.topology import check_topology
 from spacemesh.typed import FloatArray
 

@@ -150,9 +150,8 @@ def mesh_shapes(
     -------
     list of EvalShape
     """
-    from spacemesh.data.normalize import normalize
-    from spacemesh.data.sampling import sample_surface
     from spacemesh.io import load_mesh
+    from spacemesh.primitives import normalize, sample_surface
 
     shapes = []
     for i, path in enumerate(paths):

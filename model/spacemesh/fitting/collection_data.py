@@ -16,10 +16,11 @@ from pathlib import Path
 import numpy as np
 
 from spacemesh.connectivity import Connectivity
-from spacemesh.data.normalize import normalize, sort_zyx
+from spacemesh.data.normalize import sort_zyx
 from spacemesh.encode import encode_connectivity, require_closed_manifold
 from spacemesh.errors import SpaceMeshError
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import normalize
 from spacemesh.typed import FloatArray
 
 #: The paper pads every mesh to N = 2000 vertex tokens.

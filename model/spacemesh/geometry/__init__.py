@@ -1,10 +1,6 @@
 """Post-decode geometry: everything that happens to the mesh after the networks.
 
-* :mod:`~spacemesh.geometry.crossing`: the weaker of two crossing quad diagonals dropped;
-* :mod:`~spacemesh.geometry.splitting`: long faces cut along their strongest diagonals;
-* :mod:`~spacemesh.geometry.refinement`: removed vertices put back, diagonals flipped;
-* :mod:`~spacemesh.geometry.surface_fit`: closest points, nearest triangles, quad errors;
-* :mod:`~spacemesh.geometry.policy`: which model gets which of those (manifest ``decode``);
+* :mod:`~spacemesh.geometry.policy`: which model gets which decode steps (manifest ``decode``);
 * :mod:`~spacemesh.geometry.sampling`: vertices chosen on the input (farthest points);
 * :mod:`~spacemesh.geometry.fitting`: the vertex fit (one energy, one sparse solve);
 * :mod:`~spacemesh.geometry.stage`: the stage itself (splits, fit, flips, guard);

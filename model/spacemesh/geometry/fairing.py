@@ -40,8 +40,9 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import MatrixRankWarning, spsolve
 
 from spacemesh.geometry.intersections import self_intersecting_faces
-from spacemesh.geometry.surface_fit import closest_points_on_triangles
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import faces_subset, faces_touching, triangulate_faces, vertices_of
+from spacemesh.primitives.closest import closest_points_on_triangles
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: An interior patch edge longer than this times the target length is split.
@@ -245,7 +246,7 @@ def refine_patch(mesh: PolygonMesh, patch: BoolArray, target: float
     outside = np.ones(mesh.n_faces, dtype=bool)
     outside[tri_faces] = False
     tris = _Triangles(triangles, {_edge_key(a, b) for a, b in
-                                  _faces_subset(mesh, outside).edges.tolist()})
+                                  faces_subset(mesh, outside).edges.tolist()})
     corners = np.asarray(positions)[np.asarray(triangles)]
     area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
                                          corners[:, 2] - corners[:, 0]), axis=1).sum()
@@ -269,7 +270,7 @@ def refine_patch(mesh: PolygonMesh, patch: BoolArray, target: float
     keep[tri_faces] = False
     kept = np.flatnonzero(keep)
     new = np.asarray(tris.alive(), dtype=np.int64)
-    kept_mesh = _faces_subset(mesh, keep)
+    kept_mesh = faces_subset(mesh, keep)
     indices = np.concatenate([kept_mesh.face_indices, new.reshape(-1)])
     offsets = np.concatenate([kept_mesh.face_offsets,
                               kept_mesh.face_offsets[-1] + 3 * np.arange(1, len(new) + 1)])
@@ -279,11 +280,6 @@ def refine_patch(mesh: PolygonMesh, patch: BoolArray, target: float
 
 
 # ---------------------------------------------------------------------- fairing
-def _faces_subset(mesh: PolygonMesh, faces: BoolArray) -> PolygonMesh:
-    """The faces ``faces`` ((F,) bool) of ``mesh`` over all its vertices, in order."""
-    sizes = mesh.face_sizes[faces]
-    offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-    return PolygonMesh(mesh.vertices, mesh.face_indices[faces[mesh.face_of_corner]], offsets)
 
 
 def _laplacian(mesh: PolygonMesh, faces: BoolArray, uniform: bool = False) -> sp.csr_matrix:
@@ -292,7 +288,7 @@ def _laplacian(mesh: PolygonMesh, faces: BoolArray, uniform: bool = False) -> sp
     cotangent Laplacian measures the curvature of the fixed ring however its edges are
     laid out, where uniform weights would read an anisotropic ring as curved), or with
     ``uniform`` weights 1 on every edge, (V, V)."""
-    triangles, _ = _faces_subset(mesh, faces).triangulate()
+    triangles, _ = triangulate_faces(faces_subset(mesh, faces))
     p = np.asarray(mesh.vertices, dtype=np.float64)
     n = mesh.n_vertices
     rows, cols, weights = [], [], []
@@ -314,9 +310,6 @@ def _laplacian(mesh: PolygonMesh, faces: BoolArray, uniform: bool = False) -> sp
     return (sp.identity(n, format="csr") - inverse @ w).tocsr()
 
 
-def _faces_touching(mesh: PolygonMesh, vertices: BoolArray) -> BoolArray:
-    return np.bincount(mesh.face_of_corner, vertices[mesh.face_indices],
-                       minlength=mesh.n_faces) > 0
 
 
 def fair_positions(mesh: PolygonMesh, free: BoolArray, order: int = 2,
@@ -347,8 +340,8 @@ def fair_positions(mesh: PolygonMesh, free: BoolArray, order: int = 2,
         return positions
     near = free.copy()
     for _ in range(order - 1):
-        near |= _vertices_of(mesh, _faces_touching(mesh, near))
-    faces = _faces_touching(mesh, near)
+        near |= vertices_of(mesh, faces_touching(mesh, near))
+    faces = faces_touching(mesh, near)
     rows = np.flatnonzero(free)
     fixed = ~free
     for _ in range(FAIR_SOLVES if weights == "cotangent" else 1):
@@ -370,10 +363,6 @@ def fair_positions(mesh: PolygonMesh, free: BoolArray, order: int = 2,
     return positions
 
 
-def _vertices_of(mesh: PolygonMesh, faces: BoolArray) -> BoolArray:
-    marked = np.zeros(mesh.n_vertices, dtype=bool)
-    marked[mesh.face_indices[faces[mesh.face_of_corner]]] = True
-    return marked
 
 
 def boundary_edge_length(mesh: PolygonMesh, loops: list[IntArray]) -> float:
@@ -389,8 +378,8 @@ def _contained(mesh: PolygonMesh, free: BoolArray, start: FloatArray,
     around them (two rings) widened by :data:`MAX_OVERSHOOT` of its largest side on
     every side (a thin plate over a hole across sharp edges overshoots; a membrane never
     leaves the hull of its ring)."""
-    ring = _vertices_of(mesh, _faces_touching(mesh, free)) & ~free
-    ring |= _vertices_of(mesh, _faces_touching(mesh, ring)) & ~free
+    ring = vertices_of(mesh, faces_touching(mesh, free)) & ~free
+    ring |= vertices_of(mesh, faces_touching(mesh, ring)) & ~free
     low, high = start[ring].min(axis=0), start[ring].max(axis=0)
     margin = MAX_OVERSHOOT * float((high - low).max())
     moved = faired[free]
@@ -399,7 +388,7 @@ def _contained(mesh: PolygonMesh, free: BoolArray, start: FloatArray,
 
 def _triangle_areas(mesh: PolygonMesh, faces: BoolArray) -> FloatArray:
     """The area of every face (0 for those not in ``faces``), (F,)."""
-    triangles, source = _faces_subset(mesh, faces).triangulate()
+    triangles, source = triangulate_faces(faces_subset(mesh, faces))
     corners = mesh.vertices[triangles]
     area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
                                          corners[:, 2] - corners[:, 0]), axis=1)
@@ -444,11 +433,11 @@ def _ring_planes(mesh: PolygonMesh, free: BoolArray, patch: BoolArray
     label : (R,) int64
         The cluster of each (that of its largest clustered face).
     """
-    inner = _faces_touching(mesh, free)
-    ring = _vertices_of(mesh, inner) & ~free
+    inner = faces_touching(mesh, free)
+    ring = vertices_of(mesh, inner) & ~free
     outside = ~patch & ~inner
-    first = outside & _faces_touching(mesh, ring)
-    faces = first | (outside & _faces_touching(mesh, _vertices_of(mesh, first)))
+    first = outside & faces_touching(mesh, ring)
+    faces = first | (outside & faces_touching(mesh, vertices_of(mesh, first)))
     if not first.any():
         return None
     area = _triangle_areas(mesh, faces)
@@ -536,11 +525,11 @@ def planar_positions(mesh: PolygonMesh, free: BoolArray, patch: BoolArray,
         normals, points, ring, label = found
     else:
         normals, points = planes
-        ring = np.flatnonzero(_vertices_of(mesh, _faces_touching(mesh, free)) & ~free)
+        ring = np.flatnonzero(vertices_of(mesh, faces_touching(mesh, free)) & ~free)
         offsets = np.abs(np.einsum("kd,rkd->rk", normals,
                                    mesh.vertices[ring][:, None] - points[None]))
         label = offsets.argmin(axis=1)
-    local = _faces_subset(mesh, _faces_touching(mesh, free))
+    local = faces_subset(mesh, faces_touching(mesh, free))
     edges = local.edges
     length = np.linalg.norm(base[edges[:, 0]] - base[edges[:, 1]], axis=1) + 1e-12
     n = mesh.n_vertices
@@ -592,7 +581,7 @@ def _surface_distance(mesh: PolygonMesh, faces: BoolArray, x: FloatArray,
     side on each triangle), (N,)."""
     from scipy.spatial import cKDTree
 
-    triangles, _ = _faces_subset(mesh, faces).triangulate()
+    triangles, _ = triangulate_faces(faces_subset(mesh, faces))
     i, j = np.meshgrid(np.arange(steps + 1), np.arange(steps + 1), indexing="ij")
     keep = i + j <= steps
     a, b = i[keep] / steps, j[keep] / steps
@@ -729,12 +718,12 @@ def _continuation(mesh: PolygonMesh, free: BoolArray, patch: BoolArray,
     Returns the positions, the ring error of the candidate kept (of the membrane for
     the flat fill; infinite for ``start``) and its name (:data:`FAIRING_NAMES`, ``flat``,
     ``planar`` or ``none``)."""
-    ring = _vertices_of(mesh, _faces_touching(mesh, free)) & ~free
+    ring = vertices_of(mesh, faces_touching(mesh, free)) & ~free
     wider = free | ring
     around = wider
     for _ in range(SURFACE_RINGS):
-        around = around | _vertices_of(mesh, _faces_touching(mesh, around))
-    surface = _faces_touching(mesh, around) & ~patch
+        around = around | vertices_of(mesh, faces_touching(mesh, around))
+    surface = faces_touching(mesh, around) & ~patch
 
     def score(guess: FloatArray) -> float:
         if not surface.any() or not ring.any():
@@ -761,7 +750,7 @@ def _continuation(mesh: PolygonMesh, free: BoolArray, patch: BoolArray,
     planes = found[:2]
     planar = planar_positions(mesh, free, patch, fair_positions(mesh, free, 1, "uniform"),
                               planes)
-    guess = planar_positions(mesh, wider, patch | _faces_touching(mesh, wider),
+    guess = planar_positions(mesh, wider, patch | faces_touching(mesh, wider),
                              fair_positions(mesh, wider, 1, "uniform"), planes)
     assert planar is not None and guess is not None
     planar_error = score(guess)
@@ -829,8 +818,8 @@ def fair_patch(mesh: PolygonMesh, patch: BoolArray, free: BoolArray, target: flo
     faired, error, kind = _continuation(mesh, free, patch_after, start)
     if report is not None:
         report.update(ring_error=error, fairing=kind)
-    near = _faces_touching(mesh, _vertices_of(mesh, _faces_touching(mesh, free)))
-    local = _faces_subset(mesh, near)
+    near = faces_touching(mesh, vertices_of(mesh, faces_touching(mesh, free)))
+    local = faces_subset(mesh, near)
 
     def crossings(positions: FloatArray) -> int:
         return int(self_intersecting_faces(local.with_vertices(positions)).sum())

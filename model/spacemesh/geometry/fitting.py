@@ -40,7 +40,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
-from spacemesh.geometry.surface_fit import (
+from spacemesh.primitives.closest import (
     _subtriangle_centroids,
     closest_points_on_triangles,
     nearest_triangles,

@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from spacemesh.data.validate import triangles_of
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import triangles_of
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Shrink of triangles that share corners, as a fraction of their size (large enough

@@ -19,6 +19,14 @@ DECODE_KEYS = ("max_sides", "reinsert", "flip", "flat_delaunay_degrees", "fit_ga
 #: ``experiments/decode_fit_sweep.py``).
 FIT_GAIN = 0.5
 
+#: Generator styles whose meshes are all triangles (a model trained on them should output
+#: triangles); :mod:`spacemesh.data.styles` makes them.
+TRIANGLE_STYLES = ("qem", "isotropic")
+
+#: Triangles whose normals are within this angle count as coplanar for the generator's
+#: Delaunay flips (:func:`spacemesh.data.styles.delaunay_flip_flat`), and so for the decode.
+FLAT_FLIP_DEGREES = 1.0
+
 
 def decode_changes(section: dict[str, Any]) -> dict[str, Any]:
     """:class:`~spacemesh.decode.DecodeOptions` fields from a manifest's ``decode``
@@ -30,15 +38,15 @@ def decode_changes(section: dict[str, Any]) -> dict[str, Any]:
 def decode_section(data_card: dict[str, Any]) -> dict[str, Any]:
     """The manifest's ``decode`` section for a model trained on ``data_card``'s data.
 
-    A model trained on triangle meshes (:data:`spacemesh.data.styles.TRIANGLE_STYLES`)
+    A model trained on triangle meshes (:data:`TRIANGLE_STYLES`)
     has its long faces cut into triangles (``max_sides`` 3, see
-    :mod:`spacemesh.geometry.splitting`), then its removed vertices put back and its
+    :mod:`spacemesh.decode.splitting`), then its removed vertices put back and its
     diagonals flipped to the ones it rates closer (``reinsert``, ``flip``, see
-    :mod:`spacemesh.geometry.refinement`); one trained on ``qem`` meshes of generator
+    :mod:`spacemesh.decode.refinement`); one trained on ``qem`` meshes of generator
     1.1.0 or later, whose flat quads have the Delaunay diagonal, gets that rule too
-    (``flat_delaunay_degrees``, the generator's :data:`~spacemesh.data.styles.
-    FLAT_FLIP_DEGREES`). Triangle models also flip toward the conditioning points
-    (``fit_gain`` :data:`FIT_GAIN`, see :func:`spacemesh.geometry.refinement.flip_diagonals`).
+    (``flat_delaunay_degrees``, the generator's :data:`FLAT_FLIP_DEGREES`). Triangle models
+    also flip toward the conditioning points
+    (``fit_gain`` :data:`FIT_GAIN`, see :func:`spacemesh.decode.refinement.flip_diagonals`).
     Any other keeps its polygons as matched.
 
     Parameters
@@ -52,8 +60,6 @@ def decode_section(data_card: dict[str, Any]) -> dict[str, Any]:
         ``max_sides`` (int or None), ``reinsert``, ``flip`` (bool),
         ``flat_delaunay_degrees``, ``fit_gain`` (float or None) and ``why``.
     """
-    from spacemesh.data.styles import FLAT_FLIP_DEGREES, TRIANGLE_STYLES
-
     style = data_card.get("style")
     if style not in TRIANGLE_STYLES:
         return {"max_sides": None, "reinsert": False, "flip": False,

@@ -24,10 +24,10 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from spacemesh.data.validate import triangles_of
 from spacemesh.geometry.intersections import self_intersection_fraction
-from spacemesh.geometry.surface_fit import nearest_triangles
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import triangles_of
+from spacemesh.primitives.closest import nearest_triangles
 from spacemesh.typed import FloatArray
 
 #: Input points measured at most (a fixed subset of larger clouds).

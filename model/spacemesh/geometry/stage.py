@@ -7,7 +7,7 @@ normalised frame, :func:`refine_geometry`
    (:func:`split_longest_edges`; the network reads at most its token count);
 2. alternates the vertex fit (:func:`spacemesh.geometry.fitting.fit_vertices`: points
    -> mesh, mesh -> points, tangent-plane quadrics for sharp features, springs) with
-   diagonal flips toward the points (:func:`spacemesh.geometry.refinement.flip_diagonals` with
+   diagonal flips toward the points (:func:`spacemesh.decode.refinement.flip_diagonals` with
    the point fit only), each a manifold-keeping local operation;
 3. guards self-intersections: vertices of faces that intersect after the fit but did
    not before go back toward where they were (halfway, then all the way), and if the
@@ -24,12 +24,12 @@ from typing import Any
 
 import numpy as np
 
-from spacemesh.data.validate import triangles_of
+from spacemesh.decode.refinement import flip_diagonals
 from spacemesh.encode import connectivity_from_faces
 from spacemesh.geometry.fitting import FitOptions, fit_vertices, plane_fits
 from spacemesh.geometry.intersections import intersecting_triangles, self_intersecting_faces
-from spacemesh.geometry.refinement import flip_diagonals
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import triangles_of
 from spacemesh.typed import FloatArray, IntArray
 
 #: Rounds of the intersection guard's halfway backtracking.
@@ -51,7 +51,7 @@ class GeometryOptions:
     flips : bool
         Flip diagonals toward the points between fits.
     fit_gain : float
-        Relative gain a flip needs (:func:`spacemesh.geometry.refinement.flip_diagonals`).
+        Relative gain a flip needs (:func:`spacemesh.decode.refinement.flip_diagonals`).
     guard : bool
         Never let the share of self-intersecting faces grow.
     """

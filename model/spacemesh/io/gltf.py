@@ -10,7 +10,7 @@ files next to the ``.gltf``. Vertices are not welded: a seam in the file stays o
 Written: one mesh with one primitive, ``POSITION`` float32 (with min/max) relative to
 its node's float64 ``translation`` (the bounding box centre, so meshes far from the
 origin keep their precision; none when float32 holds the vertices exactly) and
-``uint32`` indices, triangulated with :func:`spacemesh.triangulate.triangulate_manifold`
+``uint32`` indices, triangulated with :func:`spacemesh.primitives.triangulate_manifold`
 so every triangle keeps its polygon's orientation and a manifold polygon mesh gives a
 manifold triangle mesh (a face whose every fan would duplicate an edge gets a centroid
 vertex, appended after the mesh's vertices). ``.gltf`` embeds the buffer as a
@@ -32,7 +32,7 @@ import numpy as np
 from spacemesh.io.errors import MeshFormatError, TooLargeError, check_vertices, require_nonempty
 from spacemesh.io.limits import UNLIMITED, ReadLimits, load_json
 from spacemesh.mesh import PolygonMesh
-from spacemesh.triangulate import triangulate_manifold
+from spacemesh.primitives import triangulate_manifold
 from spacemesh.typed import FloatArray, IntArray
 
 _GLB_MAGIC = b"glTF"

@@ -4,7 +4,7 @@ STL stores every triangle with its own three positions, so connectivity is recov
 by merging rows that are exactly equal (``np.unique`` on the float64 rows); nothing
 is snapped within a tolerance. Binary STL is recognised by its size
 (``84 + 50 * n`` bytes), even when its 80-byte header starts with ``solid``.
-Written: binary, triangulated with :func:`spacemesh.triangulate.triangulate_manifold`
+Written: binary, triangulated with :func:`spacemesh.primitives.triangulate_manifold`
 (manifold polygon meshes give manifold triangle meshes once welded).
 """
 
@@ -15,7 +15,7 @@ import numpy as np
 from spacemesh.io.errors import MeshFormatError, check_vertices, decode_text, require_nonempty
 from spacemesh.io.limits import UNLIMITED, ReadLimits
 from spacemesh.mesh import PolygonMesh
-from spacemesh.triangulate import triangulate_manifold
+from spacemesh.primitives import triangulate_manifold
 from spacemesh.typed import FloatArray, IntArray
 
 _RECORD = np.dtype(

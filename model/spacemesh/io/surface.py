@@ -2,7 +2,7 @@
 
 A file whose reader finds faces (OBJ, OFF, PLY with a face element, STL, GLB/glTF) is a
 *mesh*: its surface is sampled area-uniformly, with the normal of the face under each
-point (:func:`spacemesh.data.sampling.sample_surface`), so a low-poly or partial mesh
+point (:func:`spacemesh.primitives.sample_surface`), so a low-poly or partial mesh
 gives as many points as the model reads, spread over its faces (a partial mesh is then
 treated like a partial scan). Any other file, and a mesh format without faces (a PLY or
 OBJ of vertices only), is a point cloud read by :func:`spacemesh.io.points.load_points`.
@@ -64,7 +64,7 @@ def input_kind(source: str) -> InputKind:
 
 
 def _has_area(mesh) -> bool:
-    from spacemesh.data.validate import triangles_of
+    from spacemesh.primitives import triangles_of
 
     triangles, _ = triangles_of(mesh)
     if not len(triangles):
@@ -106,9 +106,9 @@ def load_cloud_input(
     MeshFormatError, TooLargeError, UnsupportedFormatError
         As :func:`spacemesh.io.load_mesh` and :func:`spacemesh.io.points.load_points`.
     """
-    from spacemesh.data.sampling import sample_surface
     from spacemesh.io import load_mesh, read_source, resolve_file_type
     from spacemesh.io.points import SUPPORTED_POINTS_READ, load_points
+    from spacemesh.primitives import sample_surface
 
     if isinstance(path_or_bytes, (bytes, bytearray, memoryview)) or hasattr(
             path_or_bytes, "read"):

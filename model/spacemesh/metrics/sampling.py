@@ -3,7 +3,7 @@
 Every metric compares meshes in the frame of the ground truth normalised so that its
 longest bounding-box axis spans [-1, 1] (Supplement C of the paper); the prediction is
 moved by the *same* transform, so an error of scale or position is still measured.
-Points are drawn by :func:`spacemesh.data.sampling.sample_surface` (uniform by area on
+Points are drawn by :func:`spacemesh.primitives.sample_surface` (uniform by area on
 the triangulation, each point carrying the normal of the polygon face it lies on), the
 same sampler that makes the conditioning point clouds.
 """
@@ -14,10 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from spacemesh.data.normalize import normalize
-from spacemesh.data.sampling import sample_surface
-from spacemesh.data.validate import triangles_of
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import normalize, sample_surface, surface_area
 from spacemesh.typed import FloatArray
 
 #: Points sampled on each mesh (Supplement C: 10,000).
@@ -91,9 +89,3 @@ def sample_mesh(
     points, normals = sample_surface(mesh, count, np.random.default_rng(seed))  # (N, 3) each
     return SurfaceSamples(points.astype(np.float64), normals.astype(np.float64))
 
-
-def surface_area(mesh: PolygonMesh) -> float:
-    """Total area of the triangulated faces."""
-    tri, _ = triangles_of(mesh)
-    p = mesh.vertices[tri]  # (T, 3, 3)
-    return float(np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum() / 2)

@@ -26,11 +26,11 @@ from typing import Any
 
 import numpy as np
 
-from spacemesh.data.validate import triangles_of
 from spacemesh.decode import Embeddings
 from spacemesh.geometry import refine_geometry
-from spacemesh.geometry.surface_fit import nearest_triangles
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import triangles_of
+from spacemesh.primitives.closest import nearest_triangles
 from spacemesh.repair.auto import AutoPlan, patch_euler, plan_auto, repair_auto
 from spacemesh.repair.cut import Cut, cut_region
 from spacemesh.repair.inpaint import InpaintResult, inpaint_tokens

@@ -49,6 +49,7 @@ from scipy.sparse import coo_matrix, identity
 from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import faces_subset, faces_touching, triangulate_faces, vertices_of
 from spacemesh.repair.cut import FaceSubset, boundary_loops, grow_region
 from spacemesh.repair.region import (
     EMPTY_REGION,
@@ -445,9 +446,8 @@ class AutoPlan:
         """The working mesh without the :attr:`removed` faces (what the holes are of)."""
         if self.removed is None:
             return self.mesh
-        from spacemesh.geometry.fairing import _faces_subset
 
-        return _faces_subset(self.mesh, ~self.removed)
+        return faces_subset(self.mesh, ~self.removed)
 
     @property
     def changeable(self) -> BoolArray:
@@ -712,7 +712,6 @@ def plan_auto(mesh: PolygonMesh, mode: str, n_tokens: int, *, weld: bool = False
         the error of a region with defects other than holes that cannot be planned, its
         message naming them (``details["findings"]``).
     """
-    from spacemesh.geometry.fairing import _faces_subset
     from spacemesh.repair.api import DEFAULT_MAX_GROWTH
     from spacemesh.repair.weld import weld_vertices
 
@@ -742,7 +741,7 @@ def plan_auto(mesh: PolygonMesh, mode: str, n_tokens: int, *, weld: bool = False
             marked[f.vertices] = True
         unzipped = unzip_defects(work, marked)
         removed = unpaired_faces(unzipped)  # fins still joined at both ends: removed
-        opened = _faces_subset(unzipped, ~removed)
+        opened = faces_subset(unzipped, ~removed)
         try:
             again = find_issues(opened, mode)
             regions = _plan_regions(opened, again, n_tokens, max_growth)
@@ -928,12 +927,12 @@ def _faired_fan(mesh: PolygonMesh, patch: BoolArray
     loops, or where a fan could not be faired all the way (a self-intersection held it
     back) or only flat (one of :data:`MESHFIX_FAIRINGS`).
     """
-    from spacemesh.geometry.fairing import _faces_subset, fair_patch, patch_edge_length, patch_loops
+    from spacemesh.geometry.fairing import fair_patch, patch_edge_length, patch_loops
 
     parts = [patch_loops(mesh, part) for part in _patch_parts(mesh, patch)]
     if not parts or any(not loops for loops in parts):
         return None
-    current = _faces_subset(mesh, ~patch)  # mesh's vertices, the faces kept
+    current = faces_subset(mesh, ~patch)  # mesh's vertices, the faces kept
     source = np.flatnonzero(~patch)  # (F_current,) face of mesh
     for loops in parts:
         filled, _ = fan_fill(current, loops)  # current's vertices, then one centroid a loop
@@ -953,10 +952,9 @@ def _faired_fan(mesh: PolygonMesh, patch: BoolArray
 def patch_euler(mesh: PolygonMesh, patch: BoolArray) -> int:
     """The Euler characteristic V - E + F of the ``patch`` faces ((F,) bool) with their
     own vertices and edges (1 for a disc, 0 for a tube, -1 for a disc with a handle)."""
-    from spacemesh.geometry.fairing import _faces_subset
     from spacemesh.topology import check_topology
 
-    return check_topology(_faces_subset(mesh, patch)).euler_characteristic
+    return check_topology(faces_subset(mesh, patch)).euler_characteristic
 
 
 def _fan_if_not_discs(state: _Passes, index: int, passes: Sequence[Any] = ()) -> bool:
@@ -967,7 +965,7 @@ def _fan_if_not_discs(state: _Passes, index: int, passes: Sequence[Any] = ()) ->
     the genus of the mesh. True when it did; then the region's ``passes`` (their
     :class:`spacemesh.repair.api.RepairResult`) report no handle added, as none of
     their fill is left."""
-    from spacemesh.geometry.fairing import _faces_subset, patch_loops
+    from spacemesh.geometry.fairing import patch_loops
 
     mesh = state.mesh
     patch = state.made_by == index
@@ -976,7 +974,7 @@ def _fan_if_not_discs(state: _Passes, index: int, passes: Sequence[Any] = ()) ->
         return False
     fan = _faired_fan(mesh, patch)
     if fan is None:  # the plain fan: one disc a loop however it lies
-        filled, _ = fan_fill(_faces_subset(mesh, ~patch), loops)
+        filled, _ = fan_fill(faces_subset(mesh, ~patch), loops)
         source = np.concatenate([np.flatnonzero(~patch),
                                  np.full(filled.n_faces - int((~patch).sum()), -1)])
         fan = (filled, source, source < 0)
@@ -992,7 +990,6 @@ def _fan_instead(state: _Passes, index: int,
     refined and faired (:func:`_faired_fan`, or ``fan`` when given); True when it did:
     only when that patch is faired all the way (no self-intersection held it back) with
     a smooth fairing (not one of :data:`MESHFIX_FAIRINGS`)."""
-    from spacemesh.geometry.fairing import _vertices_of
 
     mesh = state.mesh
     patch = state.made_by == index
@@ -1002,7 +999,7 @@ def _fan_instead(state: _Passes, index: int,
         return False
     faired, face_source, _ = fan
     own = np.zeros(faired.n_vertices, dtype=bool)  # the region's old vertices, now unused
-    own[: mesh.n_vertices] = (state.origin == index) & ~_vertices_of(mesh, ~patch)
+    own[: mesh.n_vertices] = (state.origin == index) & ~vertices_of(mesh, ~patch)
     ids = np.cumsum(~own) - 1
     out = PolygonMesh(faired.vertices[~own], ids[faired.face_indices], faired.face_offsets)
     vertex_map = np.where(own[: mesh.n_vertices], -1, ids[: mesh.n_vertices])
@@ -1025,7 +1022,7 @@ def _badly_laid(positions: FloatArray, triangles: IntArray, fan_points: FloatArr
     """Whether a triangle ``triangles`` (P, 3) at ``positions`` folds over against the
     fan triangle under its centre (cosine below :data:`MIN_FOLD_COSINE`) or collapses
     (area below :data:`MIN_AREA_SHARE` of the mean)."""
-    from spacemesh.geometry.surface_fit import nearest_triangles
+    from spacemesh.primitives.closest import nearest_triangles
 
     if len(triangles) == 0:
         return False
@@ -1053,16 +1050,16 @@ def _laid_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
     (:func:`spacemesh.geometry.fitting.fit_to_surface`: a coarse patch laid on a
     dome otherwise sinks into it), kept where that folds or collapses no face."""
     from spacemesh.geometry.fairing import (
-        _faces_subset,
         _faces_touching,
         _laplacian,
-        _vertices_of,
+        faces_subset,
+        vertices_of,
     )
     from spacemesh.geometry.fitting import fit_to_surface
     from spacemesh.geometry.intersections import self_intersecting_faces
-    from spacemesh.geometry.surface_fit import closest_points_on_triangles, nearest_triangles
+    from spacemesh.primitives.closest import closest_points_on_triangles, nearest_triangles
 
-    moving = _vertices_of(mesh, patch) & ~_vertices_of(mesh, ~patch)
+    moving = vertices_of(mesh, patch) & ~vertices_of(mesh, ~patch)
     rows = np.flatnonzero(moving)
 
     def laid(points: FloatArray) -> FloatArray:
@@ -1073,7 +1070,7 @@ def _laid_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
     positions = mesh.vertices.copy()
     if len(rows):
         positions[rows] = laid(positions[rows])
-    triangles, _ = _faces_subset(mesh, patch).triangulate()
+    triangles, _ = triangulate_faces(faces_subset(mesh, patch))
     average = identity(mesh.n_vertices, format="csr") - _laplacian(mesh, patch, uniform=True)
     bad = _badly_laid(positions, triangles, surface_points, surface_triangles)
     for _ in range(RELAX_ROUNDS if len(rows) else 0):
@@ -1088,9 +1085,9 @@ def _laid_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
                                 surface_triangles)
         if not _badly_laid(fitted, triangles, surface_points, surface_triangles):
             positions = fitted
-    near = _faces_touching(mesh, _vertices_of(mesh, _faces_touching(mesh, moving)))
-    before = int(self_intersecting_faces(_faces_subset(mesh, near)).sum())
-    after = int(self_intersecting_faces(_faces_subset(mesh.with_vertices(positions),
+    near = _faces_touching(mesh, vertices_of(mesh, _faces_touching(mesh, moving)))
+    before = int(self_intersecting_faces(faces_subset(mesh, near)).sum())
+    after = int(self_intersecting_faces(faces_subset(mesh.with_vertices(positions),
                                                       near)).sum())
     return None if after > before else positions
 
@@ -1110,7 +1107,6 @@ def _onto_fan(state: _Passes, index: int) -> str | None:
     Returns ``"projected"``, ``"fan"`` (the fan replaced the patch) or None (no faired
     fan: the patch stays).
     """
-    from spacemesh.geometry.fairing import _faces_subset
 
     mesh = state.mesh
     patch = state.made_by == index
@@ -1118,7 +1114,7 @@ def _onto_fan(state: _Passes, index: int) -> str | None:
     if fan is None:
         return None
     faired, _, made = fan
-    fan_triangles, _ = _faces_subset(faired, made).triangulate()  # (T, 3)
+    fan_triangles, _ = triangulate_faces(faces_subset(faired, made))  # (T, 3)
     positions = _laid_onto(mesh, patch, faired.vertices, fan_triangles, fit=FIT_LAID)
     if positions is None:
         return "fan" if _fan_instead(state, index, fan) else None
@@ -1190,7 +1186,7 @@ def _probe_choice(state: _Passes, part: BoolArray, held_back: bool = False) -> s
     no probe hole fits around it, nothing read from the input confirms the fairing:
     with :data:`UNCHECKED_FILLS`, MeshFix's fill is taken (``"meshfix"``), or the flat
     one where MeshFix has none (``"flat"``)."""
-    from spacemesh.geometry.fairing import _faces_subset, patch_loops
+    from spacemesh.geometry.fairing import patch_loops
     from spacemesh.repair.meshfix_fill import meshfix_fill
     from spacemesh.repair.probe import preferred_fill
 
@@ -1198,7 +1194,7 @@ def _probe_choice(state: _Passes, part: BoolArray, held_back: bool = False) -> s
     if not loops:
         return "fair"
     known = (state.made_by < 0)[~part]  # input faces of the mesh with the hole open
-    opened = _faces_subset(state.mesh, ~part)
+    opened = faces_subset(state.mesh, ~part)
     report: dict[str, Any] = {}
     choice = preferred_fill(opened, loops, known, report=report)
     if not (UNCHECKED_FILLS and held_back and report["probe_holes"] == 0):
@@ -1212,7 +1208,7 @@ def _meshfix_instead(state: _Passes, index: int, patch: BoolArray | None = None)
     (:func:`spacemesh.repair.meshfix_fill.meshfix_fill`); every other face is kept.
     True when it did (False without ``pymeshfix``, or when MeshFix's patch does not
     close exactly these loops)."""
-    from spacemesh.geometry.fairing import _faces_subset, patch_loops
+    from spacemesh.geometry.fairing import patch_loops
     from spacemesh.repair.meshfix_fill import meshfix_fill
 
     mesh = state.mesh
@@ -1221,7 +1217,7 @@ def _meshfix_instead(state: _Passes, index: int, patch: BoolArray | None = None)
     loops = patch_loops(mesh, patch)
     if not loops or not patch.any():
         return False
-    filled = meshfix_fill(_faces_subset(mesh, ~patch), loops)
+    filled = meshfix_fill(faces_subset(mesh, ~patch), loops)
     return filled is not None and _fill_instead(state, index, patch, *filled) is not None
 
 
@@ -1258,18 +1254,17 @@ def _fill_instead(state: _Passes, index: int, patch: BoolArray, points: FloatArr
     replace them: when a triangle uses a vertex that goes with the patch, when a new
     face repeats an edge the mesh has (:func:`_repeated_halfedges`), or, with
     ``guard``, when the new faces add a self-intersection near the hole."""
-    from spacemesh.geometry.fairing import _faces_subset, _faces_touching, _vertices_of
     from spacemesh.geometry.intersections import self_intersecting_faces
 
     mesh = state.mesh
     # the vertices the region made that no kept face uses go with these faces
-    own = (state.origin == index) & ~_vertices_of(mesh, ~patch)
+    own = (state.origin == index) & ~vertices_of(mesh, ~patch)
     vertex_map = np.full(mesh.n_vertices, -1, dtype=np.int64)
     vertex_map[~own] = np.arange(int((~own).sum()))
     ids = np.concatenate([vertex_map, int((~own).sum()) + np.arange(len(points))])
     if (ids[triangles] < 0).any():
         return None
-    kept = _faces_subset(mesh, ~patch)
+    kept = faces_subset(mesh, ~patch)
     indices = np.concatenate([vertex_map[kept.face_indices], ids[triangles].reshape(-1)])
     offsets = np.concatenate([kept.face_offsets, kept.face_offsets[-1]
                               + 3 * np.arange(1, len(triangles) + 1)]).astype(np.int64)
@@ -1279,8 +1274,8 @@ def _fill_instead(state: _Passes, index: int, patch: BoolArray, points: FloatArr
         return None  # a new face repeats an edge of the mesh (one between two loop vertices)
     if guard:
         def crossings(surface: PolygonMesh, faces: BoolArray) -> int:
-            near = _faces_touching(surface, _vertices_of(surface, faces))
-            return int(self_intersecting_faces(_faces_subset(surface, near)).sum())
+            near = faces_touching(surface, vertices_of(surface, faces))
+            return int(self_intersecting_faces(faces_subset(surface, near)).sum())
 
         if crossings(out, source < 0) > crossings(mesh, patch):
             return None

@@ -31,6 +31,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import faces_touching, vertices_of
 from spacemesh.repair.region import (
     DEFECTS_OUTSIDE_REGION,
     WHOLE_MESH_REGION,
@@ -127,18 +128,8 @@ class FaceSubset:
         return np.bincount(origin_of, minlength=n_vertices).astype(np.int64)
 
 
-def _region_vertices(mesh: PolygonMesh, region: BoolArray) -> BoolArray:
-    """(V,) vertices used by a region face."""
-    used = np.zeros(mesh.n_vertices, dtype=bool)
-    used[mesh.face_indices[region[mesh.face_of_corner]]] = True
-    return used
 
 
-def _faces_touching(mesh: PolygonMesh, vertices: BoolArray) -> BoolArray:
-    """(F,) faces with at least one vertex in ``vertices``."""
-    mask = np.zeros(mesh.n_faces, dtype=bool)
-    mask[mesh.face_of_corner[vertices[mesh.face_indices]]] = True
-    return mask
 
 
 def _hole_halfedges(sub: FaceSubset, touched: BoolArray) -> IntArray:
@@ -165,8 +156,8 @@ def grow_region(mesh: PolygonMesh, region: BoolArray) -> BoolArray:
     """
     region = np.asarray(region, dtype=bool).copy()
     while True:  # each round adds at least one face, so this ends
-        touched = _region_vertices(mesh, region)
-        local = np.flatnonzero(_faces_touching(mesh, touched) & ~region)
+        touched = vertices_of(mesh, region)
+        local = np.flatnonzero(faces_touching(mesh, touched) & ~region)
         if local.size == 0:
             return region
         sub = FaceSubset.of(mesh, local)
@@ -177,7 +168,7 @@ def grow_region(mesh: PolygonMesh, region: BoolArray) -> BoolArray:
         bad = touched & ((fans > 1) | (out_count > 1) | (in_count > 1))
         if not bad.any():
             return region
-        region |= _faces_touching(mesh, bad)
+        region |= faces_touching(mesh, bad)
         if region.all():
             return region
 
@@ -231,7 +222,7 @@ def outside_defects(mesh: PolygonMesh, region: BoolArray,
                         "description": "degenerate faces (fewer than three distinct vertices)",
                         "faces": _listed(degenerate)})
 
-    touched = _region_vertices(mesh, region)
+    touched = vertices_of(mesh, region)
     open_side = (count == 1) & ~(touched[he[:, 0]] & touched[he[:, 1]]) & ~he_ok
     if open_side.any():
         defects.append({"kind": "open-boundary", "count": int(open_side.sum()),
@@ -438,8 +429,8 @@ def cut_region(mesh: PolygonMesh, region: Region | dict | BoolArray,
         coincident = coincident_vertices(mesh)
         raise RegionError(DEFECTS_OUTSIDE_REGION, defects_message(defects, coincident),
                           {"defects": defects, "coincident_vertices": coincident})
-    touched = _region_vertices(mesh, grown)
-    local = np.flatnonzero(_faces_touching(mesh, touched) & ~grown)
+    touched = vertices_of(mesh, grown)
+    local = np.flatnonzero(faces_touching(mesh, touched) & ~grown)
     hole = _hole_halfedges(FaceSubset.of(mesh, local), touched)
     boundary, loop_next, loop_prev, loops = boundary_loops(hole)
     kept_used = np.zeros(mesh.n_vertices, dtype=bool)

@@ -19,6 +19,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import faces_subset, faces_touching, triangulate_faces, vertices_of
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Rings of faces around a hole handed to MeshFix.
@@ -27,12 +28,11 @@ RINGS = 5
 
 def faces_around(mesh: PolygonMesh, vertices: BoolArray, rings: int = RINGS) -> BoolArray:
     """(F,) the faces within ``rings`` rings of faces of the ``vertices`` ((V,) bool)."""
-    from spacemesh.geometry.fairing import _faces_touching, _vertices_of
 
     marked = vertices.copy()
     for _ in range(rings - 1):
-        marked |= _vertices_of(mesh, _faces_touching(mesh, marked))
-    return _faces_touching(mesh, marked)
+        marked |= vertices_of(mesh, faces_touching(mesh, marked))
+    return faces_touching(mesh, marked)
 
 
 def _run_meshfix(mesh: PolygonMesh, faces: BoolArray
@@ -47,9 +47,8 @@ def _run_meshfix(mesh: PolygonMesh, faces: BoolArray
         import pymeshfix
     except ImportError:  # the geometry extra is not installed
         return None
-    from spacemesh.geometry.fairing import _faces_subset
 
-    triangles, _ = _faces_subset(mesh, faces).triangulate()  # (T, 3) mesh vertex ids
+    triangles, _ = triangulate_faces(faces_subset(mesh, faces))  # (T, 3) mesh vertex ids
     if len(triangles) == 0:
         return None
     used, local = np.unique(triangles, return_inverse=True)

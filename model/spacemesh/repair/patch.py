@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from spacemesh.data.sampling import sample_surface
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import sample_surface, surface_area
 from spacemesh.repair.cut import Cut
 from spacemesh.repair.region import INVALID_REGION, REGION_TOO_LARGE, RegionError
 from spacemesh.runtime.pipeline import normalize_points
@@ -132,8 +132,6 @@ def hole_surface(cut: Cut) -> PolygonMesh:
 
 
 def _area(mesh: PolygonMesh) -> float:
-    from spacemesh.metrics.sampling import surface_area
-
     return surface_area(mesh) if mesh.n_faces else 0.0
 
 

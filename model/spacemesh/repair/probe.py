@@ -24,6 +24,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import faces_subset, faces_touching, triangulate_faces, vertices_of
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Probe holes punched around a hole.
@@ -61,7 +62,7 @@ def _grid(corners: FloatArray, steps: int = GRID_STEPS) -> tuple[FloatArray, Flo
 def surface_distance(points: FloatArray, corners: FloatArray) -> FloatArray:
     """Distance of each point (N, 3) to the triangles ``corners`` (T, 3, 3): the closest
     point among the :data:`NEAREST_TRIANGLES` triangles whose centroids are nearest, (N,)."""
-    from spacemesh.geometry.surface_fit import closest_points_on_triangles
+    from spacemesh.primitives.closest import closest_points_on_triangles
 
     k = min(NEAREST_TRIANGLES, len(corners))
     _, nearest = cKDTree(corners.mean(axis=1)).query(points, k=k)
@@ -142,7 +143,7 @@ def probe_regions(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
     list of (F,) bool
         The faces of each probe.
     """
-    from spacemesh.geometry.fairing import _faces_touching, _vertices_of, patch_loops
+    from spacemesh.geometry.fairing import patch_loops
 
     p = mesh.vertices
     ring = np.concatenate(loops)
@@ -157,9 +158,9 @@ def probe_regions(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
     near_hole = np.zeros(mesh.n_vertices, dtype=bool)
     near_hole[ring] = True
     for _ in range(SHARPNESS_RINGS):
-        near_hole |= _vertices_of(mesh, _faces_touching(mesh, near_hole))
-    sharpest = sharpest_edge(mesh, _faces_touching(mesh, near_hole)) + SHARPNESS_TOLERANCE
-    clean = _vertices_of(mesh, known) & ~_vertices_of(mesh, ~known)  # only known faces
+        near_hole |= vertices_of(mesh, faces_touching(mesh, near_hole))
+    sharpest = sharpest_edge(mesh, faces_touching(mesh, near_hole)) + SHARPNESS_TOLERANCE
+    clean = vertices_of(mesh, known) & ~vertices_of(mesh, ~known)  # only known faces
     clean[ring] = False
     distance = np.linalg.norm(p - centre, axis=1)
     candidates = np.flatnonzero(clean & (distance > nearest))
@@ -173,16 +174,16 @@ def probe_regions(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
         v = int(candidates[pick])
         spread = np.minimum(spread, np.linalg.norm(p[candidates] - p[v], axis=1))
         spread[pick] = -np.inf
-        inside = (np.linalg.norm(p - p[v], axis=1) < radius) & _vertices_of(mesh, known)
+        inside = (np.linalg.norm(p - p[v], axis=1) < radius) & vertices_of(mesh, known)
         inside[v] = True
-        faces = _faces_touching(mesh, inside)
-        touched = _vertices_of(mesh, faces)
+        faces = faces_touching(mesh, inside)
+        touched = vertices_of(mesh, faces)
         if (faces & ~known).any() or touched[ring].any():
             continue
-        around = _faces_touching(mesh, touched)
+        around = faces_touching(mesh, touched)
         if (around & ~known).any():
             continue  # the probe's ring must be known too
-        beyond = _faces_touching(mesh, _vertices_of(mesh, around)) & ~faces
+        beyond = faces_touching(mesh, vertices_of(mesh, around)) & ~faces
         if beyond.sum() < max(faces.sum(), 3):
             continue  # a small part, nearly all probe: no surface around it to continue
         if sharpest_edge(mesh, around) > sharpest:
@@ -196,9 +197,8 @@ def probe_regions(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
 
 def _triangles(mesh: PolygonMesh, faces: BoolArray) -> FloatArray:
     """The corners of the triangulated ``faces`` of ``mesh``, (T, 3, 3)."""
-    from spacemesh.geometry.fairing import _faces_subset
 
-    triangles, _ = _faces_subset(mesh, faces).triangulate()
+    triangles, _ = triangulate_faces(faces_subset(mesh, faces))
     return mesh.vertices[triangles]
 
 
@@ -257,14 +257,14 @@ def probe_errors(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
     :func:`fill_error` over the probe holes around the hole ``loops`` of ``mesh`` (its
     faces ``known`` are input faces) that both could fill, and the number of those
     probes."""
-    from spacemesh.geometry.fairing import _faces_subset, _vertices_of, patch_loops
+    from spacemesh.geometry.fairing import patch_loops
     from spacemesh.repair.meshfix_fill import faces_around
 
     totals = {name: [0.0, 0.0, 0] for name in ALTERNATIVES}
     for faces in probe_regions(mesh, loops, known, count):
-        around = faces_around(mesh, _vertices_of(mesh, faces), PROBE_RINGS)
+        around = faces_around(mesh, vertices_of(mesh, faces), PROBE_RINGS)
         probe_loops = patch_loops(mesh, faces)
-        local = _faces_subset(mesh, around & ~faces)
+        local = faces_subset(mesh, around & ~faces)
         truth = _triangles(mesh, faces)
         ours = _fair_fill(local, probe_loops)
         if ours is None:

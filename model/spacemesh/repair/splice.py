@@ -63,9 +63,9 @@ from spacemesh.permutation import (
     neighbourhood_log_phi_bar,
     reduction_logits,
 )
+from spacemesh.primitives import edge_keys
 from spacemesh.repair.cut import Cut
 from spacemesh.spacetime import edges_below_threshold
-from spacemesh.topology import edge_keys
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Rounds of one-new-vertex-per-face removal before every new vertex of a pinched face

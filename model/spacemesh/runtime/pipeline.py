@@ -27,7 +27,6 @@ from typing import Any
 
 import numpy as np
 
-from spacemesh.data.validate import signed_volume
 from spacemesh.decode import DecodeOptions, DecodeResult, Embeddings, decode
 from spacemesh.geometry import (
     FitReport,
@@ -39,6 +38,7 @@ from spacemesh.geometry import (
 )
 from spacemesh.geometry.policy import decode_changes
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import signed_volume
 from spacemesh.runtime.backend import Backend, ConnectivityOutputs, denoiser_fn
 from spacemesh.runtime.large import (
     DEFAULT_LARGE_MESHES,

@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from spacemesh.data.normalize import canonical
-from spacemesh.data.sampling import sample_surface
 from spacemesh.data.shards import SHARD_PATTERN, write_manifest, write_shard
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import sample_surface
 
 
 def hull_mesh(rng: np.random.Generator, n_vertices: int) -> PolygonMesh:

@@ -1,6 +1,6 @@
-"""How well triangles fit a point cloud: closest points, nearest triangles, quad errors.
+"""How well the two diagonals of a quad fit a point cloud.
 
-The decode's refinement (:mod:`spacemesh.geometry.refinement`) uses these to choose, for two
+The decode's refinement (:mod:`spacemesh.decode.refinement`) uses these to choose, for two
 triangles sharing an edge, the diagonal whose surface passes closer to the conditioning
 points: a data-dependent triangulation (Dyn, Levin and Rippa, 1990). Numpy and scipy
 only, so the service (no trimesh) runs it.
@@ -9,145 +9,9 @@ only, so the service (no trimesh) runs it.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
+from spacemesh.primitives.closest import nearest_triangles, squared_distances
 from spacemesh.typed import FloatArray, IntArray
-
-#: Every triangle is sampled at the centroids of its subdivision into this squared.
-SAMPLE_LEVEL = 4
-#: The triangles of this many nearest samples are measured exactly.
-NEAREST_SAMPLES = 8
-#: Triangles with ``|ab x ac|^2`` below this times ``max(|ab|, |ac|)^4`` are degenerate.
-DEGENERATE = 1e-12
-
-
-def _dot(u: FloatArray, v: FloatArray) -> FloatArray:
-    return np.einsum("mk,mk->m", u, v)
-
-
-def closest_points_on_triangles(points: FloatArray, corners: FloatArray) -> FloatArray:
-    """The point of each triangle closest to each point, pairwise.
-
-    The region test of Ericson, *Real-Time Collision Detection* (2005), Sec. 5.1.5,
-    vectorised. A degenerate triangle (zero area) gives the closest point of its sides.
-
-    Parameters
-    ----------
-    points : (M, 3) float
-    corners : (M, 3, 3) float
-        Triangle ``m`` is ``corners[m]``.
-
-    Returns
-    -------
-    (M, 3) float
-    """
-    p = np.asarray(points, dtype=np.float64)
-    a, b, c = (np.asarray(corners[:, i], dtype=np.float64) for i in range(3))
-    ab, ac = b - a, c - a
-    ap, bp, cp = p - a, p - b, p - c
-    d1, d2 = _dot(ab, ap), _dot(ac, ap)
-    d3, d4 = _dot(ab, bp), _dot(ac, bp)
-    d5, d6 = _dot(ab, cp), _dot(ac, cp)
-    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
-    with np.errstate(invalid="ignore", divide="ignore"):
-        denom = va + vb + vc
-        out = a + ab * (vb / denom)[:, None] + ac * (vc / denom)[:, None]  # inside
-        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        t_ac = d2 / (d2 - d6)
-        t_ab = d1 / (d1 - d3)
-    # Ericson returns at the first region that matches: apply them last to first
-    regions = [
-        ((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0), b + (c - b) * t_bc[:, None]),
-        ((vb <= 0) & (d2 >= 0) & (d6 <= 0), a + ac * t_ac[:, None]),
-        ((d6 >= 0) & (d5 <= d6), c),
-        ((vc <= 0) & (d1 >= 0) & (d3 <= 0), a + ab * t_ab[:, None]),
-        ((d3 >= 0) & (d4 <= d3), b),
-        ((d1 <= 0) & (d2 <= 0), a),
-    ]
-    for mask, value in regions:
-        out = np.where(mask[:, None], value, out)
-    normal = np.cross(ab, ac)
-    scale = np.maximum(_dot(ab, ab), _dot(ac, ac))
-    flat = (_dot(normal, normal) <= DEGENERATE * scale * scale) | ~np.isfinite(out).all(axis=1)
-    if flat.any():
-        out[flat] = _closest_on_sides(p[flat], a[flat], b[flat], c[flat])
-    return out
-
-
-def _closest_on_segments(p: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
-    ab = b - a
-    length = _dot(ab, ab)
-    t = np.clip(_dot(p - a, ab) / np.where(length > 0, length, 1.0), 0.0, 1.0)
-    return a + ab * t[:, None]
-
-
-def _closest_on_sides(p: FloatArray, a: FloatArray, b: FloatArray, c: FloatArray
-                      ) -> FloatArray:
-    """Closest points on the three sides of (degenerate) triangles."""
-    near = np.stack([_closest_on_segments(p, u, v) for u, v in ((a, b), (b, c), (c, a))],
-                    axis=1)  # (K, 3, 3)
-    gap = np.linalg.norm(near - p[:, None], axis=2)
-    return near[np.arange(len(p)), np.argmin(gap, axis=1)]
-
-
-def squared_distances(points: FloatArray, corners: FloatArray) -> FloatArray:
-    """Squared distance from each point to its triangle, pairwise.
-
-    Parameters
-    ----------
-    points : (M, 3) float
-    corners : (M, 3, 3) float
-
-    Returns
-    -------
-    (M,) float
-    """
-    gap = closest_points_on_triangles(points, corners) - points
-    return _dot(gap, gap)
-
-
-def _subtriangle_centroids(level: int) -> FloatArray:
-    """Barycentric coordinates ``(level^2, 3)`` of the centroids of the ``level^2``
-    triangles of a regular subdivision of a triangle."""
-    rows = []
-    for i in range(level):
-        for j in range(level - i):
-            rows.append((i + 1 / 3, j + 1 / 3))  # upward sub-triangle
-            if j < level - i - 1:
-                rows.append((i + 2 / 3, j + 2 / 3))  # downward
-    uv = np.asarray(rows) / level
-    return np.column_stack([1.0 - uv.sum(axis=1), uv])
-
-
-def nearest_triangles(points: FloatArray, positions: FloatArray, triangles: IntArray
-                      ) -> tuple[IntArray, FloatArray]:
-    """The triangle nearest to each point, measured exactly among the triangles of its
-    :data:`NEAREST_SAMPLES` nearest surface samples (the centroids of a
-    :data:`SAMPLE_LEVEL` subdivision of every triangle).
-
-    Parameters
-    ----------
-    points : (P, 3) float
-    positions : (N, 3) float
-    triangles : (T, 3) int
-
-    Returns
-    -------
-    owner : (P,) int
-        Row of ``triangles``.
-    gap : (P,) float
-        Squared distance from each point to its triangle.
-    """
-    corners = positions[triangles]  # (T, 3, 3)
-    weights = _subtriangle_centroids(SAMPLE_LEVEL)  # (S, 3)
-    samples = np.einsum("sk,tkd->tsd", weights, corners).reshape(-1, 3)  # (T S, 3)
-    k = min(NEAREST_SAMPLES, len(samples))
-    _, near = cKDTree(samples).query(points, k=k)
-    near = np.asarray(near, dtype=np.int64).reshape(len(points), k) // len(weights)  # (P, k)
-    gap = squared_distances(np.repeat(points, k, axis=0), corners[near.reshape(-1)])
-    best = np.argmin(gap.reshape(-1, k), axis=1)
-    rows = np.arange(len(points))
-    return near[rows, best], gap.reshape(-1, k)[rows, best]
 
 
 def quad_fit_errors(

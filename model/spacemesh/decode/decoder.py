@@ -34,9 +34,9 @@ import numpy as np
 
 from spacemesh.angular import oriented_angular_cycles
 from spacemesh.connectivity import Connectivity, csr_from_edges
-from spacemesh.geometry.crossing import uncrossed
-from spacemesh.geometry.refinement import flip_diagonals, reinsert_vertices
-from spacemesh.geometry.splitting import split_long_faces
+from spacemesh.decode.crossing import uncrossed
+from spacemesh.decode.refinement import flip_diagonals, reinsert_vertices
+from spacemesh.decode.splitting import split_long_faces
 from spacemesh.matching import FallbackFn, greedy_single_cycle, match_cycles
 from spacemesh.mesh import PolygonMesh
 from spacemesh.permutation import (
@@ -45,13 +45,13 @@ from spacemesh.permutation import (
     group_by_degree,
     neighbourhood_log_phi_bar,
 )
+from spacemesh.primitives import edge_keys
 from spacemesh.spacetime import (
     Distance,
     distance_operands,
     edges_below_threshold,
     operand_distances,
 )
-from spacemesh.topology import edge_keys
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Rounds of one-edge-per-pinched-face removal before the vertex rule takes over.
@@ -102,10 +102,10 @@ class DecodeOptions:
     pinched face loses first: its weakest ``edge`` (default) or a repeated ``vertex``
     (see the module docstring), and whether the weaker of two crossing quad diagonals
     is dropped before matching (``uncross``; needs positions, see
-    :mod:`spacemesh.geometry.crossing`), and the most sides a face may keep (``max_sides``: longer
-    faces are cut along their strongest missing diagonals, see :mod:`spacemesh.geometry.splitting`;
+    :mod:`spacemesh.decode.crossing`), and the most sides a face may keep (``max_sides``: longer
+    faces are cut along their strongest missing diagonals, see :mod:`spacemesh.decode.splitting`;
     3 for a model trained on triangle meshes, None keeps every polygon), and the
-    refinement of the finished mesh (:mod:`spacemesh.geometry.refinement`): ``reinsert`` puts
+    refinement of the finished mesh (:mod:`spacemesh.decode.refinement`): ``reinsert`` puts
     removed vertices back into the triangles the network rates closest, ``flip`` turns
     triangle pairs to the diagonal the network rates closer, and
     ``flat_delaunay_degrees`` (needs positions) makes quads folded by less than that
@@ -302,7 +302,7 @@ def unpinch_candidates(
     Returns
     -------
     keys : (E,) int64
-        The edges' keys (:func:`spacemesh.topology.edge_keys`), sorted.
+        The edges' keys (:func:`spacemesh.primitives.edge_keys`), sorted.
     weakness : (E,) float64
         The embedding distance of each edge, in the same order.
     """
@@ -396,7 +396,7 @@ def _finished(
     took_part: BoolArray, positions: FloatArray | None, points: FloatArray | None,
 ) -> tuple[Connectivity, dict]:
     """The valid decode, with its long faces cut when ``options.max_sides`` is set, then
-    refined (:mod:`spacemesh.geometry.refinement`) as ``options`` asks."""
+    refined (:mod:`spacemesh.decode.refinement`) as ``options`` asks."""
     stats["n_split"] = stats["n_reinserted"] = stats["n_flipped"] = 0
     fit = options.fit_gain is not None and points is not None
     refine = options.reinsert or options.flip or options.flat_delaunay_degrees is not None

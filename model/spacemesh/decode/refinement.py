@@ -3,7 +3,7 @@
 After matching, pruning and unpinching, the decode is a valid mesh, but it may have lost
 vertices (those it could not give one fan of faces) and it may disagree with the
 network on a quad's diagonal (the threshold let only the weaker one through, or the
-triangle cuts of :mod:`spacemesh.geometry.splitting` chose it). Two local operations fix that
+triangle cuts of :mod:`spacemesh.decode.splitting` chose it). Two local operations fix that
 without leaving the space of closed oriented manifolds:
 
 :func:`reinsert_vertices`
@@ -42,10 +42,10 @@ from __future__ import annotations
 import numpy as np
 
 from spacemesh.connectivity import Connectivity
+from spacemesh.decode.quad_fit import QuadFit
 from spacemesh.encode import connectivity_from_faces
-from spacemesh.geometry.surface_fit import QuadFit
+from spacemesh.primitives import edge_keys
 from spacemesh.spacetime import operand_distances
-from spacemesh.topology import edge_keys
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Passes of simultaneous non-overlapping flips at most.
@@ -66,7 +66,7 @@ FIT_EPS = 1e-12
 #: deviations. Points at noise ``s`` off the true surface, which the wrong diagonal
 #: misses by ``e_i``, gain ``G = sum e_i^2`` with noise ``2 s sqrt(G)``: ``G > 4 z^2
 #: s^2``, with ``s^2`` the median squared distance of the points to the decoded mesh
-#: (:attr:`spacemesh.geometry.surface_fit.QuadFit.noise`). On the held-out set with points
+#: (:attr:`spacemesh.decode.quad_fit.QuadFit.noise`). On the held-out set with points
 #: jittered by 0.01 (the mean edge is 0.36), z = 2 gives decoded edge F1 0.936 where
 #: the relative test alone gives 0.926 and no fit 0.928; with exact points it changes
 #: nothing.
@@ -273,7 +273,7 @@ def flip_diagonals(
         With ``points``: flip a non-flat quad when its points' summed squared distance
         to the other diagonal's two triangles is lower by more than this fraction and
         by more than the points' noise allows (:data:`FIT_SIGNIFICANCE`; a fit flip,
-        before any score flip; :class:`spacemesh.geometry.surface_fit.QuadFit`). A score flip
+        before any score flip; :class:`spacemesh.decode.quad_fit.QuadFit`). A score flip
         never turns back an edge a fit flip made, nor a fit flip one a score flip
         made: the first to decide a quad keeps it.
 

@@ -1,11 +1,11 @@
-"""Conditioning point clouds: points sampled uniformly on a mesh surface, with normals."""
+"""Points sampled uniformly by area on a mesh surface, with their face normals."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from spacemesh.data.validate import triangles_of
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives.triangles import triangles_of
 from spacemesh.typed import FloatArray
 
 

@@ -20,8 +20,8 @@ import numpy as np
 
 from spacemesh.connectivity import Connectivity
 from spacemesh.encode import connectivity_from_faces
+from spacemesh.primitives import edge_keys
 from spacemesh.spacetime import operand_distances
-from spacemesh.topology import edge_keys
 from spacemesh.typed import FloatArray, IntArray
 
 

@@ -1,4 +1,4 @@
-"""Triangulation of polygons and polygon meshes, keeping each face's orientation.
+"""Triangles of polygons and polygon meshes, keeping each face's orientation.
 
 Convex faces are fanned from a corner chosen so that straight corners (collinear
 runs) make no zero-area fan triangles where a fan can avoid them; non-convex faces
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.topology import edge_keys
+from spacemesh.primitives.keys import edge_keys
 from spacemesh.typed import ArrayLike, FloatArray, IntArray
 
 try:  # optional: the C++ earcut, faster on large non-convex polygons
@@ -468,3 +468,57 @@ def triangulate_manifold(mesh: PolygonMesh) -> tuple[FloatArray, IntArray, IntAr
 
 
 __all__ = ["newell_normal", "triangulate_faces", "triangulate_manifold", "triangulate_polygon"]
+
+
+def triangles_of(mesh: PolygonMesh) -> tuple[IntArray, IntArray]:
+    """Triangles of a polygon mesh and the face each comes from.
+
+    The one way every module reads a polygon mesh as triangles
+    (:func:`triangulate_faces`: triangle meshes as they are, convex faces fanned,
+    others ear-clipped).
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+
+    Returns
+    -------
+    triangles : (T, 3) int64
+    source_face : (T,) int64
+    """
+    if mesh.is_triangle_mesh():
+        return mesh.face_indices.reshape(-1, 3), np.arange(mesh.n_faces, dtype=np.int64)
+    return triangulate_faces(mesh)
+
+
+def signed_volume(mesh: PolygonMesh) -> float:
+    """Signed enclosed volume (positive for a closed mesh oriented outward).
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+
+    Returns
+    -------
+    float
+    """
+    tri, _ = triangles_of(mesh)
+    v = mesh.vertices - mesh.vertices.mean(axis=0)
+    a, b, c = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]  # (T, 3) each
+    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
+
+
+def surface_area(mesh: PolygonMesh) -> float:
+    """Total area of the triangulated faces.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+
+    Returns
+    -------
+    float
+    """
+    tri, _ = triangles_of(mesh)
+    p = mesh.vertices[tri]  # (T, 3, 3)
+    return float(np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum() / 2)

@@ -1,0 +1,47 @@
+"""Mesh primitives: the ground floor that every other package builds on.
+
+* :mod:`~spacemesh.primitives.keys`: integer keys of undirected edges;
+* :mod:`~spacemesh.primitives.triangles`: polygons and polygon meshes as triangles,
+  signed volume, surface area;
+* :mod:`~spacemesh.primitives.closest`: closest points on triangles, nearest triangles;
+* :mod:`~spacemesh.primitives.masks`: faces touching vertices, vertices of faces, a
+  mesh restricted to some faces;
+* :mod:`~spacemesh.primitives.sampling`: points sampled on a surface;
+* :mod:`~spacemesh.primitives.frame`: the unit frame of a mesh;
+* :mod:`~spacemesh.primitives.decimation`: quadric-error decimation.
+
+They read and make :class:`~spacemesh.mesh.PolygonMesh` and import nothing else of
+ours, so any layer may use them.
+"""
+
+from spacemesh.primitives.decimation import decimate
+from spacemesh.primitives.frame import normalize
+from spacemesh.primitives.keys import edge_keys
+from spacemesh.primitives.masks import faces_subset, faces_touching, vertices_of
+from spacemesh.primitives.sampling import sample_surface
+from spacemesh.primitives.triangles import (
+    newell_normal,
+    signed_volume,
+    surface_area,
+    triangles_of,
+    triangulate_faces,
+    triangulate_manifold,
+    triangulate_polygon,
+)
+
+__all__ = [
+    "decimate",
+    "edge_keys",
+    "faces_subset",
+    "faces_touching",
+    "newell_normal",
+    "normalize",
+    "sample_surface",
+    "signed_volume",
+    "surface_area",
+    "triangles_of",
+    "triangulate_faces",
+    "triangulate_manifold",
+    "triangulate_polygon",
+    "vertices_of",
+]
