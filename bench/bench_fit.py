@@ -18,7 +18,7 @@ import time
 import torch
 
 from spacemesh.examples import icosphere, torus_grid
-from spacemesh.fitting import FitConfig, fit_mesh
+from spacemesh.fitting import EmbeddingFitConfig, fit_mesh
 from spacemesh.io import load_mesh
 
 
@@ -38,7 +38,7 @@ def main() -> None:
     )
     for name, mesh in meshes.items():
         start = time.perf_counter()
-        result = fit_mesh(mesh, FitConfig(threads=args.threads))
+        result = fit_mesh(mesh, EmbeddingFitConfig(threads=args.threads))
         wall = time.perf_counter() - start
         summary = result.summary()
         summary.update(

@@ -27,7 +27,7 @@ import matplotlib.pyplot as plt
 import torch
 
 from spacemesh.examples import torus_grid
-from spacemesh.fitting import FitConfig, fit_mesh
+from spacemesh.fitting import EmbeddingFitConfig, fit_mesh
 from spacemesh.io import load_mesh
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -51,7 +51,7 @@ INITS = ("random", "positions")
 
 def curves(mesh, iters: int, threads: int, **overrides) -> dict:
     """Fit for at most ``iters`` steps (stops when exact); return the F1/accuracy curves."""
-    config = FitConfig(max_iters=iters, threads=threads, **overrides)
+    config = EmbeddingFitConfig(max_iters=iters, threads=threads, **overrides)
     result = fit_mesh(mesh, config, stop_when_exact=True)
     first_exact = result.iterations if result.exact else None
     return {

@@ -119,7 +119,7 @@ def main() -> int:
         return 0
     # before torch loads: its OpenMP pool reads OMP_WAIT_POLICY (sleep, not spin) only then
     threads = limit_threads(args.threads)
-    from spacemesh.fitting import FitConfig, fit_mesh
+    from spacemesh.fitting import EmbeddingFitConfig, fit_mesh
     split = read_split()
     rows = []
     with manifest.open() as handle:
@@ -135,7 +135,7 @@ def main() -> int:
         if not report.is_closed_oriented_manifold:
             continue
         start = time.perf_counter()
-        result = fit_mesh(mesh, FitConfig(threads=threads, seed=args.seed))
+        result = fit_mesh(mesh, EmbeddingFitConfig(threads=threads, seed=args.seed))
         row = {
             "file": entry["file"],
             "category": entry["category"],

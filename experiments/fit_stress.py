@@ -36,7 +36,7 @@ def main() -> None:
     seeds = [int(s) for s in args.seeds.split(",")]
     # before torch loads: its OpenMP pool reads OMP_WAIT_POLICY (sleep, not spin) only then
     threads = limit_threads(args.threads)
-    from spacemesh.fitting import FitConfig, fit_mesh
+    from spacemesh.fitting import EmbeddingFitConfig, fit_mesh
     from spacemesh.fitting.stress import STRESS_CASES
     rows = []
     for name, make in STRESS_CASES.items():
@@ -45,7 +45,7 @@ def main() -> None:
         mesh = make()
         degree = int(np.diff(encode_connectivity(mesh).offsets).max())
         for seed in seeds:
-            config = FitConfig(max_iters=args.max_iters, seed=seed, threads=threads)
+            config = EmbeddingFitConfig(max_iters=args.max_iters, seed=seed, threads=threads)
             result = fit_mesh(mesh, config)
             plain = fit_mesh(mesh, replace(config, hub_step_power=0.0))
             row = {"case": name, "seed": seed, "max_degree": degree,

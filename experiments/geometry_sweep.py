@@ -3,7 +3,7 @@
 Each variant changes fields of the shipped model's :class:`~spacemesh.runtime.ModelSpec`
 (``start_time``, ``feature_boost``, ``vertices``) and of its geometry stage
 (:class:`~spacemesh.geometry.GeometryOptions`; ``fit`` takes
-:class:`~spacemesh.geometry.FitOptions` fields), runs the pipeline on every mesh of the
+:class:`~spacemesh.geometry.VertexFitOptions` fields), runs the pipeline on every mesh of the
 split (the same points and metric seeds as ``experiments/eval_real_meshes.py``) and
 prints mean CD, median CD, ECD, EF1, IN and self-intersections. Tune on ``dev`` only
 (docs/GEOMETRY.md has the tables this made).

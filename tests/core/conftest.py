@@ -9,9 +9,9 @@ import pytest
 def fitted():
     """An icosphere (subdivision 2) and embeddings fitted to it exactly."""
     from spacemesh.examples import icosphere
-    from spacemesh.fitting import FitConfig, fit_mesh
+    from spacemesh.fitting import EmbeddingFitConfig, fit_mesh
 
     mesh = icosphere(2)
-    result = fit_mesh(mesh, FitConfig(max_iters=400, threads=1))
+    result = fit_mesh(mesh, EmbeddingFitConfig(max_iters=400, threads=1))
     assert result.exact
     return mesh, result.embeddings

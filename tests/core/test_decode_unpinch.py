@@ -9,7 +9,7 @@ import pytest
 from spacemesh.decode import DecodeOptions, decode, pinched_face_edges
 from spacemesh.encode import encode_connectivity
 from spacemesh.examples import icosphere, torus_grid
-from spacemesh.fitting import FitConfig, fit_mesh
+from spacemesh.fitting import EmbeddingFitConfig, fit_mesh
 from spacemesh.metrics.connectivity import edge_f1_score
 from spacemesh.spacetime import pairwise_distance
 
@@ -18,7 +18,7 @@ from spacemesh.spacetime import pairwise_distance
 def fitted(request):
     """A mesh and the embeddings that the autodecoder fitted to it exactly."""
     mesh = icosphere(2) if request.param == "icosphere" else torus_grid(12, 8, 1)
-    result = fit_mesh(mesh, FitConfig(max_iters=400, threads=1))
+    result = fit_mesh(mesh, EmbeddingFitConfig(max_iters=400, threads=1))
     assert result.exact
     return mesh, result.embeddings
 

@@ -3,7 +3,7 @@ import pytest
 pytest.importorskip("torch")
 
 from spacemesh.decode import decode
-from spacemesh.fitting import FitConfig, fit_mesh
+from spacemesh.fitting import EmbeddingFitConfig, fit_mesh
 from spacemesh.halfedge import HalfedgeMesh
 from tests.factories import cube_quads, icosphere, prism, torus_grid
 
@@ -13,7 +13,7 @@ from tests.factories import cube_quads, icosphere, prism, torus_grid
 )
 def test_fit_recovers_mesh_exactly(make):
     mesh = make()
-    result = fit_mesh(mesh, FitConfig(max_iters=400, threads=1))
+    result = fit_mesh(mesh, EmbeddingFitConfig(max_iters=400, threads=1))
     assert result.exact, result.summary()
     assert result.edge_f1 == 1.0 and result.next_accuracy == 1.0
     assert result.decoded.mesh.face_key_set() == mesh.face_key_set()
@@ -26,12 +26,12 @@ def test_fit_recovers_mesh_exactly(make):
 def test_sparse_mode_recovers_mesh():
     """The mined-negative edge loss (used above dense_limit) also gets exact."""
     mesh = icosphere(2)
-    result = fit_mesh(mesh, FitConfig(max_iters=600, dense_limit=10, threads=1))
+    result = fit_mesh(mesh, EmbeddingFitConfig(max_iters=600, dense_limit=10, threads=1))
     assert result.exact, result.summary()
 
 
 def test_budget_exhausted_reports_not_exact():
-    result = fit_mesh(icosphere(2), FitConfig(max_iters=2, threads=1))
+    result = fit_mesh(icosphere(2), EmbeddingFitConfig(max_iters=2, threads=1))
     assert not result.exact
     assert result.iterations == 2
     assert 0.0 <= result.edge_f1 < 1.0
@@ -39,7 +39,8 @@ def test_budget_exhausted_reports_not_exact():
 
 def test_paper_loss_alone_also_recovers():
     """Eq. 3 exactly (no false-positive weighting) still fits a small mesh."""
-    result = fit_mesh(icosphere(1), FitConfig(max_iters=400, threads=1, false_positive_weight=None))
+    config = EmbeddingFitConfig(max_iters=400, threads=1, false_positive_weight=None)
+    result = fit_mesh(icosphere(1), config)
     assert result.exact, result.summary()
 
 
@@ -56,7 +57,7 @@ def test_high_degree_poles_are_recovered():
     top, bottom = n, n + 1
     faces = [[i, (i + 1) % n, top] for i in range(n)] + [[(i + 1) % n, i, bottom] for i in range(n)]
     mesh = PolygonMesh.from_faces(v, faces)
-    result = fit_mesh(mesh, FitConfig(max_iters=600, threads=1))
+    result = fit_mesh(mesh, EmbeddingFitConfig(max_iters=600, threads=1))
     assert result.exact, result.summary()
 
 
@@ -64,13 +65,14 @@ def test_high_degree_poles_are_recovered():
 def test_positions_init_recovers_mesh(dense_limit):
     """Starting from the vertex positions also converges, in dense and sparse mode."""
     mesh = icosphere(2)
-    result = fit_mesh(mesh, FitConfig(max_iters=400, init="positions", dense_limit=dense_limit,
-                                      threads=1))
+    result = fit_mesh(mesh, EmbeddingFitConfig(max_iters=400, init="positions",
+                                               dense_limit=dense_limit,
+                                               threads=1))
     assert result.exact, result.summary()
 
 
 def test_bad_init_is_a_value_error():
     with pytest.raises(ValueError, match="unknown init"):
-        fit_mesh(icosphere(1), FitConfig(init="spectral"))
+        fit_mesh(icosphere(1), EmbeddingFitConfig(init="spectral"))
     with pytest.raises(ValueError, match="space coordinates"):
-        fit_mesh(icosphere(1), FitConfig(init="positions", distance="dot"))
+        fit_mesh(icosphere(1), EmbeddingFitConfig(init="positions", distance="dot"))

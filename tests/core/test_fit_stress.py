@@ -10,7 +10,7 @@ pytest.importorskip("torch")
 from spacemesh.decode import DecodeOptions, decode
 from spacemesh.encode import encode_connectivity, require_closed_manifold
 from spacemesh.examples import icosphere, torus_grid
-from spacemesh.fitting import FitConfig, fit_mesh
+from spacemesh.fitting import EmbeddingFitConfig, fit_mesh
 from spacemesh.fitting.single import hub_step_scale
 from spacemesh.fitting.stress import STRESS_CASES, bipyramid, capped_cylinder, pyramid
 from spacemesh.mesh import PolygonMesh
@@ -36,7 +36,7 @@ def test_stress_cases_are_closed_manifolds_with_what_their_names_say(name):
 )
 def test_high_degree_meshes_fit_exactly_within_budget(make, budget):
     mesh = make()
-    result = fit_mesh(mesh, FitConfig(max_iters=budget, threads=1))
+    result = fit_mesh(mesh, EmbeddingFitConfig(max_iters=budget, threads=1))
     assert result.exact, result.summary()
     assert result.decoded.mesh.face_key_set() == mesh.face_key_set()
 
@@ -61,7 +61,7 @@ def test_fit_judges_the_embeddings_not_the_generators_geometric_clean_up():
     v = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, -0.1, 0.01]])
     mesh = PolygonMesh.from_faces(v, [[0, 1, 2], [0, 3, 1], [1, 3, 2], [0, 2, 3]])
     require_closed_manifold(mesh)
-    result = fit_mesh(mesh, FitConfig(max_iters=100, threads=1))
+    result = fit_mesh(mesh, EmbeddingFitConfig(max_iters=100, threads=1))
     assert result.exact, result.summary()
     assert result.decoded.n_uncrossed == 0
     generator = decode(mesh.vertices, result.embeddings, DecodeOptions(max_degree=None))

@@ -8,8 +8,8 @@ import pytest
 
 from spacemesh.examples import cube_quads, icosphere
 from spacemesh.geometry import (
-    FitOptions,
     GeometryOptions,
+    VertexFitOptions,
     farthest_point_sampling,
     fit_report,
     fit_vertices,
@@ -82,8 +82,8 @@ def test_tangent_planes_put_vertices_on_the_corners():
         gap = np.linalg.norm(moved[None] - corners[:, None], axis=2).min(axis=1)
         return gap.max()
 
-    with_planes = corner_error(FitOptions(iterations=12, plane_neighbours=24))
-    without = corner_error(FitOptions(iterations=12, plane_neighbours=24, plane_weight=0.0))
+    with_planes = corner_error(VertexFitOptions(iterations=12, plane_neighbours=24))
+    without = corner_error(VertexFitOptions(iterations=12, plane_neighbours=24, plane_weight=0.0))
     assert with_planes < 0.6 * without
 
 
@@ -231,7 +231,8 @@ def test_noise_is_measured_and_smoothed():
         moved, _ = fit_vertices(unit, _triangles(sphere), points, None, options)
         return np.abs(np.linalg.norm(moved, axis=1) - 1).mean()
 
-    assert error(FitOptions(noise_spring=5.0)) < 0.8 * error(FitOptions(noise_spring=0.0))
+    springy, stiff = VertexFitOptions(noise_spring=5.0), VertexFitOptions(noise_spring=0.0)
+    assert error(springy) < 0.8 * error(stiff)
 
 
 def test_a_coarse_sphere_fitted_to_a_fine_one_lies_closer_than_one_laid_on_it():

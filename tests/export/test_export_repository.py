@@ -89,8 +89,12 @@ def test_the_decode_section_follows_the_training_style(toy_model):
 
 
 def test_the_decode_section_of_qem_models_refines_and_flips_flat_quads():
-    from spacemesh.geometry.policy import FLAT_FLIP_DEGREES
-    from spacemesh.geometry.policy import FIT_GAIN, decode_changes, decode_section
+    from spacemesh.geometry.policy import (
+        FIT_GAIN,
+        FLAT_FLIP_DEGREES,
+        decode_changes,
+        decode_section,
+    )
 
     new = decode_section({"style": "qem", "generator_version": "1.1.0"})
     assert new["reinsert"] and new["flip"]

@@ -115,9 +115,9 @@ def subset(emb: Embeddings, rows: np.ndarray) -> Embeddings:
 
 def fitted_embeddings(mesh: PolygonMesh) -> Embeddings:
     """Embeddings that decode exactly to ``mesh`` (direct optimisation, torch)."""
-    from spacemesh.fitting import FitConfig, fit_mesh
+    from spacemesh.fitting import EmbeddingFitConfig, fit_mesh
 
-    result = fit_mesh(mesh, FitConfig(threads=1))
+    result = fit_mesh(mesh, EmbeddingFitConfig(threads=1))
     assert result.exact
     return result.embeddings
 

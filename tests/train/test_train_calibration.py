@@ -12,7 +12,7 @@ pytest.importorskip("torch")
 from spacemesh.decode import DecodeOptions
 from spacemesh.encode import encode_connectivity
 from spacemesh.examples import icosphere
-from spacemesh.fitting import FitConfig, fit_mesh
+from spacemesh.fitting import EmbeddingFitConfig, fit_mesh
 from spacemesh.spacetime import pairwise_distance
 from spacemesh.train.batching import Sample
 from spacemesh.train.evaluate import (
@@ -26,7 +26,7 @@ from spacemesh.train.evaluate import (
 @pytest.fixture(scope="module")
 def fitted():
     mesh = icosphere(2)
-    result = fit_mesh(mesh, FitConfig(max_iters=400, threads=1))
+    result = fit_mesh(mesh, EmbeddingFitConfig(max_iters=400, threads=1))
     assert result.exact
     empty = np.zeros((1, 3), np.float32)
     sample = Sample("icosphere", mesh.vertices.astype(np.float32), empty, empty,

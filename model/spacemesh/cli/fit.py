@@ -79,7 +79,7 @@ def fit(
 
     threads = use_threads(threads)  # before torch loads
     try:
-        from spacemesh.fitting import FitConfig, fit_mesh
+        from spacemesh.fitting import EmbeddingFitConfig, fit_mesh
     except ModuleNotFoundError as error:
         fail(
             f"fitting needs the training extra ({error.name} is missing): "
@@ -93,7 +93,7 @@ def fit(
         require_closed_manifold(mesh)
     except SpaceMeshError as error:
         fail(f"{mesh_path}: {error}")
-    config = FitConfig(
+    config = EmbeddingFitConfig(
         distance=distance.value,
         reduction=reduction.value,
         max_iters=max_iters,

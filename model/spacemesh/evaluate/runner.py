@@ -53,7 +53,7 @@ BASELINES = ("psr", "psr_star", "psr_star_gt", "bpa")
 #: Modes of our pipeline the runner knows: the method name of each row, the generate
 #: options it runs with (``gt``: ``target_vertices`` = the ground truth's count) and, for
 #: the ablations, what it changes in the geometry stage
-#: (:class:`spacemesh.geometry.GeometryOptions` fields; ``fit``: FitOptions fields).
+#: (:class:`spacemesh.geometry.GeometryOptions` fields; ``fit``: VertexFitOptions fields).
 MODES: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
     "default": ("ours", {}, {}),
     "raw": ("ours_raw", {"raw": True}, {}),

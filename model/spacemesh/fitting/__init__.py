@@ -10,6 +10,11 @@ The connectivity scores it reports (edge F1, ``next`` accuracy) are numpy and li
 :mod:`spacemesh.metrics.connectivity`.
 """
 
-from spacemesh.fitting.single import FitConfig, FitRecord, FitResult, fit_mesh
+from spacemesh.fitting.single import (
+    EmbeddingFitConfig,
+    EmbeddingFitRecord,
+    EmbeddingFitResult,
+    fit_mesh,
+)
 
-__all__ = ["FitConfig", "FitRecord", "FitResult", "fit_mesh"]
+__all__ = ["EmbeddingFitConfig", "EmbeddingFitRecord", "EmbeddingFitResult", "fit_mesh"]

@@ -41,7 +41,7 @@ from spacemesh.threads import limit_threads
 
 
 @dataclass(frozen=True)
-class FitConfig:
+class EmbeddingFitConfig:
     """Settings of :func:`fit_mesh`: the paper's, plus the sparse-mode and
     false-positive options that make large meshes converge (docs/REPRESENTATION.md)."""
 
@@ -70,7 +70,7 @@ class FitConfig:
 
 
 @dataclass
-class FitRecord:
+class EmbeddingFitRecord:
     """One logged optimisation step."""
 
     iteration: int
@@ -83,7 +83,7 @@ class FitRecord:
 
 
 @dataclass
-class FitResult:
+class EmbeddingFitResult:
     """Outcome of :func:`fit_mesh`."""
 
     exact: bool
@@ -95,7 +95,7 @@ class FitResult:
     next_accuracy: float
     decoded: DecodeResult | None = None
     embeddings: Embeddings | None = None
-    history: list[FitRecord] = field(default_factory=list)
+    history: list[EmbeddingFitRecord] = field(default_factory=list)
 
     def summary(self) -> dict:
         """The JSON summary printed by ``spacemesh fit --json``."""
@@ -134,7 +134,7 @@ def hub_step_scale(degrees: np.ndarray, power: float) -> np.ndarray:
 
 
 class _Parameters(torch.nn.Module):
-    def __init__(self, mesh: PolygonMesh, edges: np.ndarray, config: FitConfig,
+    def __init__(self, mesh: PolygonMesh, edges: np.ndarray, config: EmbeddingFitConfig,
                  generator: torch.Generator, degrees: np.ndarray) -> None:
         super().__init__()
         n, s = mesh.n_vertices, config.init_scale
@@ -180,7 +180,7 @@ class _Parameters(torch.nn.Module):
 def _mine_near_pairs(
     x: torch.Tensor,
     tau: float,
-    config: FitConfig,
+    config: EmbeddingFitConfig,
     cap: int,
     generator: torch.Generator,
     block: int = 1024,
@@ -216,7 +216,7 @@ def _judge(
     truth: Connectivity,
     target_faces: set,
     params: _Parameters,
-    config: FitConfig,
+    config: EmbeddingFitConfig,
 ) -> tuple[DecodeResult, bool, float, float]:
     """Decode the current embeddings and compare with the input on all pairs.
 
@@ -262,29 +262,29 @@ def _judge(
 
 def fit_mesh(
     mesh: PolygonMesh,
-    config: FitConfig | None = None,
-    callback: Callable[[FitRecord], None] | None = None,
+    config: EmbeddingFitConfig | None = None,
+    callback: Callable[[EmbeddingFitRecord], None] | None = None,
     stop_when_exact: bool = True,
-) -> FitResult:
+) -> EmbeddingFitResult:
     """Optimise per-vertex embeddings until they decode to ``mesh`` exactly.
 
     Parameters
     ----------
     mesh : PolygonMesh
         A closed oriented manifold polygon mesh; unreferenced vertices are dropped.
-    config : FitConfig, optional
+    config : EmbeddingFitConfig, optional
     callback : callable, optional
-        Called with a :class:`FitRecord` after every step (progress bars, curves).
+        Called with a :class:`EmbeddingFitRecord` after every step (progress bars, curves).
     stop_when_exact : bool
         Stop at the first step whose decode equals the input (else run ``max_iters``).
 
     Returns
     -------
-    FitResult
+    EmbeddingFitResult
         ``exact`` tells whether the decoded faces equal the input faces (as cyclic
         sequences); ``edge_f1`` and ``next_accuracy`` are measured on all pairs.
     """
-    config = config or FitConfig()
+    config = config or EmbeddingFitConfig()
     if config.init not in INITS:
         raise ValueError(f"unknown init {config.init!r}; expected one of {INITS}")
     if config.init == "positions" and config.distance == "dot":
@@ -312,7 +312,7 @@ def fit_mesh(
         adjacency[0, positives[:, 0], positives[:, 1]] = True
     hard = torch.zeros((0, 2), dtype=torch.long)
 
-    history: list[FitRecord] = []
+    history: list[EmbeddingFitRecord] = []
     start = time.perf_counter()
     result: DecodeResult | None = None
     exact = False
@@ -389,7 +389,7 @@ def fit_mesh(
             next_acc = int(correct) / max(n_rows, 1)
         if edge_f1 == 1.0 and next_acc == 1.0:
             result, exact, edge_f1, next_acc = _judge(mesh, truth, target_faces, params, config)
-        record = FitRecord(
+        record = EmbeddingFitRecord(
             iteration,
             loss.item(),
             e_loss.item(),
@@ -406,7 +406,7 @@ def fit_mesh(
     seconds = time.perf_counter() - start
     if result is None or not exact:
         result, exact, edge_f1, next_acc = _judge(mesh, truth, target_faces, params, config)
-    return FitResult(
+    return EmbeddingFitResult(
         exact=exact,
         iterations=iteration,
         seconds=seconds,

@@ -11,16 +11,16 @@
 numpy and scipy only: the service uses all of it without torch, trimesh or pymeshlab.
 """
 
-from spacemesh.geometry.fitting import FitOptions, fit_vertices
+from spacemesh.geometry.fitting import VertexFitOptions, fit_vertices
 from spacemesh.geometry.report import FitReport, fit_report
 from spacemesh.geometry.sampling import farthest_point_sampling, feature_weights
 from spacemesh.geometry.stage import GeometryOptions, GeometryResult, refine_geometry
 
 __all__ = [
-    "FitOptions",
     "FitReport",
     "GeometryOptions",
     "GeometryResult",
+    "VertexFitOptions",
     "farthest_point_sampling",
     "feature_weights",
     "fit_report",

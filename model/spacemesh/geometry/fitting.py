@@ -52,7 +52,7 @@ NORMAL_NEIGHBOURS = 12
 
 
 @dataclass(frozen=True)
-class FitOptions:
+class VertexFitOptions:
     """Weights and rounds of the vertex fit (see the module docstring).
 
     Attributes
@@ -215,7 +215,7 @@ def _incidence(edges: IntArray, n_vertices: int) -> sp.csr_matrix:
 
 def fit_energy_terms(
     positions: FloatArray, triangles: IntArray, points: FloatArray, normals: FloatArray,
-    tree: cKDTree, options: FitOptions,
+    tree: cKDTree, options: VertexFitOptions,
 ) -> tuple[sp.csr_matrix, FloatArray, float]:
     """The normal equations ``A x = r`` of the energy at the current projection.
 
@@ -226,7 +226,7 @@ def fit_energy_terms(
     points, normals : (P, 3) float
     tree : cKDTree
         Of ``points``.
-    options : FitOptions
+    options : VertexFitOptions
 
     Returns
     -------
@@ -308,7 +308,7 @@ def fit_vertices(
     triangles: IntArray,
     points: FloatArray,
     normals: FloatArray | None = None,
-    options: FitOptions | None = None,
+    options: VertexFitOptions | None = None,
     fixed: BoolArray | None = None,
     noise: float | None = None,
 ) -> tuple[FloatArray, list[float]]:
@@ -323,7 +323,7 @@ def fit_vertices(
         Finite conditioning points, in the frame of ``positions``.
     normals : (P, 3) float, optional
         The points' normals (any sign); estimated when None.
-    options : FitOptions, optional
+    options : VertexFitOptions, optional
     fixed : (N,) bool, optional
         Vertices that keep their positions exactly (a repair's kept vertices); the
         solve is over the others only.
@@ -337,7 +337,7 @@ def fit_vertices(
     energies : list of float
         The energy after each round's projection (before its solve).
     """
-    options = options or FitOptions()
+    options = options or VertexFitOptions()
     positions = np.asarray(positions, dtype=np.float64).copy()
     triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)

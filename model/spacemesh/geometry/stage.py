@@ -26,7 +26,7 @@ import numpy as np
 
 from spacemesh.decode.refinement import flip_diagonals
 from spacemesh.encode import connectivity_from_faces
-from spacemesh.geometry.fitting import FitOptions, fit_vertices, plane_fits
+from spacemesh.geometry.fitting import VertexFitOptions, fit_vertices, plane_fits
 from spacemesh.geometry.intersections import intersecting_triangles, self_intersecting_faces
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangles_of
@@ -44,7 +44,7 @@ class GeometryOptions:
 
     Attributes
     ----------
-    fit : FitOptions
+    fit : VertexFitOptions
         The vertex fit's weights.
     rounds : int
         Fit / flip rounds.
@@ -56,7 +56,7 @@ class GeometryOptions:
         Never let the share of self-intersecting faces grow.
     """
 
-    fit: FitOptions = field(default_factory=FitOptions)
+    fit: VertexFitOptions = field(default_factory=VertexFitOptions)
     rounds: int = 2
     flips: bool = True
     fit_gain: float = 0.2
@@ -65,13 +65,13 @@ class GeometryOptions:
     @classmethod
     def from_section(cls, section: dict[str, Any]) -> GeometryOptions:
         """From a manifest's ``geometry`` section (unknown keys are refused)."""
-        fit_keys = set(FitOptions.__dataclass_fields__)
+        fit_keys = set(VertexFitOptions.__dataclass_fields__)
         own = {k: v for k, v in section.items() if k in cls.__dataclass_fields__ and k != "fit"}
         fit = {k: v for k, v in section.get("fit", {}).items() if k in fit_keys}
         unknown = set(section) - set(cls.__dataclass_fields__) - {"why"}
         if unknown:
             raise ValueError(f"unknown geometry options {sorted(unknown)}")
-        return cls(fit=FitOptions(**fit), **own)
+        return cls(fit=VertexFitOptions(**fit), **own)
 
 
 def geometry_section(options: GeometryOptions | None = None) -> dict[str, Any]:
