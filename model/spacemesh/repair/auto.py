@@ -1049,12 +1049,7 @@ def _laid_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
     surface in the least-squares sense rather than interpolating it
     (:func:`spacemesh.geometry.fitting.fit_to_surface`: a coarse patch laid on a
     dome otherwise sinks into it), kept where that folds or collapses no face."""
-    from spacemesh.geometry.fairing import (
-        _faces_touching,
-        _laplacian,
-        faces_subset,
-        vertices_of,
-    )
+    from spacemesh.geometry.fairing import _laplacian
     from spacemesh.geometry.fitting import fit_to_surface
     from spacemesh.geometry.intersections import self_intersecting_faces
     from spacemesh.primitives.closest import closest_points_on_triangles, nearest_triangles
@@ -1085,7 +1080,7 @@ def _laid_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
                                 surface_triangles)
         if not _badly_laid(fitted, triangles, surface_points, surface_triangles):
             positions = fitted
-    near = _faces_touching(mesh, vertices_of(mesh, _faces_touching(mesh, moving)))
+    near = faces_touching(mesh, vertices_of(mesh, faces_touching(mesh, moving)))
     before = int(self_intersecting_faces(faces_subset(mesh, near)).sum())
     after = int(self_intersecting_faces(faces_subset(mesh.with_vertices(positions),
                                                       near)).sum())
