@@ -458,7 +458,7 @@ def main() -> None:
                         "UNCHECKED_FILLS; for comparison)")
     parser.add_argument("--meshfix-margin", type=float, default=None,
                         help="take MeshFix's fill where its probe error is below this "
-                        "times the fairing's (spacemesh.repair.probe.MESHFIX_MARGIN, "
+                        "times the fairing's (spacemesh.repair.fill.probe.MESHFIX_MARGIN, "
                         "0.8; 2.0 was tried in session 17; for comparison)")
     parser.add_argument("--out", default=str(ROOT / "docs" / "results"))
     args = parser.parse_args()
@@ -468,7 +468,7 @@ def main() -> None:
 
     pin_threads(args.threads)
     import spacemesh.repair.auto
-    import spacemesh.repair.probe
+    import spacemesh.repair.fill.probe
 
     if args.no_probe_fills:
         spacemesh.repair.auto.PROBE_FILLS = False
@@ -479,7 +479,7 @@ def main() -> None:
     if args.no_unchecked_fills:
         spacemesh.repair.auto.UNCHECKED_FILLS = False
     if args.meshfix_margin is not None:
-        spacemesh.repair.probe.MESHFIX_MARGIN = args.meshfix_margin
+        spacemesh.repair.fill.probe.MESHFIX_MARGIN = args.meshfix_margin
     only = [part for part in args.only.split(",") if part]
     from spacemesh.runtime import MeshGenerator
 
@@ -514,7 +514,7 @@ def main() -> None:
               "split": args.split, "probe_fills": not args.no_probe_fills,
               "lay_onto_fan": not args.no_lay_onto_fan, "fit_laid": not args.no_fit_laid,
               "unchecked_fills": not args.no_unchecked_fills,
-              "meshfix_margin": spacemesh.repair.probe.MESHFIX_MARGIN,
+              "meshfix_margin": spacemesh.repair.fill.probe.MESHFIX_MARGIN,
               "only": args.only,
               "seconds": round(time.perf_counter() - start, 1)}
     (out / "repair_holes.json").write_text(json.dumps({"config": config, "rows": rows},

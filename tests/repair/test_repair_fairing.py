@@ -1,5 +1,5 @@
 """Hole patches refined and faired into the surface around them
-(:mod:`spacemesh.geometry.fairing`)."""
+(:mod:`spacemesh.repair.fill.fairing`)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,11 @@ import pytest
 from auto_meshes import cylinder, punched
 
 from spacemesh.examples import icosphere, torus_grid
-from spacemesh.geometry.fairing import (
+from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives.closest import closest_points_on_triangles
+from spacemesh.repair.auto import _loops_of, fan_fill
+from spacemesh.repair.cut import defect_vertices
+from spacemesh.repair.fill.fairing import (
     boundary_edge_length,
     fair_patch,
     fair_positions,
@@ -19,10 +23,6 @@ from spacemesh.geometry.fairing import (
     planar_positions,
     refine_patch,
 )
-from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives.closest import closest_points_on_triangles
-from spacemesh.repair.auto import _loops_of, fan_fill
-from spacemesh.repair.cut import defect_vertices
 from spacemesh.topology import check_topology
 
 
@@ -208,5 +208,5 @@ def test_flat_fill_lies_on_the_least_area_triangulation_of_its_loop(monkeypatch)
     for x in flat[moving]:  # on one of the triangles
         on = closest_points_on_triangles(np.repeat(x[None], len(corners), axis=0), corners)
         assert np.linalg.norm(on - x, axis=1).min() < 1e-9
-    monkeypatch.setattr("spacemesh.geometry.fairing.MAX_FLAT_LOOP", len(loop) - 1)
+    monkeypatch.setattr("spacemesh.repair.fill.fairing.MAX_FLAT_LOOP", len(loop) - 1)
     assert flat_positions(refined, moving, new_patch, base) is None

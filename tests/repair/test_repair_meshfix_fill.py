@@ -1,4 +1,4 @@
-"""MeshFix's fill restricted to one hole (:mod:`spacemesh.repair.meshfix_fill`)."""
+"""MeshFix's fill restricted to one hole (:mod:`spacemesh.repair.fill.meshfix`)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from spacemesh.examples import icosphere
 from spacemesh.mesh import PolygonMesh
 from spacemesh.repair.auto import _loops_of
 from spacemesh.repair.cut import defect_vertices
-from spacemesh.repair.meshfix_fill import meshfix_fill
+from spacemesh.repair.fill.meshfix import meshfix_fill
 from spacemesh.topology import check_topology
 
 pytest.importorskip("pymeshfix")

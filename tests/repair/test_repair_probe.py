@@ -1,4 +1,4 @@
-"""Choosing a hole's fill by probe holes punched nearby (:mod:`spacemesh.repair.probe`)."""
+"""Choosing a hole's fill by probe holes punched nearby (:mod:`spacemesh.repair.fill.probe`)."""
 
 from __future__ import annotations
 
@@ -7,11 +7,11 @@ import pytest
 from auto_meshes import punched
 
 from spacemesh.examples import icosphere
-from spacemesh.geometry.fairing import patch_loops
 from spacemesh.primitives import faces_subset, triangulate_faces, vertices_of
 from spacemesh.repair.auto import _loops_of
 from spacemesh.repair.cut import defect_vertices
-from spacemesh.repair.probe import (
+from spacemesh.repair.fill.fairing import patch_loops
+from spacemesh.repair.fill.probe import (
     PROBES,
     fill_error,
     flat_surface,
@@ -111,7 +111,7 @@ def test_probes_keep_the_fairing_on_a_sphere():
 ])
 def test_an_alternative_is_taken_where_the_probes_favour_it_by_its_margin(
         monkeypatch, errors, preferred):
-    import spacemesh.repair.probe as probe
+    import spacemesh.repair.fill.probe as probe
 
     monkeypatch.setattr(probe, "probe_errors", lambda *args, **kwargs: errors)
     assert probe.MESHFIX_MARGIN == 0.8 and probe.PROBE_MARGIN == 0.8
@@ -125,12 +125,12 @@ def test_an_alternative_is_taken_where_the_probes_favour_it_by_its_margin(
 def test_an_automatic_region_takes_meshfix_fill_where_the_probes_prefer_it(monkeypatch,
                                                                            probing):
     pytest.importorskip("pymeshfix")
-    import spacemesh.repair.probe
+    import spacemesh.repair.fill.probe
 
     # any probe error of MeshFix below 1e9 times the fairing's prefers MeshFix's fill
-    monkeypatch.setattr("spacemesh.repair.probe.MESHFIX_MARGIN", 1e9)
-    monkeypatch.setattr("spacemesh.repair.probe.ALTERNATIVES", {
-        "meshfix": spacemesh.repair.probe.ALTERNATIVES["meshfix"]})
+    monkeypatch.setattr("spacemesh.repair.fill.probe.MESHFIX_MARGIN", 1e9)
+    monkeypatch.setattr("spacemesh.repair.fill.probe.ALTERNATIVES", {
+        "meshfix": spacemesh.repair.fill.probe.ALTERNATIVES["meshfix"]})
     monkeypatch.setattr("spacemesh.repair.auto.PROBE_FILLS", probing)
     mesh = punched(icosphere(3), [[0.0, 0.0, 1.0]], radius=0.4)
     result = _holes_filled(mesh)
@@ -174,7 +174,7 @@ def test_a_region_patch_falls_into_one_part_per_hole():
 
 
 def test_a_patch_the_guard_held_back_is_replaced_by_the_faired_fan(monkeypatch):
-    import spacemesh.geometry.fairing as fairing
+    import spacemesh.repair.fill.fairing as fairing
 
     monkeypatch.setattr("spacemesh.repair.auto.PROBE_FILLS", False)
     real = fairing.fair_patch
@@ -199,7 +199,7 @@ def test_a_patch_the_guard_held_back_is_replaced_by_the_faired_fan(monkeypatch):
 
 def _always_held_back(monkeypatch):
     """Make every fairing of a patch report that a self-intersection held it back."""
-    import spacemesh.geometry.fairing as fairing
+    import spacemesh.repair.fill.fairing as fairing
 
     real = fairing.fair_patch
 
@@ -228,7 +228,7 @@ def test_a_held_back_patch_with_no_probe_takes_meshfix_fill(monkeypatch, uncheck
 
 def test_a_held_back_patch_with_no_probe_takes_the_flat_fill_without_meshfix(monkeypatch):
     _always_held_back(monkeypatch)
-    monkeypatch.setattr("spacemesh.repair.meshfix_fill.meshfix_fill", lambda *a, **k: None)
+    monkeypatch.setattr("spacemesh.repair.fill.meshfix.meshfix_fill", lambda *a, **k: None)
     mesh = punched(icosphere(2), [[0.0, 0.0, 1.0]], radius=0.6)
     loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
     result = _holes_filled(mesh)
@@ -289,7 +289,7 @@ def test_a_spiked_patch_is_laid_onto_the_faired_fan_keeping_its_tessellation(mon
 
 def test_a_laid_patch_fitted_to_the_fan_lies_closer_to_it_than_one_interpolating_it(
         monkeypatch):
-    from spacemesh.repair.probe import fill_error
+    from spacemesh.repair.fill.probe import fill_error
 
     _, laid, own, fan_corners = _laid_cap(monkeypatch, fit=False)
     before, fitted, _, _ = _laid_cap(monkeypatch, fit=True)
@@ -361,7 +361,7 @@ def test_flat_surface_is_the_least_area_triangulation_of_each_loop():
 
 @pytest.mark.parametrize("probing", [True, False])
 def test_a_hole_whose_probes_prefer_the_flat_fill_is_laid_onto_it(monkeypatch, probing):
-    import spacemesh.repair.probe as probe
+    import spacemesh.repair.fill.probe as probe
 
     # only the flat fill is weighed, and any probe error of it below 1e9 times the
     # fairing's prefers it
@@ -381,7 +381,7 @@ def test_a_hole_whose_probes_prefer_the_flat_fill_is_laid_onto_it(monkeypatch, p
 
 
 def test_a_hole_that_cannot_be_laid_onto_the_flat_fill_takes_the_flat_fill(monkeypatch):
-    import spacemesh.repair.probe as probe
+    import spacemesh.repair.fill.probe as probe
 
     monkeypatch.setattr(probe, "ALTERNATIVES", {"flat": probe.ALTERNATIVES["flat"]})
     monkeypatch.setattr(probe, "PROBE_MARGIN", 1e9)

@@ -5,7 +5,6 @@
 * :mod:`~spacemesh.geometry.fitting`: the vertex fit (one energy, one sparse solve);
 * :mod:`~spacemesh.geometry.stage`: the stage itself (splits, fit, flips, guard);
 * :mod:`~spacemesh.geometry.intersections`: self-intersecting faces (numpy + scipy);
-* :mod:`~spacemesh.geometry.fairing`: hole patches refined and faired into the surface;
 * :mod:`~spacemesh.geometry.report`: the fit report of every response.
 
 numpy and scipy only: the service uses all of it without torch, trimesh or pymeshlab.

@@ -558,7 +558,7 @@ def repair_mesh(
         (:func:`spacemesh.geometry.refine_geometry`, kept vertices fixed, no edge
         edits, self-intersections never increased), and for automatic regions of holes
         refine and fair each filling into the surface around it
-        (:func:`spacemesh.geometry.fairing.fair_patch`); False gives the networks' patch.
+        (:func:`spacemesh.repair.fill.fairing.fair_patch`); False gives the networks' patch.
     max_growth : float, optional
         Largest share of the mesh's faces a region may grow to (see :func:`plan_repair`;
         the plan's when one is given).

@@ -26,7 +26,7 @@ loop is closed by a fan of triangles from its centroid, whose wedges of at most
 the model pass by pass, so a hole of any size is filled in one or several passes and no
 input face changes (a wedge the model cannot take keeps its fan: the fallback). The
 filling of each such region is then refined to the density of its boundary and faired
-into the surface around it (:func:`spacemesh.geometry.fairing.fair_patch`: a thin-plate
+into the surface around it (:func:`spacemesh.repair.fill.fairing.fair_patch`: a thin-plate
 solve with the ring fixed), so its new vertices continue that surface. A region
 with other defects, or loops that cannot be split into simple ones, is re-generated with
 its ring by one model pass; when it cannot be planned it is refused, naming what it
@@ -844,7 +844,7 @@ def _replaced_by(replaced: str | None, by: str) -> str:
     return "fallback" if replaced in ("fan", "flat") else by
 
 
-#: The fairings (:func:`spacemesh.geometry.fairing.fair_patch`'s ``fairing``) whose patch
+#: The fairings (:func:`spacemesh.repair.fill.fairing.fair_patch`'s ``fairing``) whose patch
 #: MeshFix's fill of the same loops replaces: the least-area flat fill, used where both
 #: thin plates overshoot the ring (sharp surroundings), imitates MeshFix's, and MeshFix's
 #: own (triangulated, refined, faired) was closer on the dev split.
@@ -853,7 +853,7 @@ MESHFIX_FAIRINGS = ("flat",)
 
 def _fair_region(state: _Passes, index: int) -> str | None:
     """Refine and fair the faces the region ``index`` made into the surface around them
-    (:func:`spacemesh.geometry.fairing.fair_patch`).
+    (:func:`spacemesh.repair.fill.fairing.fair_patch`).
 
     Where the fairing kept is one of :data:`MESHFIX_FAIRINGS`, they are replaced by
     MeshFix's fill of the same loops (:func:`_meshfix_instead`). Where the faired patch
@@ -873,7 +873,7 @@ def _fair_region(state: _Passes, index: int) -> str | None:
     probes prefer it, and the patch could not be laid onto it), ``"fan"`` when the
     faired fan replaced the patch, None otherwise.
     """
-    from spacemesh.geometry.fairing import fair_patch, patch_edge_length
+    from spacemesh.repair.fill.fairing import fair_patch, patch_edge_length
 
     mesh = state.mesh
     patch = state.made_by == index
@@ -918,7 +918,7 @@ def _fair_region(state: _Passes, index: int) -> str | None:
 def _faired_fan(mesh: PolygonMesh, patch: BoolArray
                 ) -> tuple[PolygonMesh, IntArray, BoolArray] | None:
     """A fan over each loop of the ``patch`` faces ((F,) bool) of ``mesh``
-    (:func:`fan_fill`), refined and faired (:func:`spacemesh.geometry.fairing.fair_patch`)
+    (:func:`fan_fill`), refined and faired (:func:`spacemesh.repair.fill.fairing.fair_patch`)
     one hole (one part of the patch, :func:`_patch_parts`) after the other, so that each
     hole's fairing reads its own surroundings, with the patch's faces left out.
 
@@ -927,7 +927,7 @@ def _faired_fan(mesh: PolygonMesh, patch: BoolArray
     loops, or where a fan could not be faired all the way (a self-intersection held it
     back) or only flat (one of :data:`MESHFIX_FAIRINGS`).
     """
-    from spacemesh.geometry.fairing import fair_patch, patch_edge_length, patch_loops
+    from spacemesh.repair.fill.fairing import fair_patch, patch_edge_length, patch_loops
 
     parts = [patch_loops(mesh, part) for part in _patch_parts(mesh, patch)]
     if not parts or any(not loops for loops in parts):
@@ -965,7 +965,7 @@ def _fan_if_not_discs(state: _Passes, index: int, passes: Sequence[Any] = ()) ->
     the genus of the mesh. True when it did; then the region's ``passes`` (their
     :class:`spacemesh.repair.api.RepairResult`) report no handle added, as none of
     their fill is left."""
-    from spacemesh.geometry.fairing import patch_loops
+    from spacemesh.repair.fill.fairing import patch_loops
 
     mesh = state.mesh
     patch = state.made_by == index
@@ -1049,10 +1049,10 @@ def _laid_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
     surface in the least-squares sense rather than interpolating it
     (:func:`spacemesh.geometry.fitting.fit_to_surface`: a coarse patch laid on a
     dome otherwise sinks into it), kept where that folds or collapses no face."""
-    from spacemesh.geometry.fairing import _laplacian
     from spacemesh.geometry.fitting import fit_to_surface
     from spacemesh.geometry.intersections import self_intersecting_faces
     from spacemesh.primitives.closest import closest_points_on_triangles, nearest_triangles
+    from spacemesh.repair.fill.fairing import _laplacian
 
     moving = vertices_of(mesh, patch) & ~vertices_of(mesh, ~patch)
     rows = np.flatnonzero(moving)
@@ -1090,7 +1090,7 @@ def _laid_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
 def _onto_fan(state: _Passes, index: int) -> str | None:
     """Lay the faired patch of the region ``index`` onto the surface of the faired fan
     over the same loops (:func:`_faired_fan`): the model's tessellation, with the
-    geometry of the fairing the probe holes judge (:mod:`spacemesh.repair.probe`).
+    geometry of the fairing the probe holes judge (:mod:`spacemesh.repair.fill.probe`).
 
     The fairing of the model's own patch follows its tessellation: an uneven one bends
     the thin plate into ridges and spikes (on the dev split the faired fan lay closer to
@@ -1119,11 +1119,11 @@ def _onto_fan(state: _Passes, index: int) -> str | None:
 
 def _onto_flat(state: _Passes, part: BoolArray) -> bool:
     """Lay the patch faces ``part`` ((F,) bool: one hole's) onto the least-area flat
-    triangulation of their loops (:func:`spacemesh.repair.probe.flat_surface`), where
+    triangulation of their loops (:func:`spacemesh.repair.fill.probe.flat_surface`), where
     the probe holes prefer that fill (:func:`_probe_choice`); True when it did
     (:func:`_laid_onto`)."""
-    from spacemesh.geometry.fairing import patch_loops
-    from spacemesh.repair.probe import flat_surface
+    from spacemesh.repair.fill.fairing import patch_loops
+    from spacemesh.repair.fill.probe import flat_surface
 
     mesh = state.mesh
     loops = patch_loops(mesh, part)
@@ -1145,7 +1145,7 @@ LAY_ONTO_FAN = True
 FIT_LAID = True
 
 #: Whether MeshFix's fill also replaces the fairing's patch of a hole where probe holes
-#: punched around it say it is closer (:func:`spacemesh.repair.probe.preferred_fill`).
+#: punched around it say it is closer (:func:`spacemesh.repair.fill.probe.preferred_fill`).
 PROBE_FILLS = True
 #: Whether a hole whose patch could be faired only part of the way, and around which
 #: no probe hole fits, takes MeshFix's fill (or the flat one) (:func:`_probe_choice`).
@@ -1174,16 +1174,16 @@ def _patch_parts(mesh: PolygonMesh, patch: BoolArray) -> list[BoolArray]:
 def _probe_choice(state: _Passes, part: BoolArray, held_back: bool = False) -> str:
     """The fill the probe holes punched in the input faces around the hole that the
     patch faces ``part`` ((F,) bool) fill prefer: ``"fair"``, ``"meshfix"`` or ``"flat"``
-    (:func:`spacemesh.repair.probe.preferred_fill`).
+    (:func:`spacemesh.repair.fill.probe.preferred_fill`).
 
     Where the patch is ``held_back`` (its fairing could be applied only part of the
     way, as the full move would cross the surface, and no faired fan replaced it) and
     no probe hole fits around it, nothing read from the input confirms the fairing:
     with :data:`UNCHECKED_FILLS`, MeshFix's fill is taken (``"meshfix"``), or the flat
     one where MeshFix has none (``"flat"``)."""
-    from spacemesh.geometry.fairing import patch_loops
-    from spacemesh.repair.meshfix_fill import meshfix_fill
-    from spacemesh.repair.probe import preferred_fill
+    from spacemesh.repair.fill.fairing import patch_loops
+    from spacemesh.repair.fill.meshfix import meshfix_fill
+    from spacemesh.repair.fill.probe import preferred_fill
 
     loops = patch_loops(state.mesh, part)
     if not loops:
@@ -1200,11 +1200,11 @@ def _probe_choice(state: _Passes, part: BoolArray, held_back: bool = False) -> s
 def _meshfix_instead(state: _Passes, index: int, patch: BoolArray | None = None) -> bool:
     """Replace the faces ``patch`` ((F,) bool; by default every face) the region
     ``index`` made by MeshFix's fill of their loops
-    (:func:`spacemesh.repair.meshfix_fill.meshfix_fill`); every other face is kept.
+    (:func:`spacemesh.repair.fill.meshfix.meshfix_fill`); every other face is kept.
     True when it did (False without ``pymeshfix``, or when MeshFix's patch does not
     close exactly these loops)."""
-    from spacemesh.geometry.fairing import patch_loops
-    from spacemesh.repair.meshfix_fill import meshfix_fill
+    from spacemesh.repair.fill.fairing import patch_loops
+    from spacemesh.repair.fill.meshfix import meshfix_fill
 
     mesh = state.mesh
     if patch is None:
@@ -1218,12 +1218,12 @@ def _meshfix_instead(state: _Passes, index: int, patch: BoolArray | None = None)
 
 def _flat_instead(state: _Passes, index: int, part: BoolArray) -> IntArray | None:
     """Replace the patch faces ``part`` ((F,) bool: one hole's) by the least-area flat
-    triangulation of their loops (:func:`spacemesh.repair.probe.flat_surface`, no new
+    triangulation of their loops (:func:`spacemesh.repair.fill.probe.flat_surface`, no new
     vertex), where the probes prefer that fill and the patch could not be laid onto it
     (:func:`_onto_flat`), when that adds no self-intersection near the hole: the face
     each new face is (:func:`_fill_instead`), or None when it did not."""
-    from spacemesh.geometry.fairing import patch_loops
-    from spacemesh.repair.probe import flat_surface
+    from spacemesh.repair.fill.fairing import patch_loops
+    from spacemesh.repair.fill.probe import flat_surface
 
     loops = patch_loops(state.mesh, part)
     triangles = flat_surface(state.mesh.vertices, loops) if loops else None
@@ -1293,7 +1293,7 @@ def repair_auto(plan: AutoPlan, run_pass: Any, *, fair: bool = True
         :class:`RegionError` when the region grows beyond the faces ``allowed``.
     fair : bool
         Refine and fair each in-place filling into the surface around it
-        (:func:`spacemesh.geometry.fairing.fair_patch`); False keeps the passes' patch.
+        (:func:`spacemesh.repair.fill.fairing.fair_patch`); False keeps the passes' patch.
 
     Returns
     -------

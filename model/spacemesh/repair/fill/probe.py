@@ -1,8 +1,8 @@
 """Choosing a hole's fill by filling probe holes punched nearby, where the surface is
 known: a local cross-validation of the fills an automatic region of holes can take.
 
-Whether the fairing's patch (:func:`spacemesh.geometry.fairing.fair_patch`) or MeshFix's
-fill (:func:`spacemesh.repair.meshfix_fill.meshfix_fill`) continues a surface better
+Whether the fairing's patch (:func:`spacemesh.repair.fill.fairing.fair_patch`) or MeshFix's
+fill (:func:`spacemesh.repair.fill.meshfix.meshfix_fill`) continues a surface better
 depends on the surface: a thin plate continues smooth, curved surfaces, while over
 creases, rims and coarse low-poly surfaces MeshFix's refined least-area fill often lies
 closer. Neither the hole's own surface nor the intact mesh is known, but the surface
@@ -143,7 +143,7 @@ def probe_regions(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
     list of (F,) bool
         The faces of each probe.
     """
-    from spacemesh.geometry.fairing import patch_loops
+    from spacemesh.repair.fill.fairing import patch_loops
 
     p = mesh.vertices
     ring = np.concatenate(loops)
@@ -204,9 +204,9 @@ def _triangles(mesh: PolygonMesh, faces: BoolArray) -> FloatArray:
 
 def _fair_fill(local: PolygonMesh, loops: list[IntArray]) -> FloatArray | None:
     """The fairing's fill of the probe: a fan per loop, refined and faired
-    (:func:`spacemesh.geometry.fairing.fair_patch`), as triangle corners."""
-    from spacemesh.geometry.fairing import fair_patch, patch_edge_length
+    (:func:`spacemesh.repair.fill.fairing.fair_patch`), as triangle corners."""
     from spacemesh.repair.auto import fan_fill
+    from spacemesh.repair.fill.fairing import fair_patch, patch_edge_length
 
     filled, _ = fan_fill(local, loops)
     patch = np.arange(filled.n_faces) >= local.n_faces
@@ -218,7 +218,7 @@ def _fair_fill(local: PolygonMesh, loops: list[IntArray]) -> FloatArray | None:
 
 def _meshfix_probe(local: PolygonMesh, loops: list[IntArray]) -> FloatArray | None:
     """MeshFix's fill of the probe, as triangle corners (None where it has none)."""
-    from spacemesh.repair.meshfix_fill import meshfix_fill
+    from spacemesh.repair.fill.meshfix import meshfix_fill
 
     filled = meshfix_fill(local, loops)
     if filled is None:
@@ -229,10 +229,10 @@ def _meshfix_probe(local: PolygonMesh, loops: list[IntArray]) -> FloatArray | No
 
 def flat_surface(points: FloatArray, loops: list[IntArray]) -> IntArray | None:
     """The least-area triangulation of each loop
-    (:func:`spacemesh.geometry.fairing.min_area_triangles`) over the ``points`` (V, 3),
+    (:func:`spacemesh.repair.fill.fairing.min_area_triangles`) over the ``points`` (V, 3),
     as rows of point indices (T, 3); None when a loop is longer than
-    :data:`spacemesh.geometry.fairing.MAX_FLAT_LOOP` or shorter than 3."""
-    from spacemesh.geometry.fairing import MAX_FLAT_LOOP, min_area_triangles
+    :data:`spacemesh.repair.fill.fairing.MAX_FLAT_LOOP` or shorter than 3."""
+    from spacemesh.repair.fill.fairing import MAX_FLAT_LOOP, min_area_triangles
 
     if not loops or any(len(loop) > MAX_FLAT_LOOP or len(loop) < 3 for loop in loops):
         return None
@@ -257,8 +257,8 @@ def probe_errors(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
     :func:`fill_error` over the probe holes around the hole ``loops`` of ``mesh`` (its
     faces ``known`` are input faces) that both could fill, and the number of those
     probes."""
-    from spacemesh.geometry.fairing import patch_loops
-    from spacemesh.repair.meshfix_fill import faces_around
+    from spacemesh.repair.fill.fairing import patch_loops
+    from spacemesh.repair.fill.meshfix import faces_around
 
     totals = {name: [0.0, 0.0, 0] for name in ALTERNATIVES}
     for faces in probe_regions(mesh, loops, known, count):
