@@ -25,6 +25,8 @@ from spacemesh.examples import cube_quads, icosphere, torus_grid
 from spacemesh.mesh import PolygonMesh
 from spacemesh.repair import Region, RegionError, plan_repair, repair_mesh
 from spacemesh.repair.cut import outside_defects
+from spacemesh.repair.fill.loops import patch_euler
+from spacemesh.repair.fill.policy import FillPolicy
 from spacemesh.repair.region import DEFECTS_OUTSIDE_REGION, REGION_TOO_LARGE
 from spacemesh.topology import check_topology, count_vertex_fans
 
@@ -185,70 +187,57 @@ def test_repair_never_imports_torch():
     assert done.stdout.startswith("ok")
 
 
-def test_a_fill_with_a_handle_is_sampled_again(monkeypatch):
-    import spacemesh.repair.api as api
-
+def test_a_fill_with_a_handle_is_sampled_again():
     mesh, region = icosphere(3), {"vertices": [0]}
     spec = make_spec()
-    real = api.patch_euler
-    calls: list[int] = []  # the region's, then each fill's
+    calls: list[int] = []  # each fill's (the region's own is read by patch_euler itself)
 
     def handle_first(surface, faces):
-        calls.append(real(surface, faces))
-        return calls[-1] - 2 if len(calls) == 2 else calls[-1]  # the first fill: a handle
+        calls.append(patch_euler(surface, faces))
+        return calls[-1] - 2 if len(calls) == 1 else calls[-1]  # the first fill: a handle
 
-    monkeypatch.setattr(api, "patch_euler", handle_first)
-    again = repair_mesh(mesh, region, backend=NoiseBackend(), spec=spec, seed=7)
-    assert len(calls) == 3  # the region, then sampled once more with the seed's next stream
+    again = repair_mesh(mesh, region, backend=NoiseBackend(), spec=spec, seed=7,
+                        policy=FillPolicy(euler=handle_first))
+    assert len(calls) == 2  # sampled once more with the seed's next stream
     assert_closed_manifold(again.mesh)
     assert again.stats.samplings == 2 and again.stats.handles_added == 0
-    monkeypatch.setattr(api, "patch_euler", real)
     first = repair_mesh(mesh, region, backend=NoiseBackend(), spec=spec, seed=7)
     assert not np.array_equal(first.mesh.vertices, again.mesh.vertices)
     assert check_topology(again.mesh).euler_characteristic == 2
     assert first.stats.samplings == 1 and first.stats.handles_added == 0
 
 
-def test_of_samplings_that_all_add_handles_the_one_with_fewest_is_kept(monkeypatch):
-    import spacemesh.repair.api as api
-
+def test_of_samplings_that_all_add_handles_the_one_with_fewest_is_kept():
     mesh, region = icosphere(3), {"vertices": [0]}
-    real_euler, real_splice = api.patch_euler, api.splice
-    handles = iter([0, 2, 1, 2])  # the region itself, then the three samplings
-    spliced = []
+    handles = iter([2, 1, 2])  # the three samplings (the region itself has none)
+    spliced = []  # each sampling's spliced mesh, as the fill's Euler characteristic reads it
 
     def euler(surface, faces):
-        return real_euler(surface, faces) - 2 * next(handles)
+        spliced.append(surface)
+        return patch_euler(surface, faces) - 2 * next(handles)
 
-    def recording_splice(*args, **kwargs):
-        spliced.append(real_splice(*args, **kwargs))
-        return spliced[-1]
-
-    monkeypatch.setattr(api, "patch_euler", euler)
-    monkeypatch.setattr(api, "splice", recording_splice)
     result = repair_mesh(mesh, region, backend=NoiseBackend(), spec=make_spec(), seed=7,
-                         fit_patch=False)
+                         fit_patch=False, policy=FillPolicy(euler=euler))
     assert result.stats.samplings == 3 and result.stats.handles_added == 1
-    kept, last = spliced[1].mesh, spliced[2].mesh
+    kept, last = spliced[1], spliced[2]
     assert not np.array_equal(kept.vertices, last.vertices)  # the samplings differ
     assert np.array_equal(result.mesh.vertices, kept.vertices)
     assert np.array_equal(result.mesh.face_indices, kept.face_indices)
 
 
-def test_a_handle_in_every_sampling_is_reported(monkeypatch):
+def test_a_handle_in_every_sampling_is_reported():
     import spacemesh.repair.api as api
 
     mesh, region = icosphere(3), {"vertices": [0]}
-    real = api.patch_euler
     calls: list[int] = []
 
     def always_a_handle(surface, faces):
-        calls.append(real(surface, faces))
-        return calls[-1] - 2 if len(calls) > 1 else calls[-1]  # every fill: one handle
+        calls.append(patch_euler(surface, faces))
+        return calls[-1] - 2  # every fill: one handle
 
-    monkeypatch.setattr(api, "patch_euler", always_a_handle)
-    result = repair_mesh(mesh, region, backend=NoiseBackend(), spec=make_spec(), seed=7)
-    assert len(calls) == 1 + api.TOPOLOGY_ATTEMPTS
+    result = repair_mesh(mesh, region, backend=NoiseBackend(), spec=make_spec(), seed=7,
+                         policy=FillPolicy(euler=always_a_handle))
+    assert len(calls) == api.TOPOLOGY_ATTEMPTS
     assert result.stats.samplings == api.TOPOLOGY_ATTEMPTS
     assert result.stats.handles_added == 1
     assert result.stats.to_dict()["handles_added"] == 1

@@ -30,17 +30,14 @@ from spacemesh.repair import (
     repair_mesh,
     verify_repair,
 )
-from spacemesh.repair.auto import (
-    AutoPlan,
-    _loops_of,
-    find_issues,
-    orient_faces,
-    reverse_faces,
-    unpaired_faces,
-    unzip_defects,
-    wedge_size,
-)
-from spacemesh.repair.cut import FaceSubset, defect_vertices
+from spacemesh.repair.auto import AutoPlan, wedge_size
+from spacemesh.repair.cut import defect_vertices
+from spacemesh.repair.fill.policy import FillPolicy
+from spacemesh.repair.findings import find_issues
+from spacemesh.repair.halfedges import FaceSubset
+from spacemesh.repair.orient import orient_faces, reverse_faces
+from spacemesh.repair.pinched import hole_loops
+from spacemesh.repair.unzip import unpaired_faces, unzip_defects
 from spacemesh.topology import check_topology
 
 SPEC = make_spec()
@@ -98,16 +95,15 @@ def test_holes_are_filled_closed_and_the_rest_is_unchanged():
     assert np.array_equal(again.mesh.vertices, result.mesh.vertices)
 
 
-def test_a_hole_too_large_for_one_pass_is_filled_in_wedges(monkeypatch):
+def test_a_hole_too_large_for_one_pass_is_filled_in_wedges():
     # the flat disk over the equator would be MeshFix's fill; the wedges are tested here
-    monkeypatch.setattr("spacemesh.repair.auto.MESHFIX_FAIRINGS", ())
-    monkeypatch.setattr("spacemesh.repair.auto.UNCHECKED_FILLS", False)
+    policy = FillPolicy(meshfix_fairings=(), unchecked_fills=False)
     mesh = hemisphere(4)  # one loop of 96 vertices; the stand-in model holds 56
     plan = plan_repair(mesh, {"auto": "holes"}, SPEC.max_vertices)
     assert isinstance(plan, AutoPlan)
     [region] = plan.regions
     assert region.strategy == "in-place"
-    result = run(mesh, {"auto": "holes"}, plan=plan)
+    result = run(mesh, {"auto": "holes"}, plan=plan, policy=policy)
     assert_closed_manifold(result.mesh)
     assert_outside_identical(mesh, result)
     stats = result.stats
@@ -177,7 +173,7 @@ def test_loops_touching_at_a_vertex_are_split_there_and_filled_in_place(build, l
     sub = FaceSubset.of(mesh, np.arange(mesh.n_faces))
     [pinch] = np.flatnonzero(sub.fan_counts(mesh.n_vertices) > 1)
     [hole] = find_issues(mesh, "holes")
-    split = _loops_of(mesh, hole.vertices)
+    split = hole_loops(mesh, hole.vertices)
     assert split is not None and sorted(len(loop) for loop in split) == loops
     assert all(len(set(loop.tolist())) == len(loop) for loop in split)
     assert sum(int(pinch) in loop.tolist() for loop in split) == 2
@@ -398,30 +394,25 @@ def test_a_fin_on_a_large_hole_is_split_off_then_the_holes_are_filled_in_place(m
     assert actions["non-manifold-edges"] == "split" and actions["hole"] == "filled"
 
 
-def test_an_automatic_fill_with_a_handle_takes_the_fan_and_reports_none(monkeypatch):
+def test_an_automatic_fill_with_a_handle_takes_the_fan_and_reports_none():
     import spacemesh.repair.api as api
-    import spacemesh.repair.auto as auto
+    from spacemesh.repair.fill.loops import patch_euler
 
-    real_api, real_auto = api.patch_euler, auto.patch_euler
     calls: list[int] = []
 
-    def every_sampling_a_handle(surface, faces):  # a pass: its region, then each sampling
-        calls.append(real_api(surface, faces))
-        return calls[-1] - 2 * bool(len(calls) % (1 + api.TOPOLOGY_ATTEMPTS) != 1)
+    def every_fill_a_handle(surface, faces):
+        # each sampling of a pass (the region's own is read by patch_euler itself), then
+        # the region's fill once the passes are done
+        calls.append(patch_euler(surface, faces))
+        return calls[-1] - 2
 
-    monkeypatch.setattr(api, "patch_euler", every_sampling_a_handle)
-    fills: list[int] = []
-
-    def fills_with_a_handle(surface, faces):  # every pass's fill: one handle
-        fills.append(real_auto(surface, faces))
-        return fills[-1] - 2
-
-    monkeypatch.setattr(auto, "patch_euler", fills_with_a_handle)
     mesh = punched(icosphere(3), [[0.0, 0.0, 1.0]], radius=0.4)
-    result = run(mesh, {"auto": "holes"})
+    result = run(mesh, {"auto": "holes"}, policy=FillPolicy(euler=every_fill_a_handle))
     assert_closed_manifold(result.mesh)
     assert check_topology(result.mesh).euler_characteristic == 2
     stats = result.stats
-    assert fills and [f["filled_by"] for f in stats.findings] == ["fallback"]
+    assert [f["filled_by"] for f in stats.findings] == ["fallback"]
     assert stats.samplings == api.TOPOLOGY_ATTEMPTS * stats.passes  # each pass sampled 3 times
+    # every sampling, then the region's fill (one region): the fill was read after them
+    assert len(calls) == stats.samplings + 1
     assert stats.handles_added == 0  # the fan replaced the handled fills

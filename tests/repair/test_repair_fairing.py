@@ -1,5 +1,5 @@
 """Hole patches refined and faired into the surface around them
-(:mod:`spacemesh.repair.fill.fairing`)."""
+(:mod:`spacemesh.repair.fill.fairing` and the modules it uses)."""
 
 from __future__ import annotations
 
@@ -10,26 +10,22 @@ from auto_meshes import cylinder, punched
 from spacemesh.examples import icosphere, torus_grid
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives.closest import closest_points_on_triangles
-from spacemesh.repair.auto import _loops_of, fan_fill
 from spacemesh.repair.cut import defect_vertices
-from spacemesh.repair.fill.fairing import (
-    boundary_edge_length,
-    fair_patch,
-    fair_positions,
-    flat_positions,
-    min_area_triangles,
-    patch_edge_length,
-    patch_loops,
-    planar_positions,
-    refine_patch,
-)
+from spacemesh.repair.fill.fairing import fair_patch
+from spacemesh.repair.fill.fan import fan_fill
+from spacemesh.repair.fill.flat import flat_positions, min_area_triangles
+from spacemesh.repair.fill.laplace import fair_positions
+from spacemesh.repair.fill.loops import boundary_edge_length, patch_edge_length, patch_loops
+from spacemesh.repair.fill.planar import planar_positions
+from spacemesh.repair.fill.refine import refine_patch
+from spacemesh.repair.pinched import hole_loops
 from spacemesh.topology import check_topology
 
 
 def fan_filled(mesh):
     """``mesh``'s holes closed by centroid fans: (filled mesh, new faces, new vertices,
     loops)."""
-    loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
+    loops = hole_loops(mesh, np.flatnonzero(defect_vertices(mesh)))
     filled, fans = fan_fill(mesh, loops)
     patch = np.zeros(filled.n_faces, dtype=bool)
     patch[np.concatenate(fans)] = True
@@ -108,7 +104,7 @@ def test_refinement_splits_only_interior_edges_and_fairing_keeps_fixed_vertices(
 
 def test_one_polygon_over_a_hole_is_fanned_refined_and_faired():
     mesh = punched(icosphere(4), [[0.0, 0.0, 1.0]], radius=0.55)
-    [loop] = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
+    [loop] = hole_loops(mesh, np.flatnonzero(defect_vertices(mesh)))
     closed = PolygonMesh.from_faces(mesh.vertices, [*mesh.faces, loop])
     patch = np.arange(closed.n_faces) == closed.n_faces - 1
     target = patch_edge_length(closed, patch)
@@ -192,7 +188,7 @@ def test_least_area_triangulation_of_a_polygon():
     assert area(corners) <= area(fan) + 1e-12
 
 
-def test_flat_fill_lies_on_the_least_area_triangulation_of_its_loop(monkeypatch):
+def test_flat_fill_lies_on_the_least_area_triangulation_of_its_loop():
     box = grid_box(8)
     mesh = punched(box, [[1.0, 1.0, 0.0]], radius=0.6)  # a hole across a box edge
     filled, patch, _, loops = fan_filled(mesh)
@@ -208,5 +204,5 @@ def test_flat_fill_lies_on_the_least_area_triangulation_of_its_loop(monkeypatch)
     for x in flat[moving]:  # on one of the triangles
         on = closest_points_on_triangles(np.repeat(x[None], len(corners), axis=0), corners)
         assert np.linalg.norm(on - x, axis=1).min() < 1e-9
-    monkeypatch.setattr("spacemesh.repair.fill.fairing.MAX_FLAT_LOOP", len(loop) - 1)
-    assert flat_positions(refined, moving, new_patch, base) is None
+    assert flat_positions(refined, moving, new_patch, base, max_loop=len(loop)) is not None
+    assert flat_positions(refined, moving, new_patch, base, max_loop=len(loop) - 1) is None

@@ -8,9 +8,11 @@ from auto_meshes import punched
 
 from spacemesh.examples import icosphere
 from spacemesh.mesh import PolygonMesh
-from spacemesh.repair.auto import _loops_of
 from spacemesh.repair.cut import defect_vertices
+from spacemesh.repair.fill.kinds import Fairing
 from spacemesh.repair.fill.meshfix import meshfix_fill
+from spacemesh.repair.fill.policy import FillPolicy
+from spacemesh.repair.pinched import hole_loops
 from spacemesh.topology import check_topology
 
 pytest.importorskip("pymeshfix")
@@ -18,7 +20,7 @@ pytest.importorskip("pymeshfix")
 
 def test_meshfix_fill_closes_exactly_the_loops_and_keeps_every_face():
     mesh = punched(icosphere(3), [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]], radius=0.4)
-    loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
+    loops = hole_loops(mesh, np.flatnonzero(defect_vertices(mesh)))
     assert len(loops) == 2
     filled = meshfix_fill(mesh, loops[:1])  # the first hole only
     assert filled is not None
@@ -37,19 +39,20 @@ def test_meshfix_fill_closes_exactly_the_loops_and_keeps_every_face():
     assert np.abs(np.linalg.norm(both[0], axis=1) - 1).max() < 0.1
 
 
-def test_an_automatic_region_can_take_meshfix_fill_and_keeps_the_rest(monkeypatch):
+def test_an_automatic_region_can_take_meshfix_fill_and_keeps_the_rest():
     from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
 
     from spacemesh.repair import plan_repair, repair_mesh, verify_repair
 
     # every fairing replaced, so that each hole goes through MeshFix's fill
-    monkeypatch.setattr("spacemesh.repair.auto.MESHFIX_FAIRINGS",
-                        ("tri-harmonic", "thin-plate", "thin-plate-uniform", "membrane",
-                         "flat", "planar"))
+    policy = FillPolicy(meshfix_fairings=("tri-harmonic", "thin-plate", "thin-plate-uniform",
+                                          "membrane", "flat", "planar"))
+    assert set(policy.meshfix_fairings) == set(Fairing) - {Fairing.NONE}
     mesh = punched(icosphere(3), [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]], radius=0.4)
     spec = make_spec()
     plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)
-    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan)
+    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan,
+                         policy=policy)
     assert verify_repair(plan, result) == []
     assert_closed_manifold(result.mesh)
     assert [f["filled_by"] for f in result.stats.findings] == ["meshfix", "meshfix"]

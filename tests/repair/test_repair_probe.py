@@ -8,36 +8,41 @@ from auto_meshes import punched
 
 from spacemesh.examples import icosphere
 from spacemesh.primitives import faces_subset, triangulate_faces, vertices_of
-from spacemesh.repair.auto import _loops_of
 from spacemesh.repair.cut import defect_vertices
-from spacemesh.repair.fill.fairing import patch_loops
+from spacemesh.repair.fill.fairing import fair_patch
+from spacemesh.repair.fill.flat import flat_surface
+from spacemesh.repair.fill.loops import patch_loops
+from spacemesh.repair.fill.policy import DEFAULT_POLICY, FillPolicy
 from spacemesh.repair.fill.probe import (
     PROBES,
+    choose_fill,
     fill_error,
-    flat_surface,
     preferred_fill,
     probe_errors,
     probe_regions,
     surface_distance,
 )
+from spacemesh.repair.pinched import hole_loops
 
 
 def _holed_sphere():
     mesh = punched(icosphere(4), [[0.0, 0.6, 0.8]], radius=0.3)
-    loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
+    loops = hole_loops(mesh, np.flatnonzero(defect_vertices(mesh)))
     return mesh, loops
 
 
-def _holes_filled(mesh):
-    """``mesh`` repaired with ``{"auto": "holes"}`` by the noise stand-in model, checked
-    (``verify_repair`` clean, closed and manifold): its RepairResult."""
+def _holes_filled(mesh, policy=DEFAULT_POLICY):
+    """``mesh`` repaired with ``{"auto": "holes"}`` by the noise stand-in model under the
+    fill ``policy``, checked (``verify_repair`` clean, closed and manifold): its
+    RepairResult."""
     from repair_testing import NoiseBackend, assert_closed_manifold, make_spec
 
     from spacemesh.repair import plan_repair, repair_mesh, verify_repair
 
     spec = make_spec()
     plan = plan_repair(mesh, {"auto": "holes"}, spec.max_vertices)
-    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan)
+    result = repair_mesh(mesh, {"auto": "holes"}, backend=NoiseBackend(), spec=spec, plan=plan,
+                         policy=policy)
     assert verify_repair(plan, result) == []
     assert_closed_manifold(result.mesh)
     return result
@@ -109,31 +114,21 @@ def test_probes_keep_the_fairing_on_a_sphere():
     ({"meshfix": (1.0, 0.7, 4), "flat": (1.0, 0.5, 4)}, "flat"),  # closer by more
     ({"meshfix": (1.0, 0.7, 0), "flat": (0.0, 0.0, 0)}, "fair"),  # no probe
 ])
-def test_an_alternative_is_taken_where_the_probes_favour_it_by_its_margin(
-        monkeypatch, errors, preferred):
-    import spacemesh.repair.fill.probe as probe
-
-    monkeypatch.setattr(probe, "probe_errors", lambda *args, **kwargs: errors)
-    assert probe.MESHFIX_MARGIN == 0.8 and probe.PROBE_MARGIN == 0.8
-    mesh, loops = _holed_sphere()
+def test_an_alternative_is_taken_where_the_probes_favour_it_by_its_margin(errors, preferred):
+    policy = FillPolicy()
+    assert policy.meshfix_margin == 0.8 and policy.probe_margin == 0.8
     report: dict = {}
-    assert preferred_fill(mesh, loops, np.ones(mesh.n_faces, bool), report) == preferred
+    assert choose_fill(errors, policy, report) == preferred
     assert report["probe_holes"] == max(used for _, _, used in errors.values())
 
 
 @pytest.mark.parametrize("probing", [True, False])
-def test_an_automatic_region_takes_meshfix_fill_where_the_probes_prefer_it(monkeypatch,
-                                                                           probing):
+def test_an_automatic_region_takes_meshfix_fill_where_the_probes_prefer_it(probing):
     pytest.importorskip("pymeshfix")
-    import spacemesh.repair.fill.probe
-
     # any probe error of MeshFix below 1e9 times the fairing's prefers MeshFix's fill
-    monkeypatch.setattr("spacemesh.repair.fill.probe.MESHFIX_MARGIN", 1e9)
-    monkeypatch.setattr("spacemesh.repair.fill.probe.ALTERNATIVES", {
-        "meshfix": spacemesh.repair.fill.probe.ALTERNATIVES["meshfix"]})
-    monkeypatch.setattr("spacemesh.repair.auto.PROBE_FILLS", probing)
+    policy = FillPolicy(meshfix_margin=1e9, alternatives=("meshfix",), probe_fills=probing)
     mesh = punched(icosphere(3), [[0.0, 0.0, 1.0]], radius=0.4)
-    result = _holes_filled(mesh)
+    result = _holes_filled(mesh, policy)
     taken = [f["filled_by"] for f in result.stats.findings]
     assert (taken == ["meshfix"]) is probing
 
@@ -161,35 +156,30 @@ def test_no_probe_covers_a_small_part_and_its_fills_do_not_fail():
 
 
 def test_a_region_patch_falls_into_one_part_per_hole():
-    from spacemesh.repair.auto import _patch_parts
+    from spacemesh.repair.fill.loops import patch_parts
 
     sphere = icosphere(2)
     top = sphere.vertices[np.asarray(sphere.faces)].mean(axis=1)[:, 2]  # (F,)
     patch = (top > 0.9) | (top < -0.9)  # two caps, far apart
-    parts = _patch_parts(sphere, patch)
+    parts = patch_parts(sphere, patch)
     assert len(parts) == 2
     assert not (parts[0] & parts[1]).any() and ((parts[0] | parts[1]) == patch).all()
-    assert _patch_parts(sphere, np.zeros(sphere.n_faces, dtype=bool)) == []
-    assert len(_patch_parts(sphere, top > -2)) == 1  # a closed mesh is one part
+    assert patch_parts(sphere, np.zeros(sphere.n_faces, dtype=bool)) == []
+    assert len(patch_parts(sphere, top > -2)) == 1  # a closed mesh is one part
 
 
-def test_a_patch_the_guard_held_back_is_replaced_by_the_faired_fan(monkeypatch):
-    import spacemesh.repair.fill.fairing as fairing
-
-    monkeypatch.setattr("spacemesh.repair.auto.PROBE_FILLS", False)
-    real = fairing.fair_patch
+def test_a_patch_the_guard_held_back_is_replaced_by_the_faired_fan():
     calls = []
 
     def held_back_once(*args, **kwargs):
-        out = real(*args, **kwargs)
+        out = fair_patch(*args, **kwargs)
         calls.append(kwargs.get("report"))
         if len(calls) == 1 and kwargs.get("report") is not None:
             kwargs["report"]["weight"] = 0.5  # as if the model's patch folded
         return out
 
-    monkeypatch.setattr(fairing, "fair_patch", held_back_once)
     mesh = punched(icosphere(3), [[0.0, 0.0, 1.0]], radius=0.4)
-    result = _holes_filled(mesh)
+    result = _holes_filled(mesh, FillPolicy(probe_fills=False, fair_patch=held_back_once))
     assert len(calls) == 2  # the model's patch, then the fan
     assert [f["filled_by"] for f in result.stats.findings] == ["fallback"]
     assert result.stats.fallback == "fan"
@@ -197,50 +187,41 @@ def test_a_patch_the_guard_held_back_is_replaced_by_the_faired_fan(monkeypatch):
     assert len(new) >= 5 and np.abs(np.linalg.norm(new, axis=1) - 1).max() < 0.04
 
 
-def _always_held_back(monkeypatch):
-    """Make every fairing of a patch report that a self-intersection held it back."""
-    import spacemesh.repair.fill.fairing as fairing
-
-    real = fairing.fair_patch
-
-    def held_back(*args, **kwargs):
-        out = real(*args, **kwargs)
-        if kwargs.get("report") is not None:
-            kwargs["report"]["weight"] = 0.5
-        return out
-
-    monkeypatch.setattr(fairing, "fair_patch", held_back)
+def _held_back(*args, **kwargs):
+    """The fairing, reporting that a self-intersection held every patch back."""
+    out = fair_patch(*args, **kwargs)
+    if kwargs.get("report") is not None:
+        kwargs["report"]["weight"] = 0.5
+    return out
 
 
 @pytest.mark.parametrize("unchecked", [True, False])
-def test_a_held_back_patch_with_no_probe_takes_meshfix_fill(monkeypatch, unchecked):
+def test_a_held_back_patch_with_no_probe_takes_meshfix_fill(unchecked):
     pytest.importorskip("pymeshfix")
 
-    monkeypatch.setattr("spacemesh.repair.auto.UNCHECKED_FILLS", unchecked)
-    _always_held_back(monkeypatch)
+    policy = FillPolicy(unchecked_fills=unchecked, fair_patch=_held_back)
     mesh = punched(icosphere(2), [[0.0, 0.0, 1.0]], radius=0.6)
-    loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
+    loops = hole_loops(mesh, np.flatnonzero(defect_vertices(mesh)))
     assert probe_regions(mesh, loops, np.ones(mesh.n_faces, dtype=bool)) == []
-    result = _holes_filled(mesh)
+    result = _holes_filled(mesh, policy)
     taken = [f["filled_by"] for f in result.stats.findings]
     assert (taken == ["meshfix"]) is unchecked
 
 
-def test_a_held_back_patch_with_no_probe_takes_the_flat_fill_without_meshfix(monkeypatch):
-    _always_held_back(monkeypatch)
-    monkeypatch.setattr("spacemesh.repair.fill.meshfix.meshfix_fill", lambda *a, **k: None)
+def test_a_held_back_patch_with_no_probe_takes_the_flat_fill_without_meshfix():
+    policy = FillPolicy(fair_patch=_held_back, meshfix_fill=lambda *a, **k: None)
     mesh = punched(icosphere(2), [[0.0, 0.0, 1.0]], radius=0.6)
-    loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
-    result = _holes_filled(mesh)
+    loops = hole_loops(mesh, np.flatnonzero(defect_vertices(mesh)))
+    result = _holes_filled(mesh, policy)
     flat = mesh.vertices[flat_surface(mesh.vertices, loops)]
     new = _new_vertices(result)  # the model's patch, laid onto the flat fill
     assert len(new) > 0 and surface_distance(new, flat).max() < 1e-9
 
 
 def _state_with_cap(offset):
-    """A _Passes state over an icosphere whose top cap is region 0's patch, with its own
+    """A Passes state over an icosphere whose top cap is region 0's patch, with its own
     vertices moved by ``offset`` ((V, 3) -> (V, 3) function of the positions)."""
-    from spacemesh.repair.auto import _Passes
+    from spacemesh.repair.fill.passes import Passes
 
     sphere = icosphere(3)
     centre_z = sphere.vertices[np.asarray(sphere.faces)].mean(axis=1)[:, 2]  # (F,)
@@ -250,7 +231,7 @@ def _state_with_cap(offset):
     p[own] = offset(p[own])
     mesh = sphere.with_vertices(p)
     n_v, n_f = mesh.n_vertices, mesh.n_faces
-    state = _Passes(mesh, np.arange(n_v), np.where(patch, -1, np.arange(n_f)),
+    state = Passes(mesh, np.arange(n_v), np.where(patch, -1, np.arange(n_f)),
                     np.full(n_f, -1), np.where(own, 0, -1), np.where(patch, 0, -1))
     return state, own
 
@@ -261,23 +242,23 @@ def _spike(x):
     return x * 0.97  # and the cap sunk a little
 
 
-def _laid_cap(monkeypatch, fit: bool):
+def _laid_cap(fit: bool):
     """The spiked cap laid onto its faired fan (with or without the least-squares fit):
     the state before and after, the cap's own vertices, and the fan's triangles."""
-    import spacemesh.repair.auto
-    from spacemesh.repair.auto import _faired_fan, _onto_fan
+    from spacemesh.repair.fill.fan import faired_fan
+    from spacemesh.repair.fill.finish import onto_fan
 
-    monkeypatch.setattr(spacemesh.repair.auto, "FIT_LAID", fit)
+    policy = FillPolicy(fit_laid=fit)
     state, own = _state_with_cap(_spike)
     before = state.mesh
-    fan, _, made = _faired_fan(before, state.made_by == 0)
-    assert _onto_fan(state, 0) == "projected"
+    fan, _, made = faired_fan(before, state.made_by == 0, policy)
+    assert onto_fan(state, 0, policy) == "projected"
     triangles, source = triangulate_faces(fan)
     return before, state.mesh, own, fan.vertices[triangles[made[source]]]
 
 
-def test_a_spiked_patch_is_laid_onto_the_faired_fan_keeping_its_tessellation(monkeypatch):
-    before, after, own, fan_corners = _laid_cap(monkeypatch, fit=False)
+def test_a_spiked_patch_is_laid_onto_the_faired_fan_keeping_its_tessellation():
+    before, after, own, fan_corners = _laid_cap(fit=False)
     error_before = np.abs(np.linalg.norm(before.vertices[own], axis=1) - 1).max()
     assert error_before > 0.25
     assert np.array_equal(after.face_indices, before.face_indices)  # same tessellation
@@ -287,12 +268,9 @@ def test_a_spiked_patch_is_laid_onto_the_faired_fan_keeping_its_tessellation(mon
     assert error_after < 0.25 * error_before
 
 
-def test_a_laid_patch_fitted_to_the_fan_lies_closer_to_it_than_one_interpolating_it(
-        monkeypatch):
-    from spacemesh.repair.fill.probe import fill_error
-
-    _, laid, own, fan_corners = _laid_cap(monkeypatch, fit=False)
-    before, fitted, _, _ = _laid_cap(monkeypatch, fit=True)
+def test_a_laid_patch_fitted_to_the_fan_lies_closer_to_it_than_one_interpolating_it():
+    _, laid, own, fan_corners = _laid_cap(fit=False)
+    before, fitted, _, _ = _laid_cap(fit=True)
     assert np.array_equal(fitted.face_indices, before.face_indices)  # same tessellation
     assert np.array_equal(fitted.vertices[~own], before.vertices[~own])  # ring kept
     patch = np.zeros(before.n_faces, dtype=bool)
@@ -318,30 +296,31 @@ def _dragged(x):
 
 
 def test_a_folded_laid_patch_is_untangled_on_the_fan():
-    from spacemesh.repair.auto import _badly_laid, _faired_fan, _onto_fan
+    from spacemesh.repair.fill.fan import faired_fan
+    from spacemesh.repair.fill.finish import onto_fan
+    from spacemesh.repair.fill.lay import badly_laid
 
     state, own = _state_with_cap(_dragged)
     patch = state.made_by == 0
-    fan, _, made = _faired_fan(state.mesh, patch)
+    fan, _, made = faired_fan(state.mesh, patch, DEFAULT_POLICY)
     fan_triangles, _ = triangulate_faces(faces_subset(fan, made))
     triangles, _ = triangulate_faces(faces_subset(state.mesh, patch))
     before = state.mesh.vertices
-    assert _badly_laid(before, triangles, fan.vertices, fan_triangles)
-    assert _onto_fan(state, 0) == "projected"
+    assert badly_laid(before, triangles, fan.vertices, fan_triangles)
+    assert onto_fan(state, 0, DEFAULT_POLICY) == "projected"
     assert np.array_equal(state.mesh.vertices[~own], before[~own])
-    assert not _badly_laid(state.mesh.vertices, triangles, fan.vertices, fan_triangles)
+    assert not badly_laid(state.mesh.vertices, triangles, fan.vertices, fan_triangles)
 
 
-def test_a_patch_that_stays_folded_on_the_fan_is_replaced_by_the_fan(monkeypatch):
+def test_a_patch_that_stays_folded_on_the_fan_is_replaced_by_the_fan():
     from repair_testing import assert_closed_manifold
 
-    from spacemesh.repair.auto import _onto_fan
+    from spacemesh.repair.fill.finish import onto_fan
 
-    monkeypatch.setattr("spacemesh.repair.auto.RELAX_ROUNDS", 0)
     state, _ = _state_with_cap(_dragged)
     faces_before = state.mesh.n_faces
     state_before_patch = state.made_by == 0
-    assert _onto_fan(state, 0) == "fan"
+    assert onto_fan(state, 0, FillPolicy(relax_rounds=0)) == "fan"
     mesh = state.mesh
     assert_closed_manifold(mesh)
     made = state.made_by == 0
@@ -360,18 +339,14 @@ def test_flat_surface_is_the_least_area_triangulation_of_each_loop():
 
 
 @pytest.mark.parametrize("probing", [True, False])
-def test_a_hole_whose_probes_prefer_the_flat_fill_is_laid_onto_it(monkeypatch, probing):
-    import spacemesh.repair.fill.probe as probe
-
+def test_a_hole_whose_probes_prefer_the_flat_fill_is_laid_onto_it(probing):
     # only the flat fill is weighed, and any probe error of it below 1e9 times the
     # fairing's prefers it
-    monkeypatch.setattr(probe, "ALTERNATIVES", {"flat": probe.ALTERNATIVES["flat"]})
-    monkeypatch.setattr(probe, "PROBE_MARGIN", 1e9)
-    monkeypatch.setattr("spacemesh.repair.auto.PROBE_FILLS", probing)
+    policy = FillPolicy(alternatives=("flat",), probe_margin=1e9, probe_fills=probing)
     mesh = punched(icosphere(3), [[0.0, 0.0, 1.0]], radius=0.4)
-    loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
+    loops = hole_loops(mesh, np.flatnonzero(defect_vertices(mesh)))
     flat = mesh.vertices[flat_surface(mesh.vertices, loops)]  # (T, 3, 3)
-    result = _holes_filled(mesh)
+    result = _holes_filled(mesh, policy)
     new = _new_vertices(result)
     assert len(new) >= 3
     on_flat = bool(surface_distance(new, flat).max() < 1e-9)
@@ -380,24 +355,21 @@ def test_a_hole_whose_probes_prefer_the_flat_fill_is_laid_onto_it(monkeypatch, p
         assert np.abs(np.linalg.norm(new, axis=1) - 1).max() < 0.04
 
 
-def test_a_hole_that_cannot_be_laid_onto_the_flat_fill_takes_the_flat_fill(monkeypatch):
-    import spacemesh.repair.fill.probe as probe
+def test_a_hole_that_cannot_be_laid_onto_the_flat_fill_takes_the_flat_fill():
+    from spacemesh.repair.fill.lay import lay_onto
 
-    monkeypatch.setattr(probe, "ALTERNATIVES", {"flat": probe.ALTERNATIVES["flat"]})
-    monkeypatch.setattr(probe, "PROBE_MARGIN", 1e9)
-    real = __import__("spacemesh.repair.auto", fromlist=["x"])._laid_onto
     laid: list[int] = []
 
     def fails_on_flat(mesh, patch, points, triangles, **options):
         laid.append(len(points))
         # the flat surface is over the mesh's own vertices; the fan's has its own
-        return None if len(points) == mesh.n_vertices else real(mesh, patch, points,
-                                                                 triangles, **options)
+        return None if len(points) == mesh.n_vertices else lay_onto(mesh, patch, points,
+                                                                     triangles, **options)
 
-    monkeypatch.setattr("spacemesh.repair.auto._laid_onto", fails_on_flat)
+    policy = FillPolicy(alternatives=("flat",), probe_margin=1e9, lay_onto=fails_on_flat)
     mesh = punched(icosphere(3), [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]], radius=0.4)
-    loops = _loops_of(mesh, np.flatnonzero(defect_vertices(mesh)))
-    result = _holes_filled(mesh)
+    loops = hole_loops(mesh, np.flatnonzero(defect_vertices(mesh)))
+    result = _holes_filled(mesh, policy)
     assert laid  # the flat fill was tried
     assert {f["filled_by"] for f in result.stats.findings} == {"fallback"}
     # no vertex beyond the input's: each hole is the least-area triangulation of its loop
@@ -408,7 +380,9 @@ def test_a_hole_that_cannot_be_laid_onto_the_flat_fill_takes_the_flat_fill(monke
 def test_a_fill_that_joins_its_loops_by_a_tube_is_replaced_by_one_disc_a_loop():
     from repair_testing import assert_closed_manifold
 
-    from spacemesh.repair.auto import _fan_if_not_discs, _Passes, patch_euler
+    from spacemesh.repair.fill.finish import fan_if_not_discs
+    from spacemesh.repair.fill.loops import patch_euler
+    from spacemesh.repair.fill.passes import Passes
     from spacemesh.topology import check_topology
 
     sphere = icosphere(3)
@@ -416,14 +390,14 @@ def test_a_fill_that_joins_its_loops_by_a_tube_is_replaced_by_one_disc_a_loop():
     band = np.abs(centre_z) < 0.3  # a tube between two loops, as a handle a pass made
     own = vertices_of(sphere, band) & ~vertices_of(sphere, ~band)
     n_v, n_f = sphere.n_vertices, sphere.n_faces
-    state = _Passes(sphere, np.arange(n_v), np.where(band, -1, np.arange(n_f)),
+    state = Passes(sphere, np.arange(n_v), np.where(band, -1, np.arange(n_f)),
                     np.full(n_f, -1), np.where(own, 0, -1), np.where(band, 0, -1))
     assert patch_euler(sphere, band) == 0 and len(patch_loops(sphere, band)) == 2
-    assert _fan_if_not_discs(state, 0)
+    assert fan_if_not_discs(state, 0, DEFAULT_POLICY)
     made = state.made_by == 0
     assert patch_euler(state.mesh, made) == 2  # a disc on each loop
     assert_closed_manifold(state.mesh)
     assert check_topology(state.mesh).n_components == 2  # the caps closed off each half
     # a fill of one disc a loop is left alone
     disc_state, _ = _state_with_cap(lambda x: x)
-    assert not _fan_if_not_discs(disc_state, 0)
+    assert not fan_if_not_discs(disc_state, 0, DEFAULT_POLICY)

@@ -5,7 +5,14 @@
 - :mod:`~spacemesh.repair.weld`: merging vertices split at seams (``weld=True``), and
   mapping a region onto the welded mesh.
 - :mod:`~spacemesh.repair.auto`: automatic regions (``{"auto": "holes"}``...): holes and
-  defects found, the faces oriented, each region repaired by a pass of its own.
+  defects found (:mod:`~spacemesh.repair.findings`), the faces oriented
+  (:mod:`~spacemesh.repair.orient`), defects unzipped (:mod:`~spacemesh.repair.unzip`),
+  pinched loops split (:mod:`~spacemesh.repair.pinched`), each region repaired by a pass
+  of its own.
+- :mod:`~spacemesh.repair.fill`: hole filling once the passes are done: the fairing,
+  the fan, flat and MeshFix fills, the probe holes that choose among them, and the
+  :class:`~spacemesh.repair.fill.policy.FillPolicy` that says how.
+- :mod:`~spacemesh.repair.halfedges`: the halfedge tables of a set of faces.
 - :mod:`~spacemesh.repair.cut`: cutting the region out, growth, boundary loops, and
   the defects left outside.
 - :mod:`~spacemesh.repair.patch`: the local patch the model sees, and its point sets.
@@ -27,6 +34,8 @@ from spacemesh.repair.api import (
     verify_repair,
 )
 from spacemesh.repair.auto import AutoPlan
+from spacemesh.repair.fill.kinds import Fairing, FilledBy, FillKind
+from spacemesh.repair.fill.policy import FillPolicy
 from spacemesh.repair.region import ERROR_KINDS, Region, RegionError, parse_region
 from spacemesh.repair.weld import weld_vertices
 
@@ -34,6 +43,10 @@ __all__ = [
     "DEFAULT_MAX_GROWTH",
     "ERROR_KINDS",
     "AutoPlan",
+    "Fairing",
+    "FillKind",
+    "FillPolicy",
+    "FilledBy",
     "Region",
     "RegionError",
     "RepairPlan",

@@ -31,8 +31,12 @@ from spacemesh.geometry import refine_geometry
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangles_of
 from spacemesh.primitives.closest import nearest_triangles
-from spacemesh.repair.auto import AutoPlan, patch_euler, plan_auto, repair_auto
+from spacemesh.repair.auto import AutoPlan, plan_auto, repair_auto
 from spacemesh.repair.cut import Cut, cut_region
+from spacemesh.repair.fill.kinds import FilledBy, FillKind
+from spacemesh.repair.fill.loops import patch_euler
+from spacemesh.repair.fill.policy import DEFAULT_POLICY, FillPolicy
+from spacemesh.repair.findings import MAX_REPORTED
 from spacemesh.repair.inpaint import InpaintResult, inpaint_tokens
 from spacemesh.repair.patch import (
     MAX_RINGS,
@@ -44,7 +48,13 @@ from spacemesh.repair.patch import (
     sample_patch,
     sub_mesh,
 )
-from spacemesh.repair.region import REGION_GROWTH_EXCEEDED, Region, RegionError, parse_region
+from spacemesh.repair.region import (
+    DEFAULT_MAX_GROWTH,
+    REGION_GROWTH_EXCEEDED,
+    Region,
+    RegionError,
+    parse_region,
+)
 from spacemesh.repair.splice import Spliced, fill_hole, splice
 from spacemesh.repair.weld import weld_region, weld_vertices
 from spacemesh.runtime.backend import Backend, ConnectivityOutputs
@@ -56,8 +66,6 @@ from spacemesh.typed import BoolArray, FloatArray, IntArray
 #: Hole points sampled per free token (the first ``N - K`` pad the alignment; all of
 #: them decide which generated vertices are in the hole).
 HOLE_POINTS_PER_TOKEN = 4
-#: Largest share of the mesh's faces a region may grow to (``max_growth``) by default.
-DEFAULT_MAX_GROWTH = 0.25
 
 
 @dataclass(frozen=True)
@@ -154,7 +162,7 @@ class RepairStats:
         a loop takes the fan instead).
     findings : list of dict
         Automatic regions: every hole and defect found (first
-        :data:`spacemesh.repair.auto.MAX_REPORTED`): ``kind``, ``size``, ``vertex``,
+        :data:`spacemesh.repair.findings.MAX_REPORTED`): ``kind``, ``size``, ``vertex``,
         ``region``, ``action``, and for holes ``filled_by`` (``model``, ``fallback`` or
         ``model-and-fallback``).
     findings_total : int
@@ -373,7 +381,8 @@ def plan_repair(mesh: PolygonMesh, region: Region | Mapping[str, Any] | BoolArra
     if not isinstance(region, np.ndarray):
         shape = parse_region(region)
         if shape.is_auto:
-            return plan_auto(mesh, str(shape.mode), n_tokens, weld=weld, max_growth=max_growth)
+            return plan_auto(mesh, str(shape.mode), n_tokens, plan_region=plan_repair,
+                             weld=weld, max_growth=max_growth)
     work, weld_map = mesh, None
     if weld:
         work, weld_map = weld_vertices(mesh)
@@ -525,6 +534,7 @@ def repair_mesh(
     weld: bool = False,
     fit_patch: bool = True,
     max_growth: float | None = None,
+    policy: FillPolicy = DEFAULT_POLICY,
 ) -> RepairResult:
     """Re-generate the vertices and faces of ``region`` (paper Sec. 5.5, Supplement D).
 
@@ -557,11 +567,16 @@ def repair_mesh(
         Fit the new vertices to the region's original surface with the geometry stage
         (:func:`spacemesh.geometry.refine_geometry`, kept vertices fixed, no edge
         edits, self-intersections never increased), and for automatic regions of holes
-        refine and fair each filling into the surface around it
-        (:func:`spacemesh.repair.fill.fairing.fair_patch`); False gives the networks' patch.
+        refine and fair each filling into the surface around it, or replace it
+        (:func:`spacemesh.repair.fill.finish.finish_holes`); False gives the networks'
+        patch.
     max_growth : float, optional
         Largest share of the mesh's faces a region may grow to (see :func:`plan_repair`;
         the plan's when one is given).
+    policy : FillPolicy
+        How automatic regions of holes are filled once the model's passes are done
+        (:class:`spacemesh.repair.fill.policy.FillPolicy`; the default is the one the docs
+        report); its ``euler`` also tells whether a sampling's fill added a handle.
 
     Returns
     -------
@@ -591,7 +606,7 @@ def repair_mesh(
     if isinstance(plan, AutoPlan):
         return _repair_automatic(plan, backend, spec, seed=int(seed), steps=steps,
                                  method=method, progress=progress, fit_patch=fit_patch,
-                                 started=t_start)
+                                 started=t_start, policy=policy)
     cut, patch = plan.cut, plan.patch
     mesh = cut.mesh  # the input, or its weld
     timings = {"cut": plan.seconds}
@@ -633,7 +648,7 @@ def repair_mesh(
         spliced = splice(cut, patch.from_unit(positions[candidates]), fill)
         timings["splice"] = time.perf_counter() - t0
 
-        drop = expected_euler - patch_euler(spliced.mesh, spliced.face_source < 0)
+        drop = expected_euler - policy.euler(spliced.mesh, spliced.face_source < 0)
         if fewest is None or drop < fewest[0]:  # the sampling with the fewest handles
             fewest = (drop, samples, candidates, dropped, fill, spliced)
         if drop <= 0:
@@ -675,16 +690,15 @@ def repair_mesh(
     return RepairResult(spliced.mesh, vertex_map, spliced.face_source, cut.region, stats)
 
 
-_FALLBACK_RANK = ("none", "removed-new-vertices", "polygon", "fan", "meshfix")
+_FALLBACK_RANK = ("none", "removed-new-vertices", "polygon", FillKind.FAN.value,
+                  FillKind.MESHFIX.value)
 
 
 def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed: int,
                       steps: int, method: str, progress: ProgressFn | None, fit_patch: bool,
-                      started: float) -> RepairResult:
+                      started: float, policy: FillPolicy = DEFAULT_POLICY) -> RepairResult:
     """Run the passes of an automatic plan (:func:`spacemesh.repair.auto.repair_auto`)
     and put their results together; pass ``k`` uses the seed ``seed + k``."""
-    from spacemesh.repair.auto import MAX_REPORTED
-
     def run_pass(mesh: PolygonMesh, faces: BoolArray, tolerated: BoolArray,
                  allowed: BoolArray, index: int) -> RepairResult:
         step = plan_repair(mesh, faces, spec.max_vertices, max_growth=plan.max_growth,
@@ -694,9 +708,9 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
                               "region")
         return repair_mesh(mesh, faces, backend=backend, spec=spec, seed=seed + index,
                            steps=steps, method=method, progress=progress, plan=step,
-                           fit_patch=fit_patch)
+                           fit_patch=fit_patch, policy=policy)
 
-    state, findings, regions = repair_auto(plan, run_pass, fair=fit_patch)
+    state, findings, regions = repair_auto(plan, run_pass, fair=fit_patch, policy=policy)
     passes = [r.stats for r in state.results]
     out, work = state.mesh, plan.mesh
     new = state.face_source < 0
@@ -716,8 +730,8 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
         return out_dict
 
     worst = [p.fallback for p in passes] + [
-        "meshfix" if r["filled_by"] == "meshfix" else "fan" for r in regions
-        if r["filled_by"] != "model"]
+        (FillKind.MESHFIX if r["filled_by"] == FilledBy.MESHFIX else FillKind.FAN).value
+        for r in regions if r["filled_by"] != FilledBy.MODEL]
     timings = summed("timings")
     timings["cut"] = timings.get("cut", 0.0) + plan.seconds
     timings["total"] = time.perf_counter() - started

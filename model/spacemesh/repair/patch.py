@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import sample_surface, surface_area
+from spacemesh.primitives import edge_keys, sample_surface, surface_area
 from spacemesh.repair.cut import Cut
 from spacemesh.repair.region import INVALID_REGION, REGION_TOO_LARGE, RegionError
 from spacemesh.runtime.pipeline import normalize_points
@@ -98,13 +98,10 @@ def open_loops(cut: Cut) -> list[IntArray]:
     """The loops with at least one edge that no removed face has (holes in the input)."""
     mesh = cut.mesh
     region_mesh = sub_mesh(mesh, np.flatnonzero(cut.region))
-    n = max(mesh.n_vertices, 1)
-    he = region_mesh.halfedges
-    keys = np.unique(np.minimum(he[:, 0], he[:, 1]) * n + np.maximum(he[:, 0], he[:, 1]))
+    keys = np.unique(edge_keys(region_mesh.halfedges, mesh.n_vertices))
     out = []
     for loop in cut.loops:
-        a, b = loop, np.roll(loop, -1)
-        k = np.minimum(a, b) * n + np.maximum(a, b)
+        k = edge_keys(np.stack([loop, np.roll(loop, -1)], axis=1), mesh.n_vertices)
         if not np.isin(k, keys).all():
             out.append(loop)
     return out

@@ -30,12 +30,15 @@ import numpy as np
 
 from spacemesh.errors import KindedError
 from spacemesh.mesh import PolygonMesh
+from spacemesh.repair.findings import auto_faces
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 RegionKind = Literal["faces", "vertices", "sphere", "box", "auto"]
 REGION_KINDS: tuple[str, ...] = ("faces", "vertices", "sphere", "box", "auto")
 #: The values of an ``{"auto": ...}`` region: what it selects.
 AUTO_MODES: tuple[str, ...] = ("holes", "defects", "all")
+#: Largest share of the mesh's faces a region may grow to (``max_growth``) by default.
+DEFAULT_MAX_GROWTH = 0.25
 
 #: The region selects no face.
 EMPTY_REGION = "empty-region"
@@ -240,8 +243,6 @@ class Region:
             mask[self.indices] = True
             return mask
         if self.kind == "auto":
-            from spacemesh.repair.auto import auto_faces
-
             return auto_faces(mesh, str(self.mode))
         if self.kind == "vertices":
             check_range(self.indices, mesh.n_vertices, "vertex", "vertices")

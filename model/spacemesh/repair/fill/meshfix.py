@@ -6,7 +6,8 @@ MeshFix (Attene 2010, through ``pymeshfix``'s ``PyTMesh.fill_small_boundaries`` 
 run on the faces around the hole only (:func:`meshfix_fill`), and only its new faces
 that close the hole's loops are taken, so every other face stays as it was. The
 automatic regions take it where the fairing would span the hole flat
-(:data:`spacemesh.repair.auto.MESHFIX_FAIRINGS`).
+(:attr:`spacemesh.repair.fill.policy.FillPolicy.meshfix_fairings`) and where the probe
+holes prefer it (:mod:`spacemesh.repair.fill.probe`).
 
 ``pymeshfix`` is optional (the ``geometry`` extra): without it :func:`meshfix_fill` returns None
 and the fairing's patch is kept.

@@ -10,9 +10,10 @@ around the hole is. So, as the evaluation punches holes in intact meshes, a few 
 holes** of the same size are punched in the input faces around the hole
 (:func:`probe_regions`), each is filled by both methods on its own, and each fill is
 scored against the faces it replaced (:func:`fill_error`). MeshFix's fill is taken for
-the real hole only when it is clearly closer on the probes
-(:data:`MESHFIX_MARGIN`, :func:`preferred_fill`). The least-area flat triangulation of the
-loop is weighed the same way (:data:`PROBE_MARGIN`, :data:`ALTERNATIVES`).
+the real hole only when it is clearly closer on the probes (the policy's
+``meshfix_margin``, :func:`preferred_fill`). The least-area flat triangulation of the
+loop is weighed the same way (``probe_margin``; the policy's ``alternatives``,
+:data:`ALTERNATIVES`).
 
 numpy and scipy (plus the optional ``pymeshfix`` that MeshFix's fill needs); nothing
 here changes the mesh it is given.
@@ -25,18 +26,17 @@ from scipy.spatial import cKDTree
 
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import faces_subset, faces_touching, triangulate_faces, vertices_of
+from spacemesh.primitives.closest import closest_points_on_triangles
+from spacemesh.repair.fill.fan import fan_fill
+from spacemesh.repair.fill.flat import flat_surface
+from spacemesh.repair.fill.kinds import FillKind
+from spacemesh.repair.fill.loops import patch_edge_length, patch_loops
+from spacemesh.repair.fill.meshfix import faces_around
+from spacemesh.repair.fill.policy import DEFAULT_POLICY, FillPolicy
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Probe holes punched around a hole.
 PROBES = 4
-#: An alternative fill is taken when its summed probe error is below this share of the
-#: fairing's ...
-PROBE_MARGIN = 0.8
-#: ... and MeshFix's fill when its summed probe error is below this share of the
-#: fairing's. 2.0 (MeshFix's fill unless the probes favour the fairing two to one) was
-#: tried in session 17: fewer losses to MeshFix on dev, one more on the test split
-#: (docs/REPAIR.md, step 5).
-MESHFIX_MARGIN = 0.8
 #: Rings of faces around a probe handed to the fills (enough for the fairing's ring and
 #: MeshFix's five rings).
 PROBE_RINGS = 6
@@ -62,8 +62,6 @@ def _grid(corners: FloatArray, steps: int = GRID_STEPS) -> tuple[FloatArray, Flo
 def surface_distance(points: FloatArray, corners: FloatArray) -> FloatArray:
     """Distance of each point (N, 3) to the triangles ``corners`` (T, 3, 3): the closest
     point among the :data:`NEAREST_TRIANGLES` triangles whose centroids are nearest, (N,)."""
-    from spacemesh.primitives.closest import closest_points_on_triangles
-
     k = min(NEAREST_TRIANGLES, len(corners))
     _, nearest = cKDTree(corners.mean(axis=1)).query(points, k=k)
     nearest = np.asarray(nearest).reshape(len(points), k)  # (N, k)
@@ -143,8 +141,6 @@ def probe_regions(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
     list of (F,) bool
         The faces of each probe.
     """
-    from spacemesh.repair.fill.fairing import patch_loops
-
     p = mesh.vertices
     ring = np.concatenate(loops)
     centre = p[ring].mean(axis=0)
@@ -202,102 +198,97 @@ def _triangles(mesh: PolygonMesh, faces: BoolArray) -> FloatArray:
     return mesh.vertices[triangles]
 
 
-def _fair_fill(local: PolygonMesh, loops: list[IntArray]) -> FloatArray | None:
-    """The fairing's fill of the probe: a fan per loop, refined and faired
-    (:func:`spacemesh.repair.fill.fairing.fair_patch`), as triangle corners."""
-    from spacemesh.repair.auto import fan_fill
-    from spacemesh.repair.fill.fairing import fair_patch, patch_edge_length
-
+def _fair_fill(local: PolygonMesh, loops: list[IntArray], policy: FillPolicy
+               ) -> FloatArray | None:
+    """The fairing's fill of the probe: a fan per loop, refined and faired (the
+    ``policy``'s, :func:`spacemesh.repair.fill.fairing.fair_patch`), as triangle
+    corners."""
     filled, _ = fan_fill(local, loops)
     patch = np.arange(filled.n_faces) >= local.n_faces
     free = np.arange(filled.n_vertices) >= local.n_vertices
-    faired, source, _ = fair_patch(filled, patch, free, patch_edge_length(filled, patch))
+    faired, source, _ = policy.fair(filled, patch, free, patch_edge_length(filled, patch))
     made = (source < 0) | patch[np.maximum(source, 0)]
     return _triangles(faired, made)
 
 
-def _meshfix_probe(local: PolygonMesh, loops: list[IntArray]) -> FloatArray | None:
-    """MeshFix's fill of the probe, as triangle corners (None where it has none)."""
-    from spacemesh.repair.fill.meshfix import meshfix_fill
-
-    filled = meshfix_fill(local, loops)
+def _meshfix_probe(local: PolygonMesh, loops: list[IntArray], policy: FillPolicy
+                   ) -> FloatArray | None:
+    """MeshFix's fill of the probe (the ``policy``'s), as triangle corners (None where it
+    has none)."""
+    filled = policy.meshfix_fill(local, loops)
     if filled is None:
         return None
     points, triangles = filled
     return np.concatenate([local.vertices, points])[triangles]
 
 
-def flat_surface(points: FloatArray, loops: list[IntArray]) -> IntArray | None:
-    """The least-area triangulation of each loop
-    (:func:`spacemesh.repair.fill.fairing.min_area_triangles`) over the ``points`` (V, 3),
-    as rows of point indices (T, 3); None when a loop is longer than
-    :data:`spacemesh.repair.fill.fairing.MAX_FLAT_LOOP` or shorter than 3."""
-    from spacemesh.repair.fill.fairing import MAX_FLAT_LOOP, min_area_triangles
-
-    if not loops or any(len(loop) > MAX_FLAT_LOOP or len(loop) < 3 for loop in loops):
-        return None
-    return np.concatenate([loop[min_area_triangles(points[loop])] for loop in loops])
-
-
-def _flat_probe(local: PolygonMesh, loops: list[IntArray]) -> FloatArray | None:
-    """The least-area flat fill of the probe (:func:`flat_surface`), as triangle corners."""
-    triangles = flat_surface(local.vertices, loops)
+def _flat_probe(local: PolygonMesh, loops: list[IntArray], policy: FillPolicy
+                ) -> FloatArray | None:
+    """The least-area flat fill of the probe
+    (:func:`spacemesh.repair.fill.flat.flat_surface`), as triangle corners."""
+    triangles = flat_surface(local.vertices, loops, policy.max_flat_loop)
     return None if triangles is None else local.vertices[triangles]
 
 
-#: The fills the probes weigh against the fairing's: MeshFix's (triangulated, refined,
-#: faired) and the least-area flat triangulation of the loop, which continues a
-#: piecewise-flat surface (a plate's rim, a low-poly facet) where both others bulge.
-ALTERNATIVES = {"meshfix": _meshfix_probe, "flat": _flat_probe}
+#: The fill of a probe by each alternative the probes can weigh against the fairing's
+#: (:attr:`spacemesh.repair.fill.policy.FillPolicy.alternatives`): MeshFix's
+#: (triangulated, refined, faired) and the least-area flat triangulation of the loop.
+ALTERNATIVES = {FillKind.MESHFIX: _meshfix_probe, FillKind.FLAT: _flat_probe}
 
 
 def probe_errors(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
-                 count: int = PROBES) -> dict[str, tuple[float, float, int]]:
-    """For each of the :data:`ALTERNATIVES`: the fairing's and its summed
-    :func:`fill_error` over the probe holes around the hole ``loops`` of ``mesh`` (its
-    faces ``known`` are input faces) that both could fill, and the number of those
+                 count: int = PROBES, policy: FillPolicy = DEFAULT_POLICY
+                 ) -> dict[str, tuple[float, float, int]]:
+    """For each of the ``policy``'s alternatives (by its name): the fairing's and its
+    summed :func:`fill_error` over the probe holes around the hole ``loops`` of ``mesh``
+    (its faces ``known`` are input faces) that both could fill, and the number of those
     probes."""
-    from spacemesh.repair.fill.fairing import patch_loops
-    from spacemesh.repair.fill.meshfix import faces_around
-
-    totals = {name: [0.0, 0.0, 0] for name in ALTERNATIVES}
+    totals = {kind.value: [0.0, 0.0, 0] for kind in policy.alternatives}
     for faces in probe_regions(mesh, loops, known, count):
         around = faces_around(mesh, vertices_of(mesh, faces), PROBE_RINGS)
         probe_loops = patch_loops(mesh, faces)
+        assert probe_loops is not None  # a probe is a disc (probe_regions)
         local = faces_subset(mesh, around & ~faces)
         truth = _triangles(mesh, faces)
-        ours = _fair_fill(local, probe_loops)
+        ours = _fair_fill(local, probe_loops, policy)
         if ours is None:
             continue
         fair_error = fill_error(truth, ours)
-        for name, fill in ALTERNATIVES.items():
-            theirs = fill(local, probe_loops)
+        for kind in policy.alternatives:
+            theirs = ALTERNATIVES[kind](local, probe_loops, policy)
             if theirs is None:
                 continue
-            totals[name][0] += fair_error
-            totals[name][1] += fill_error(truth, theirs)
-            totals[name][2] += 1
+            totals[kind.value][0] += fair_error
+            totals[kind.value][1] += fill_error(truth, theirs)
+            totals[kind.value][2] += 1
     return {name: (fair, other, int(used)) for name, (fair, other, used) in totals.items()}
 
 
-def preferred_fill(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
-                   report: dict | None = None) -> str:
-    """The fill the probe holes around the hole ``loops`` prefer (:func:`probe_errors`):
-    the alternative (:data:`ALTERNATIVES`) whose error over the probes both could fill
-    is below its margin times the fairing's (:data:`MESHFIX_MARGIN` for MeshFix's fill,
-    :data:`PROBE_MARGIN` for the others) by the largest factor, else ``"fair"``.
-    ``report`` receives the errors (``probe_fair``, ``probe_<name>``, over
-    the probes MeshFix could fill, and ``probes``) and ``probe_holes``, the number of
-    probes the fairing and at least one alternative filled."""
-    errors = probe_errors(mesh, loops, known)
+def choose_fill(errors: dict[str, tuple[float, float, int]],
+                policy: FillPolicy = DEFAULT_POLICY, report: dict | None = None) -> FillKind:
+    """The fill the probe errors ``errors`` (:func:`probe_errors`) prefer: the
+    alternative whose error over the probes both could fill is below its margin times
+    the fairing's (the ``policy``'s ``meshfix_margin`` for MeshFix's fill,
+    ``probe_margin`` for the others) by the largest factor, else :attr:`FillKind.FAIR`.
+    ``report`` receives the errors (``probe_fair``, ``probe_<name>``, over the probes
+    MeshFix could fill, and ``probes``) and ``probe_holes``, the number of probes the
+    fairing and at least one alternative filled."""
     if report is not None:
-        fair, _, used = errors.get("meshfix", (0.0, 0.0, 0))
+        fair, _, used = errors.get(FillKind.MESHFIX.value, (0.0, 0.0, 0))
         report.update(probe_fair=fair, probes=used,
                       probe_holes=max((count for _, _, count in errors.values()), default=0),
                       **{f"probe_{name}": other for name, (_, other, _) in errors.items()})
-    best, best_ratio = "fair", 1.0
+    best, best_ratio = FillKind.FAIR, 1.0
     for name, (fair, other, used) in errors.items():
-        margin = MESHFIX_MARGIN if name == "meshfix" else PROBE_MARGIN
+        margin = policy.meshfix_margin if name == FillKind.MESHFIX else policy.probe_margin
         if used and other < best_ratio * margin * fair:
-            best, best_ratio = name, other / (margin * fair)
+            best, best_ratio = FillKind(name), other / (margin * fair)
     return best
+
+
+def preferred_fill(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
+                   report: dict | None = None, policy: FillPolicy = DEFAULT_POLICY
+                   ) -> FillKind:
+    """The fill the probe holes around the hole ``loops`` prefer: :func:`choose_fill` of
+    their :func:`probe_errors` under the ``policy`` (``report`` as there)."""
+    return choose_fill(probe_errors(mesh, loops, known, policy=policy), policy, report)

@@ -1,0 +1,89 @@
+"""A hole's patch read as faces of a mesh: the loops of its border, the parts it falls
+into, the density of the surface around it and its Euler characteristic.
+
+numpy and scipy only; nothing here changes a mesh.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import edge_keys, faces_subset
+from spacemesh.topology import check_topology
+from spacemesh.typed import BoolArray, IntArray
+
+
+def patch_loops(mesh: PolygonMesh, patch: BoolArray) -> list[IntArray] | None:
+    """The loops of the patch's border (its edges with no patch face on the other side),
+    in the patch's direction, or None when they are not simple cycles."""
+    inside = patch[mesh.face_of_corner]
+    he = mesh.halfedges[inside]
+    n = max(mesh.n_vertices, 1)
+    key = he[:, 0] * n + he[:, 1]
+    border = he[~np.isin(he[:, 1] * n + he[:, 0], key)]
+    if len(np.unique(border[:, 0])) != len(border):
+        return None
+    following = dict(zip(border[:, 0].tolist(), border[:, 1].tolist(), strict=True))
+    loops, seen = [], set()
+    for first in following:
+        if first in seen:
+            continue
+        loop, v = [], first
+        while v not in seen:
+            seen.add(v)
+            loop.append(v)
+            v = following.get(v, -1)
+            if v < 0:
+                return None
+        loops.append(np.asarray(loop, dtype=np.int64))
+    return loops
+
+
+def patch_parts(mesh: PolygonMesh, patch: BoolArray) -> list[BoolArray]:
+    """The parts of a region's patch ((F,) bool) that share no vertex: one per hole, or
+    per group of holes whose loops touch."""
+    faces = np.flatnonzero(patch)
+    if len(faces) == 0:
+        return []
+    corners = patch[mesh.face_of_corner]
+    rows = np.searchsorted(faces, mesh.face_of_corner[corners])
+    graph = coo_matrix((np.ones(len(rows)), (rows, len(faces) + mesh.face_indices[corners])),
+                       shape=(len(faces) + mesh.n_vertices,) * 2)
+    _, label = connected_components(graph, directed=False)
+    parts = []
+    for value in np.unique(label[: len(faces)]):
+        part = np.zeros(mesh.n_faces, dtype=bool)
+        part[faces[label[: len(faces)] == value]] = True
+        parts.append(part)
+    return parts
+
+
+def boundary_edge_length(mesh: PolygonMesh, loops: list[IntArray]) -> float:
+    """Mean length of the edges of the closed ``loops`` (vertex cycles)."""
+    lengths = [np.linalg.norm(mesh.vertices[loop] - mesh.vertices[np.roll(loop, -1)], axis=1)
+               for loop in loops if len(loop) > 1]
+    return float(np.concatenate(lengths).mean()) if lengths else 0.0
+
+
+def patch_edge_length(mesh: PolygonMesh, patch: BoolArray) -> float:
+    """Mean length of the edges on the patch's border (one side in the patch, the other
+    outside it): the density of the surface around the patch (0 without such edges)."""
+    he = mesh.halfedges
+    inside = patch[mesh.face_of_corner]
+    key = edge_keys(he, mesh.n_vertices)
+    _, edge, count = np.unique(key, return_inverse=True, return_counts=True)
+    sides = np.bincount(edge, inside, minlength=len(count))
+    border = (count[edge] == 2) & inside & (sides[edge] == 1)
+    if not border.any():
+        return 0.0
+    p = mesh.vertices
+    return float(np.linalg.norm(p[he[border, 0]] - p[he[border, 1]], axis=1).mean())
+
+
+def patch_euler(mesh: PolygonMesh, patch: BoolArray) -> int:
+    """The Euler characteristic V - E + F of the ``patch`` faces ((F,) bool) with their
+    own vertices and edges (1 for a disc, 0 for a tube, -1 for a disc with a handle)."""
+    return check_topology(faces_subset(mesh, patch)).euler_characteristic
