@@ -66,6 +66,7 @@ from eval_repair import (
     timed,
 )
 
+from spacemesh.repair.fill.policy import FillPolicy
 from spacemesh.repair.patch import sub_mesh
 
 METHODS = ("ours", "meshfix", "meshlab", "trimesh", "hole")
@@ -190,11 +191,11 @@ def fine_chamfer(pred, reference, centre, scale, seed: int) -> float:
 
 
 # ---------------------------------------------------------------------- one case
-def run_ours(mesh, mode: str, generator, seed: int, steps: int | None):
+def run_ours(mesh, mode: str, generator, seed: int, steps: int | None, policy: FillPolicy):
     from spacemesh.repair import repair_mesh
 
     result, status, seconds = timed(lambda: repair_mesh(mesh, {"auto": mode}, generator,
-                                                        seed=seed, steps=steps))
+                                                        seed=seed, steps=steps, policy=policy))
     if result is None:
         return (None, status, seconds), {}
     s = result.stats
@@ -209,11 +210,11 @@ def run_ours(mesh, mode: str, generator, seed: int, steps: int | None):
 
 
 def evaluate_punched(name: str, group: str, mesh, region, generator, seed: int,
-                     steps: int | None) -> tuple[list[dict], dict]:
+                     steps: int | None, policy: FillPolicy) -> tuple[list[dict], dict]:
     holed = cut_mesh(mesh, region)
     reference, centre, scale = prepare_reference(mesh, region, seed)
     kept_keys = set(face_keys(sub_mesh(mesh, np.flatnonzero(~region))))
-    ours, extra = run_ours(holed, "holes", generator, seed, steps)
+    ours, extra = run_ours(holed, "holes", generator, seed, steps, policy)
     runs = {"ours": ours, **baselines(holed), "hole": (holed, "ok", 0.0)}
     base = {"shape": name, "set": "punched", "category": group, "faces": mesh.n_faces,
             "region_faces": int(region.sum())}
@@ -258,12 +259,13 @@ def resample_close_pair(rows: list[dict], outputs: dict, fine, centre, scale,
         row["cd_fine_se"] = float(np.std(fines, ddof=1) / math.sqrt(FINE_SAMPLINGS))
 
 
-def evaluate_open(name: str, mesh, generator, seed: int, steps: int | None) -> list[dict]:
+def evaluate_open(name: str, mesh, generator, seed: int, steps: int | None,
+                  policy: FillPolicy) -> list[dict]:
     none = np.zeros(mesh.n_faces, dtype=bool)
     none[0] = True  # region metrics are not used here; prepare_reference needs faces
     reference, centre, scale = prepare_reference(mesh, none, seed)
     kept_keys = set(face_keys(mesh))
-    ours, extra = run_ours(mesh, "all", generator, seed, steps)
+    ours, extra = run_ours(mesh, "all", generator, seed, steps, policy)
     runs = {"ours": ours, **baselines(mesh), "hole": (mesh, "ok", 0.0)}
     rows = []
     for method in METHODS:
@@ -426,6 +428,17 @@ def shrink(path: Path | None, size: int = 800) -> Path | None:
     return path
 
 
+def fill_policy(args: argparse.Namespace) -> FillPolicy:
+    """The fill policy the flags ask for (every default without them)."""
+    options: dict[str, Any] = {"probe_fills": not args.no_probe_fills,
+                               "lay_onto_fan": not args.no_lay_onto_fan,
+                               "fit_laid": not args.no_fit_laid,
+                               "unchecked_fills": not args.no_unchecked_fills}
+    if args.meshfix_margin is not None:
+        options["meshfix_margin"] = args.meshfix_margin
+    return FillPolicy(**options)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--model", default=None)
@@ -443,23 +456,23 @@ def main() -> None:
                         help="comma-separated parts of file names: punch only those meshes")
     parser.add_argument("--no-probe-fills", action="store_true",
                         help="choose MeshFix's fill only where the fairing is flat, not by "
-                        "probe holes (spacemesh.repair.auto.PROBE_FILLS; for comparison)")
+                        "probe holes (FillPolicy.probe_fills; for comparison)")
     parser.add_argument("--no-lay-onto-fan", action="store_true",
                         help="keep the fairing of the model's own patch rather than laying "
-                        "it onto the faired fan (spacemesh.repair.auto.LAY_ONTO_FAN; for "
+                        "it onto the faired fan (FillPolicy.lay_onto_fan; for "
                         "comparison)")
     parser.add_argument("--no-fit-laid", action="store_true",
                         help="leave the patch laid onto the faired fan interpolating its "
-                        "surface rather than fitted to it (spacemesh.repair.auto.FIT_LAID; "
+                        "surface rather than fitted to it (FillPolicy.fit_laid; "
                         "for comparison)")
     parser.add_argument("--no-unchecked-fills", action="store_true",
                         help="keep the partly faired patch of a hole no probe fits around "
-                        "rather than taking MeshFix's fill (spacemesh.repair.auto."
-                        "UNCHECKED_FILLS; for comparison)")
+                        "rather than taking MeshFix's fill (FillPolicy.unchecked_fills; for "
+                        "comparison)")
     parser.add_argument("--meshfix-margin", type=float, default=None,
                         help="take MeshFix's fill where its probe error is below this "
-                        "times the fairing's (spacemesh.repair.fill.probe.MESHFIX_MARGIN, "
-                        "0.8; 2.0 was tried in session 17; for comparison)")
+                        "times the fairing's (FillPolicy.meshfix_margin, 0.8; 2.0 was tried in "
+                        "session 17; for comparison)")
     parser.add_argument("--out", default=str(ROOT / "docs" / "results"))
     args = parser.parse_args()
     if not MESHES.is_dir():
@@ -467,19 +480,7 @@ def main() -> None:
     from spacemesh.evaluate.runner import pin_threads
 
     pin_threads(args.threads)
-    import spacemesh.repair.auto
-    import spacemesh.repair.fill.probe
-
-    if args.no_probe_fills:
-        spacemesh.repair.auto.PROBE_FILLS = False
-    if args.no_lay_onto_fan:
-        spacemesh.repair.auto.LAY_ONTO_FAN = False
-    if args.no_fit_laid:
-        spacemesh.repair.auto.FIT_LAID = False
-    if args.no_unchecked_fills:
-        spacemesh.repair.auto.UNCHECKED_FILLS = False
-    if args.meshfix_margin is not None:
-        spacemesh.repair.fill.probe.MESHFIX_MARGIN = args.meshfix_margin
+    policy = fill_policy(args)
     only = [part for part in args.only.split(",") if part]
     from spacemesh.runtime import MeshGenerator
 
@@ -496,7 +497,7 @@ def main() -> None:
         if only and not any(part in name for part in only):
             continue
         case_rows, outputs = evaluate_punched(name, group, mesh, region, generator, args.seed,
-                                              steps)
+                                              steps, policy)
         rows += case_rows
         if len(examples) < 4 and "ours" in outputs and permissive(name):
             examples.append((name.split("__")[-1], outputs))
@@ -504,7 +505,7 @@ def main() -> None:
               f"{case_rows[0].get('cd', math.nan) * 1e3:.2f}e-3 valid="
               f"{case_rows[0].get('valid')} ({time.perf_counter() - start:.0f} s)", flush=True)
     for name, mesh in ([] if args.no_open else open_cases(args.max_vertices)):
-        case_rows = evaluate_open(name, mesh, generator, args.seed, steps)
+        case_rows = evaluate_open(name, mesh, generator, args.seed, steps, policy)
         rows += case_rows
         print(f"open {name}: {case_rows[0]['status']} valid={case_rows[0].get('valid')} "
               f"({time.perf_counter() - start:.0f} s)", flush=True)
@@ -514,7 +515,7 @@ def main() -> None:
               "split": args.split, "probe_fills": not args.no_probe_fills,
               "lay_onto_fan": not args.no_lay_onto_fan, "fit_laid": not args.no_fit_laid,
               "unchecked_fills": not args.no_unchecked_fills,
-              "meshfix_margin": spacemesh.repair.fill.probe.MESHFIX_MARGIN,
+              "meshfix_margin": policy.meshfix_margin,
               "only": args.only,
               "seconds": round(time.perf_counter() - start, 1)}
     (out / "repair_holes.json").write_text(json.dumps({"config": config, "rows": rows},
