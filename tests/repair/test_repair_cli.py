@@ -87,11 +87,11 @@ def test_weld_repairs_a_flat_shaded_glb(fake_model, tmp_path):
 @pytest.mark.parametrize("fault", ["moved", "dropped"])
 def test_a_faulty_repair_is_never_written(fake_model, tmp_path, monkeypatch, fault):
     """The CLI runs the service's check (``verify_repair``) before it writes anything."""
-    import spacemesh.repair as repair_package
+    import spacemesh.cli.repair as repair_command
+    from spacemesh.repair import repair_mesh
     from tests.service.service_testing import faulty_repair
 
-    monkeypatch.setattr(repair_package, "repair_mesh",
-                        faulty_repair(repair_package.repair_mesh, fault))
+    monkeypatch.setattr(repair_command, "REPAIR", faulty_repair(repair_mesh, fault))
     source, out = tmp_path / "ico.obj", tmp_path / "fixed.ply"
     save_mesh(icosphere(2), source)
     result = CliRunner().invoke(app, ["repair", str(source), "--sphere", "0,0,1,0.4", "-o",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -11,6 +12,9 @@ import typer
 from spacemesh.cli.common import Threads, app, fail, use_threads
 
 MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".off")
+#: The repair the command runs: None for :func:`spacemesh.repair.repair_mesh` (the tests
+#: put a faulty one here to check that a faulty repair is never written).
+REPAIR: Callable[..., Any] | None = None
 
 
 def _numbers(text: str, what: str, count: int | None = None) -> list[float]:
@@ -156,8 +160,9 @@ def repair(
         bar.refresh()
 
     try:
-        result = repair_mesh(mesh, region, generator, seed=seed, steps=steps, method=sampler,
-                             progress=report, plan=plan, weld=weld)
+        run = repair_mesh if REPAIR is None else REPAIR
+        result = run(mesh, region, generator, seed=seed, steps=steps, method=sampler,
+                     progress=report, plan=plan, weld=weld)
     except ValueError as error:
         fail(str(error))
     finally:
