@@ -56,8 +56,9 @@ def faired_fan(mesh: PolygonMesh, patch: BoolArray, policy: FillPolicy
     back) or only flat (one of the policy's
     :attr:`~spacemesh.repair.fill.policy.FillPolicy.meshfix_fairings`).
     """
-    parts = [patch_loops(mesh, part) for part in patch_parts(mesh, patch)]
-    if not parts or any(not loops for loops in parts):
+    found = [patch_loops(mesh, part) for part in patch_parts(mesh, patch)]
+    parts = [loops for loops in found if loops]
+    if not found or len(parts) != len(found):
         return None
     current = faces_subset(mesh, ~patch)  # mesh's vertices, the faces kept
     source = np.flatnonzero(~patch)  # (F_current,) face of mesh

@@ -102,12 +102,12 @@ def fair_region(state: Passes, index: int, policy: FillPolicy) -> FillKind | Non
         elif choice == FillKind.FLAT and not onto_flat(state, part, policy):
             flat_parts.append(part)
     for i, part in enumerate(flat_parts):
-        source = flat_instead(state, index, part, policy)
-        if source is None:
+        renumbered = flat_instead(state, index, part, policy)
+        if renumbered is None:
             continue
         replaced = FillKind.FLAT  # each replacement renumbers the faces: the masks follow
 
-        def follow(mask: BoolArray, source: IntArray = source) -> BoolArray:
+        def follow(mask: BoolArray, source: IntArray = renumbered) -> BoolArray:
             return np.where(source >= 0, mask[np.maximum(source, 0)], False)
 
         chosen = follow(chosen)
