@@ -24,7 +24,7 @@ import numpy as np
 
 def _exported(config: str, directory: Path) -> Path:
     from spacemesh.export.repository import write_model_repository
-    from spacemesh.nn.config import model_from_config
+    from spacemesh.nn.model import model_from_config
 
     return write_model_repository(model_from_config(config), directory, name=f"bench-{config}")
 

@@ -50,7 +50,7 @@ def export_model(args: argparse.Namespace, directory: Path) -> tuple[Path, Any]:
     """The repository to serve, and the torch model with the same weights (or None)."""
     if args.checkpoint or args.config:
         from spacemesh.export.repository import load_trained_model, write_model_repository
-        from spacemesh.nn.config import model_from_config
+        from spacemesh.nn.model import model_from_config
 
         base = None  # a connectivity-only run keeps its base's encoder and denoiser graphs
         if args.checkpoint:

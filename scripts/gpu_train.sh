@@ -12,7 +12,7 @@
 #   and stops before training (exit 2) if anything is.
 # - Results go to $OUT: run/last.pt (for --resume), run/weights.pt, run/metrics.csv,
 #   run/curves.png, model/denoiser.onnx, model/manifest.json, summary.json
-#   (python -m spacemesh.train.session --help).
+#   (python -m spacemesh.export.session --help).
 # - CPU smoke test with a tiny budget:
 #   OUT=/tmp/gpu-out PYTHON=.venv/bin/python bash scripts/gpu_train.sh --data DATA \
 #       --device cpu --minutes 3 --batch 6 --export-reserve 100
@@ -29,4 +29,4 @@ if compgen -G ".whl/*.whl" >/dev/null; then
 fi
 export PYTHONPATH="$PWD/model${PYTHONPATH:+:$PYTHONPATH}"
 export PYTHONUNBUFFERED=1
-exec "$PY" -m spacemesh.train.session --out "$OUT" "$@"
+exec "$PY" -m spacemesh.export.session --out "$OUT" "$@"

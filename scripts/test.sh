@@ -21,4 +21,8 @@ fi
 "$VENV/bin/python" -m pip install -q "torch==2.13.0"
 "$VENV/bin/python" -m pip install -q -e "model[geometry,train,test]" -e service -e "client[trimesh,grpc]" \
     -r deploy/requirements-check.txt
+# style, types and layers first (ruff.toml, mypy.ini, .importlinter), then the tests
+"$VENV/bin/ruff" check model service client tests bench experiments scripts examples
+"$VENV/bin/lint-imports" --no-cache
+"$VENV/bin/mypy"
 exec "$VENV/bin/python" -m pytest -q "$@"

@@ -126,8 +126,8 @@ def test_a_fine_tune_starts_from_an_exported_connectivity_only_model(toy_model, 
     import json
     import shutil
 
-    from spacemesh.export.onnx_import import init_from_repository
     from spacemesh.export.repository import export_run
+    from spacemesh.train.onnx_import import init_from_repository
 
     base, run = base_run
     root = base.parent.parent  # the base's repository root: the model goes next to it

@@ -7,9 +7,10 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from spacemesh.nn.config import SMALL, TINY, get_config, model_from_config  # noqa: E402
+from spacemesh.nn.config import SMALL, TINY, get_config  # noqa: E402
 from spacemesh.nn.geometry import OFFSET_SCALE  # noqa: E402
 from spacemesh.nn.local_points import nearest_points  # noqa: E402
+from spacemesh.nn.model import model_from_config  # noqa: E402
 
 
 def test_nearest_points_are_the_brute_force_nearest_with_offsets_and_normals():

@@ -14,7 +14,8 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from spacemesh.nn.config import get_config, model_from_config  # noqa: E402
+from spacemesh.nn.config import get_config  # noqa: E402
+from spacemesh.nn.model import model_from_config  # noqa: E402
 from spacemesh.train.checkpoint import latest_checkpoint, load_checkpoint  # noqa: E402
 from spacemesh.train.encoder_cache import EncoderCache, collate_variants  # noqa: E402
 from spacemesh.train.loop import StopRequests, TrainOptions, load_samples, train  # noqa: E402

@@ -7,7 +7,7 @@ import os
 import subprocess
 from pathlib import Path
 
-from spacemesh.train import session
+from spacemesh.export import session
 
 ROOT = Path(__file__).resolve().parents[2]
 

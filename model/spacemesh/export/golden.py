@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from spacemesh.export.repository import update_manifest
+from spacemesh.export.manifest import update_manifest
 from spacemesh.runtime.golden import SECTION, golden_section
 from spacemesh.runtime.repository import ModelRepository, ModelRepositoryError
 

@@ -45,7 +45,6 @@ Layout (Triton style)::
 from __future__ import annotations
 
 import json
-import math
 import shutil
 from dataclasses import replace
 from pathlib import Path
@@ -54,6 +53,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from spacemesh.export.golden import record_golden
+from spacemesh.export.manifest import update_manifest, write_manifest
 from spacemesh.export.onnx_export import GRAPH_FILES, OPSET, export_onnx
 from spacemesh.geometry.policy import decode_changes, decode_section
 from spacemesh.geometry.stage import geometry_section
@@ -161,25 +162,6 @@ def build_manifest(
     }
 
 
-def _json_safe(value: Any) -> Any:
-    """``value`` with non-finite floats replaced by None (strict JSON has no NaN)."""
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
-def write_manifest(directory: Path, manifest: dict[str, Any]) -> Path:
-    """Write ``manifest.json`` (strict JSON, sorted keys, 2-space indent)."""
-    path = Path(directory) / MANIFEST
-    text = json.dumps(_json_safe(manifest), indent=2, sort_keys=True, allow_nan=False)
-    path.write_text(text + "\n")
-    return path
-
-
 def write_model_repository(
     model: SpaceMeshModel,
     root: str | Path,
@@ -238,28 +220,6 @@ def write_model_repository(
     return directory
 
 
-def update_manifest(directory: str | Path, **sections: Any) -> dict[str, Any]:
-    """Replace top-level sections (e.g. ``metrics``) of an existing manifest.
-
-    Parameters
-    ----------
-    directory : path
-        The version folder.
-    **sections
-        Keys and their new values.
-
-    Returns
-    -------
-    dict
-        The new manifest.
-    """
-    path = Path(directory) / MANIFEST
-    manifest = json.loads(path.read_text())
-    manifest.update(sections)
-    write_manifest(Path(directory), manifest)
-    return manifest
-
-
 def load_trained_model(checkpoint: str | Path) -> tuple[SpaceMeshModel, dict[str, Any]]:
     """A model with a checkpoint's weights (CPU, eval mode) and the checkpoint's state.
 
@@ -276,7 +236,7 @@ def load_trained_model(checkpoint: str | Path) -> tuple[SpaceMeshModel, dict[str
         verified :class:`BaseModel` of a connectivity-only run (see :func:`run_base`),
         or None.
     """
-    from spacemesh.nn.config import model_from_config
+    from spacemesh.nn.model import model_from_config
     from spacemesh.train.checkpoint import load_checkpoint, resolve_checkpoint
 
     state = load_checkpoint(resolve_checkpoint(checkpoint), map_location="cpu")
@@ -532,7 +492,6 @@ def export_run(
         ``calibrate_data`` has no val shape that fits the model
         (:func:`require_calibration_shapes`).
     """
-    from spacemesh.export.golden import record_golden
 
     if calibrate_data is not None:
         require_calibration_shapes(calibrate_data)
@@ -660,7 +619,6 @@ def repackage_repository(
         The source is not a model version folder, a graph's checksum does not match,
         the target is the source, or ``calibrate_data`` has no val shape.
     """
-    from spacemesh.export.golden import record_golden
 
     source = Path(source)
     if not (source / MANIFEST).is_file():

@@ -4,7 +4,7 @@
 time limit, and only a few files brought back), and it runs the same way on a CPU with a
 tiny budget::
 
-    python -m spacemesh.train.session --data data/qem-gpu --out "$OUT" --minutes 11
+    python -m spacemesh.export.session --data data/qem-gpu --out "$OUT" --minutes 11
 
 1. **Checks** before anything starts (exit 2, one line per problem): the Python modules
    training and export need (missing ones travel as wheels), the dataset, the base model
@@ -48,7 +48,7 @@ MAX_FILE_BYTES = 16 * 1024 * 1024
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m spacemesh.train.session",
+    parser = argparse.ArgumentParser(prog="python -m spacemesh.export.session",
                                      description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, required=True, help="dataset folder (train split)")
     parser.add_argument("--out", type=Path, required=True, help="where the results go")

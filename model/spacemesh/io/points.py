@@ -36,6 +36,7 @@ from spacemesh.io.errors import (
     require_nonempty,
 )
 from spacemesh.io.limits import UNLIMITED, ReadLimits, iter_lines
+from spacemesh.io.meshes import load_mesh, read_source, resolve_file_type
 from spacemesh.io.obj import parse_obj
 from spacemesh.io.ply import parse_ply
 from spacemesh.typed import FloatArray
@@ -313,7 +314,6 @@ def _parse(fmt: str, data: bytes, limits: ReadLimits) -> tuple[FloatArray, Float
         return parse_npz(data, limits)
     if fmt in _TEXT_TYPES:
         return parse_xyz(data, fmt.upper(), limits)
-    from spacemesh.io import load_mesh  # the mesh formats: their vertices
 
     return load_mesh(data, file_type=fmt, limits=mesh_limits).vertices, None
 
@@ -351,7 +351,6 @@ def load_points(
     UnsupportedFormatError
         The file type is not one of :data:`SUPPORTED_POINTS_READ`.
     """
-    from spacemesh.io import read_source, resolve_file_type
 
     data, extension, _ = read_source(path_or_bytes)
     fmt = resolve_file_type(file_type, extension, data, SUPPORTED_POINTS_READ, "point cloud")

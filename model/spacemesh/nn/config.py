@@ -20,10 +20,7 @@ A :class:`ModelConfig` round-trips through JSON (:meth:`ModelConfig.to_dict`,
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields, replace
-from typing import TYPE_CHECKING, Any
-
-if TYPE_CHECKING:  # pragma: no cover
-    from spacemesh.nn.model import SpaceMeshModel
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -385,26 +382,3 @@ def get_config(name: str) -> ModelConfig:
         return CONFIGS[name]
     except KeyError:
         raise ValueError(f"unknown config {name!r}; choose from {', '.join(CONFIGS)}") from None
-
-
-def model_from_config(config: ModelConfig | str | dict, device: Any = None) -> SpaceMeshModel:
-    """Build the three networks of a configuration (the only factory).
-
-    Parameters
-    ----------
-    config : ModelConfig, str or dict
-        A configuration, a configuration name, or a dict from :meth:`ModelConfig.to_dict`.
-    device : torch device, optional
-
-    Returns
-    -------
-    SpaceMeshModel
-    """
-    from spacemesh.nn.model import SpaceMeshModel
-
-    if isinstance(config, str):
-        config = get_config(config)
-    elif isinstance(config, dict):
-        config = ModelConfig.from_dict(config)
-    model = SpaceMeshModel(config=config)
-    return model.to(device) if device is not None else model

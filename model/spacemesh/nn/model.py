@@ -18,6 +18,7 @@ the runtime pipeline drives; the exported ONNX graphs implement the same interfa
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import torch
@@ -25,7 +26,7 @@ from torch import Tensor, nn
 
 from spacemesh.connectivity import Connectivity
 from spacemesh.decode import DecodeOptions
-from spacemesh.nn.config import ModelConfig
+from spacemesh.nn.config import ModelConfig, get_config
 from spacemesh.nn.connectivity_net import ConnectivityNet
 from spacemesh.nn.denoiser import VertexDenoiser
 from spacemesh.nn.diffusion import GaussianDiffusion, vertex_tokens
@@ -373,3 +374,24 @@ class TorchBackend:
         )
         out = [a.float().cpu().numpy() for a in (x, root, prev, nxt)]
         return ConnectivityOutputs(*out, tau=float(tau.reshape(-1)[0]))
+
+
+def model_from_config(config: ModelConfig | str | dict, device: Any = None) -> SpaceMeshModel:
+    """Build the three networks of a configuration (the only factory).
+
+    Parameters
+    ----------
+    config : ModelConfig, str or dict
+        A configuration, a configuration name, or a dict from :meth:`ModelConfig.to_dict`.
+    device : torch device, optional
+
+    Returns
+    -------
+    SpaceMeshModel
+    """
+    if isinstance(config, str):
+        config = get_config(config)
+    elif isinstance(config, dict):
+        config = ModelConfig.from_dict(config)
+    model = SpaceMeshModel(config=config)
+    return model.to(device) if device is not None else model

@@ -55,8 +55,8 @@ import torch
 from spacemesh.data.augment import get_augment
 from spacemesh.data.shards import MANIFEST, open_dataset
 from spacemesh.nn.base_model import BaseModel, OnnxEncoder
-from spacemesh.nn.config import ModelConfig, TrainConfig, model_from_config
-from spacemesh.nn.model import SpaceMeshModel
+from spacemesh.nn.config import ModelConfig, TrainConfig
+from spacemesh.nn.model import SpaceMeshModel, model_from_config
 from spacemesh.train.batching import Sample, collate, prepare_sample
 from spacemesh.train.checkpoint import (
     LAST,
@@ -133,7 +133,7 @@ class TrainOptions:
         validation stays on ``data``'s ``val`` split or ``val_data``).
     init_from : Path, optional
         A run folder, checkpoint or exported connectivity-only model version folder
-        (:func:`spacemesh.export.onnx_import.init_from_repository`) to start from
+        (:func:`spacemesh.train.onnx_import.init_from_repository`) to start from
         (fine-tuning): its weights, with a new
         optimiser and the learning-rate schedule from step 0. Its networks must be the
         config's; a connectivity-only run's base is inherited (and ``base``, if given,
@@ -240,9 +240,9 @@ def _base_denoiser(model: SpaceMeshModel, base: BaseModel, volumes: list[torch.T
     (:func:`_base_volumes`), and grafted."""
     from dataclasses import replace
 
-    from spacemesh.export.onnx_import import load_denoiser
-    from spacemesh.nn.config import model_from_config
     from spacemesh.nn.denoiser import graft_denoiser
+    from spacemesh.nn.model import model_from_config
+    from spacemesh.train.onnx_import import load_denoiser
 
     twin_config = replace(model.config, denoiser=replace(model.config.denoiser, local_points=0))
     twin = model_from_config(twin_config).denoiser
@@ -257,7 +257,7 @@ def _base_connectivity(model: SpaceMeshModel, base: BaseModel, volumes: list[tor
     """Read the base's connectivity weights into a diffusion-only run's (frozen) network,
     so that the run's torch model is the whole model its export will be (checked on
     ``volumes``, :func:`_base_volumes`)."""
-    from spacemesh.export.onnx_import import load_connectivity
+    from spacemesh.train.onnx_import import load_connectivity
 
     device = next(model.connectivity.parameters()).device
     load_connectivity(base.graph_path("connectivity"), model.connectivity.cpu(), volumes)
@@ -407,7 +407,7 @@ class Trainer:
                     base_path = Path(stored_base["path"])
         init = None
         if state is None and options.init_from is not None:
-            from spacemesh.export.onnx_import import init_from_repository, is_model_version
+            from spacemesh.train.onnx_import import init_from_repository, is_model_version
 
             if is_model_version(options.init_from):
                 init = init_from_repository(options.init_from)

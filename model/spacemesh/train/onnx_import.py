@@ -254,7 +254,8 @@ def init_from_repository(path: str | Path) -> dict:
         cannot be read back.
     """
     from spacemesh.nn.base_model import BaseModel, OnnxEncoder
-    from spacemesh.nn.config import ModelConfig, model_from_config
+    from spacemesh.nn.config import ModelConfig
+    from spacemesh.nn.model import model_from_config
     from spacemesh.runtime.repository import verified_manifest
 
     directory = Path(path)
