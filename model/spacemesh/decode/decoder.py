@@ -244,7 +244,7 @@ def _pinched_vertices(
 
 
 def pinched_face_edges(
-    indices: IntArray, offsets: IntArray, n_vertices: int, edge_keys: IntArray,
+    indices: IntArray, offsets: IntArray, n_vertices: int, removable_keys: IntArray,
     edge_distance: FloatArray,
 ) -> IntArray:
     """One edge per pinched face: of its removable edges that touch a vertex it repeats,
@@ -254,7 +254,7 @@ def pinched_face_edges(
     ----------
     indices, offsets : CSR faces
     n_vertices : int
-    edge_keys : (E,) int64
+    removable_keys : (E,) int64
         Sorted keys ``i * N + j`` (``i < j``) of the removable edges; face sides that are
         not among them (the kept boundary of a repaired hole) are never chosen.
     edge_distance : (E,) float
@@ -273,11 +273,12 @@ def pinched_face_edges(
     wraps = following == offsets[1:][face]
     following[wraps] = offsets[:-1][face[wraps]]
     u, w = indices, indices[following]
-    keys = np.minimum(u, w) * n_vertices + np.maximum(u, w)
+    keys = edge_keys(np.stack([u, w], axis=1), n_vertices)
     at_repeat = np.isin(face * n_vertices + u, repeated) | np.isin(face * n_vertices + w,
                                                                    repeated)
-    where = np.minimum(np.searchsorted(edge_keys, keys), max(len(edge_keys) - 1, 0))
-    removable = (edge_keys[where] == keys) if len(edge_keys) else np.zeros_like(at_repeat)
+    where = np.minimum(np.searchsorted(removable_keys, keys),
+                       max(len(removable_keys) - 1, 0))
+    removable = (removable_keys[where] == keys) if len(removable_keys) else np.zeros_like(at_repeat)
     slots = np.flatnonzero(at_repeat & removable)
     distance = edge_distance[where[slots]]
     order = np.lexsort((keys[slots], -distance, face[slots]))
