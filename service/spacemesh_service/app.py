@@ -48,14 +48,13 @@ from spacemesh_service.openapi import (
     ReadyModel,
     ServerMetadata,
     add_schemas,
-    problem_response,
 )
 from spacemesh_service.options import (
     GENERATE_ROUTE_OPTIONS,
     REPAIR_ROUTE_OPTIONS,
     RequestOption,
 )
-from spacemesh_service.problems import Problem
+from spacemesh_service.problems import Problem, problem_response
 from spacemesh_service.security import Guard, RestGuard, document_protection, without_paths
 from spacemesh_service.settings import Settings
 from spacemesh_service.streaming import stream_response, stream_responses

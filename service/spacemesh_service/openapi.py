@@ -25,6 +25,7 @@ from spacemesh_service.options import (
     RequestOption,
 )
 from spacemesh_service.outputs import HEADER_PREFIX, MEDIA_TYPES, header_name
+from spacemesh_service.problems import problem_response
 
 DESCRIPTION = """\
 Point cloud in, oriented manifold polygon mesh out (SpaceMesh).
@@ -199,29 +200,6 @@ _HEADERS = {
                                     "(`spacemesh.geometry.report.FitReport`).")
        for name in FitReport.__dataclass_fields__},
 }
-
-
-def _problem_example(kind: P.ProblemKind, detail: str, instance: str) -> dict[str, Any]:
-    return {"summary": kind.title, "value": {"type": kind.type, "title": kind.title,
-                                              "status": kind.status, "detail": detail,
-                                              "instance": instance}}
-
-
-def problem_response(description: str, examples: dict[str, tuple[P.ProblemKind, str]],
-                     retry_after: bool = False, instance: str = "/generate") -> dict[str, Any]:
-    """An OpenAPI response of ``application/problem+json`` with named examples."""
-    response: dict[str, Any] = {
-        "description": description,
-        "content": {P.PROBLEM_MEDIA_TYPE: {
-            "schema": {"$ref": "#/components/schemas/ProblemModel"},
-            "examples": {name: _problem_example(k, d, instance)
-                         for name, (k, d) in examples.items()},
-        }},
-    }
-    if retry_after:
-        response["headers"] = {"Retry-After": {"description": "Seconds to wait.",
-                                               "schema": {"type": "integer"}}}
-    return response
 
 
 GENERATE_RESPONSES: dict[int | str, dict[str, Any]] = {

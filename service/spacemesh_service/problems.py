@@ -256,3 +256,28 @@ def cloud_problem(error: Any) -> Problem:
     ``kind`` is the problem's slug (one of :data:`CLOUD_KINDS`), its ``details``
     (``limit``, ``points``, ``singular_values``) the extension members."""
     return typed_problem(error, CLOUD_KINDS)
+
+
+# ---------------------------------------------------------------------- OpenAPI
+def _problem_example(kind: ProblemKind, detail: str, instance: str) -> dict[str, Any]:
+    return {"summary": kind.title, "value": {"type": kind.type, "title": kind.title,
+                                              "status": kind.status, "detail": detail,
+                                              "instance": instance}}
+
+
+def problem_response(description: str, examples: dict[str, tuple[ProblemKind, str]],
+                     retry_after: bool = False, instance: str = "/generate") -> dict[str, Any]:
+    """An OpenAPI response of ``application/problem+json`` with named examples (the
+    schema is :class:`spacemesh_service.openapi.ProblemModel`)."""
+    response: dict[str, Any] = {
+        "description": description,
+        "content": {PROBLEM_MEDIA_TYPE: {
+            "schema": {"$ref": "#/components/schemas/ProblemModel"},
+            "examples": {name: _problem_example(k, d, instance)
+                         for name, (k, d) in examples.items()},
+        }},
+    }
+    if retry_after:
+        response["headers"] = {"Retry-After": {"description": "Seconds to wait.",
+                                               "schema": {"type": "integer"}}}
+    return response

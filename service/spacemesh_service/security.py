@@ -38,7 +38,8 @@ from pathlib import Path
 from typing import Any
 
 from spacemesh_service import problems as P
-from spacemesh_service.problems import Problem
+from spacemesh_service.networks import ConfigError, Network, parse_networks
+from spacemesh_service.problems import Problem, problem_response
 
 #: Hex digits of a key's SHA-256 digest that name it in logs and rate limits.
 KEY_ID_LENGTH = 12
@@ -49,13 +50,6 @@ OPEN_PREFIXES = ("/static/",)
 OPEN_GRPC_PREFIXES = ("/grpc.health.v1.Health/",)
 #: Most clients whose buckets are kept (the least recently seen are forgotten first).
 MAX_BUCKETS = 10_000
-
-Network = ipaddress.IPv4Network | ipaddress.IPv6Network
-
-
-class ConfigError(ValueError):
-    """A protection setting cannot be used (an empty key file, a bad CIDR...)."""
-
 
 # ---------------------------------------------------------------------- keys
 def digest(key: str) -> bytes:
@@ -184,26 +178,6 @@ class RateLimiter:
 
 
 # ---------------------------------------------------------------------- addresses
-def parse_networks(text: str) -> tuple[Network, ...]:
-    """``"10.0.0.0/8, 127.0.0.1"`` -> networks.
-
-    Raises
-    ------
-    ConfigError
-        An entry is not an address or CIDR (the message names it).
-    """
-    networks = []
-    for item in text.replace(";", ",").split(","):
-        item = item.strip()
-        if not item:
-            continue
-        try:
-            networks.append(ipaddress.ip_network(item, strict=False))
-        except ValueError:
-            raise ConfigError(f"{item!r} is not an IP address or CIDR") from None
-    return tuple(networks)
-
-
 def _address(text: str) -> ipaddress.IPv4Address | ipaddress.IPv6Address | None:
     try:
         address = ipaddress.ip_address(text.strip().strip("[]"))
@@ -464,8 +438,6 @@ def document_protection(spec: dict[str, Any], guard: Guard) -> dict[str, Any]:
     dict
         ``spec``.
     """
-    from spacemesh_service.openapi import problem_response
-
     if guard.keys is not None:
         schemes = spec.setdefault("components", {}).setdefault("securitySchemes", {})
         schemes[SECURITY_SCHEME] = {

@@ -15,6 +15,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator
 
 from spacemesh.runtime.cloud import DEFAULT_MAX_POINTS, DEFAULT_MIN_POINTS
+from spacemesh_service.networks import parse_networks
 
 #: Prefix of every environment variable.
 ENV_PREFIX = "SPACEMESH_"
@@ -128,8 +129,6 @@ class Settings(BaseModel):
     @field_validator("trusted_proxies")
     @classmethod
     def _networks(cls, value: str) -> str:
-        from spacemesh_service.security import parse_networks
-
         parse_networks(value)
         return value
 
