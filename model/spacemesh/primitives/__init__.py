@@ -2,7 +2,7 @@
 
 * :mod:`~spacemesh.primitives.keys`: integer keys of undirected edges;
 * :mod:`~spacemesh.primitives.triangles`: polygons and polygon meshes as triangles,
-  signed volume, surface area;
+  signed volume (also per corner), surface area;
 * :mod:`~spacemesh.primitives.closest`: closest points on triangles, nearest triangles;
 * :mod:`~spacemesh.primitives.masks`: faces touching vertices, vertices of faces, a
   mesh restricted to some faces;
@@ -20,6 +20,7 @@ from spacemesh.primitives.keys import edge_keys
 from spacemesh.primitives.masks import faces_subset, faces_touching, vertices_of
 from spacemesh.primitives.sampling import sample_surface
 from spacemesh.primitives.triangles import (
+    fan_volumes,
     newell_normal,
     signed_volume,
     surface_area,
@@ -34,6 +35,7 @@ __all__ = [
     "edge_keys",
     "faces_subset",
     "faces_touching",
+    "fan_volumes",
     "newell_normal",
     "normalize",
     "sample_surface",

@@ -11,12 +11,15 @@ self-intersecting) still yields ``n - 2`` triangles, as a fan or forced ears.
 
 from __future__ import annotations
 
+from types import ModuleType
+
 import numpy as np
 
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives.keys import edge_keys
 from spacemesh.typed import ArrayLike, FloatArray, IntArray
 
+_mapbox_earcut: ModuleType | None
 try:  # optional: the C++ earcut, faster on large non-convex polygons
     import mapbox_earcut as _mapbox_earcut
 except ImportError:  # pragma: no cover - depends on the environment
@@ -522,3 +525,25 @@ def surface_area(mesh: PolygonMesh) -> float:
     tri, _ = triangles_of(mesh)
     p = mesh.vertices[tri]  # (T, 3, 3)
     return float(np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum() / 2)
+
+
+def fan_volumes(mesh: PolygonMesh) -> FloatArray:
+    """(S,) each corner's share of the signed volume, every face fanned from its first corner.
+
+    Corner ``c`` of a face with first corner ``f`` contributes ``f . (c x next(c)) / 6``
+    (O(corners), no triangulation); summed over a closed mesh this is its enclosed volume,
+    positive when the faces wind counter-clockwise seen from outside, exact for planar
+    polygons of any shape. Over an open mesh the sum still tells the dominant orientation.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+
+    Returns
+    -------
+    (S,) float64
+    """
+    v = mesh.vertices
+    first = v[np.repeat(mesh.face_indices[mesh.face_offsets[:-1]], mesh.face_sizes)]  # (S, 3)
+    a, b = v[mesh.face_indices], v[mesh.face_indices[mesh.next_corner]]  # (S, 3) each
+    return np.einsum("ij,ij->i", first, np.cross(a, b)) / 6.0

@@ -29,7 +29,7 @@ import numpy as np
 from spacemesh.decode import Embeddings
 from spacemesh.geometry import refine_geometry
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import triangles_of
+from spacemesh.primitives import fan_volumes, triangles_of
 from spacemesh.primitives.closest import nearest_triangles
 from spacemesh.repair.auto import AutoPlan, plan_auto, repair_auto
 from spacemesh.repair.cut import Cut, cut_region
@@ -400,10 +400,7 @@ def enclosed_volume(mesh: PolygonMesh) -> float:
     Positive when the faces wind counter-clockwise seen from outside. Exact for planar
     polygons of any shape; for open meshes it still tells the dominant orientation.
     """
-    v = mesh.vertices
-    first = v[np.repeat(mesh.face_indices[mesh.face_offsets[:-1]], mesh.face_sizes)]  # (S, 3)
-    a, b = v[mesh.face_indices], v[mesh.face_indices[mesh.next_corner]]
-    return float(np.einsum("ij,ij->", first, np.cross(a, b)) / 6.0)
+    return float(fan_volumes(mesh).sum())
 
 
 def select_new_vertices(result: InpaintResult, samples: PatchSamples, max_new: int

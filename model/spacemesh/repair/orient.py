@@ -13,6 +13,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import fan_volumes
 from spacemesh.repair.findings import MAX_REPORTED
 from spacemesh.repair.halfedges import FaceSubset
 from spacemesh.repair.region import NON_ORIENTABLE, RegionError
@@ -45,11 +46,7 @@ def reverse_faces(mesh: PolygonMesh, faces: BoolArray) -> PolygonMesh:
 
 def _signed_volumes(mesh: PolygonMesh, label: IntArray, n_labels: int) -> np.ndarray:
     """Signed volume of the faces of each label (each face fanned from its first corner)."""
-    v = mesh.vertices
-    first = v[np.repeat(mesh.face_indices[mesh.face_offsets[:-1]], mesh.face_sizes)]
-    a, b = v[mesh.face_indices], v[mesh.face_indices[mesh.next_corner]]
-    per_corner = np.einsum("ij,ij->i", first, np.cross(a, b)) / 6.0
-    return np.bincount(label[mesh.face_of_corner], per_corner, minlength=n_labels)
+    return np.bincount(label[mesh.face_of_corner], fan_volumes(mesh), minlength=n_labels)
 
 
 def orient_faces(mesh: PolygonMesh) -> tuple[PolygonMesh, BoolArray]:
