@@ -121,6 +121,6 @@ def match_cycles(
     if fallback is not None and bad.size:
         perms[bad] = fallback(bad)
     else:
-        for n in bad:
-            perms[n] = greedy_single_cycle(cost[n])
+        for row in bad:
+            perms[row] = greedy_single_cycle(cost[row])
     return perms, len(bad)

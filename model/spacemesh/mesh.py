@@ -51,7 +51,7 @@ class PolygonMesh:
     # ------------------------------------------------------------------ constructors
     @classmethod
     def from_faces(
-        cls, vertices: ArrayLike, faces: Iterable[Sequence[int]] | np.ndarray
+        cls, vertices: ArrayLike, faces: Iterable[Sequence[int] | IntArray] | np.ndarray
     ) -> PolygonMesh:
         """Build a mesh from positions and a list of faces (or an (F, k) array).
 

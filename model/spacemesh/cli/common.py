@@ -69,7 +69,7 @@ def require_extra(extra: str, purpose: str, *modules: str) -> None:
 
 def user_errors(*error_types: type[BaseException]) -> Callable[[Callable[P, R]], Callable[P, R]]:
     """Decorate a command so that the given errors become one-line messages (exit 2)."""
-    caught = (UserError, *error_types)
+    caught: tuple[type[BaseException], ...] = (UserError, *error_types)
 
     def decorate(func: Callable[P, R]) -> Callable[P, R]:
         @wraps(func)

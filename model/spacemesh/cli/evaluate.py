@@ -145,9 +145,9 @@ def evaluate(
     command += ["--modes", modes] if modes != "default" else []
     command += ["--noise", str(noise)] if noise else []
     command += ["--partial"] if partial else []
-    command = shlex.join(command)
+    command_line = shlex.join(command)
     paths = write_report(
-        result, out, title=title or f"SpaceMesh evaluation: {data.name}", command=command
+        result, out, title=title or f"SpaceMesh evaluation: {data.name}", command=command_line
     )
     typer.echo((out / "table.md").read_text())
     typer.echo("wrote " + ", ".join(str(p) for p in paths.values()))

@@ -111,6 +111,7 @@ def fit(
         fail(f"{mesh_path}: {error}")
     bar.close()
     if output is not None:
+        assert result.decoded is not None  # fit_mesh always decodes
         save_mesh(result.decoded.mesh, output)
     summary = result.summary()
     if as_json:

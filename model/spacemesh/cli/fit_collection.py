@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -126,6 +126,7 @@ def fit_collection_command(
         fail(str(error))
     from tqdm import tqdm
 
+    rates: dict[str, Any] = {k: v for k, v in (("lr", lr), ("code_lr", code_lr)) if v is not None}
     config = CollectionConfig(
         batch_size=batch_size,
         seed=seed,
@@ -133,7 +134,7 @@ def fit_collection_command(
         max_seconds=None if max_minutes is None else 60.0 * max_minutes,
         threads=threads,
         device=device,
-        **{k: v for k, v in (("lr", lr), ("code_lr", code_lr)) if v is not None},
+        **rates,
     )
     bar = tqdm(desc="fit-collection", unit="step", disable=as_json, leave=False)
     progress = fit_progress(bar)

@@ -28,7 +28,7 @@ def _numbers(text: str, what: str, count: int | None = None) -> list[float]:
 
 
 def _indices(text: str, what: str) -> list[int]:
-    out = []
+    out: list[int] = []
     for part in text.replace(" ", "").split(","):
         if not part:
             continue
@@ -160,7 +160,7 @@ def repair(
         bar.refresh()
 
     try:
-        run = repair_mesh if REPAIR is None else REPAIR
+        run: Callable[..., Any] = repair_mesh if REPAIR is None else REPAIR
         result = run(mesh, region, generator, seed=seed, steps=steps, method=sampler,
                      progress=report, plan=plan, weld=weld)
     except ValueError as error:

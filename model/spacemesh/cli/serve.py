@@ -70,8 +70,8 @@ def _register() -> None:
     try:
         from spacemesh_service.settings import Settings
     except ModuleNotFoundError:  # register a stub that explains what to install
-        @app.command(help=_HELP)
-        def serve() -> None:
+        @app.command(name="serve", help=_HELP)
+        def serve_stub() -> None:
             _settings_class()
 
         return

@@ -128,11 +128,11 @@ def flip_caps(mesh: PolygonMesh, max_rounds: int = 8) -> PolygonMesh:
         )
         if caps.size == 0:
             break
-        side_of = {}
-        for f, (x, y, z) in enumerate(tri):
-            side_of[(int(x), int(y))] = f
-            side_of[(int(y), int(z))] = f
-            side_of[(int(z), int(x))] = f
+        side_of: dict[tuple[int, int], int] = {}
+        for face, (x, y, z) in enumerate(tri):
+            side_of[(int(x), int(y))] = face
+            side_of[(int(y), int(z))] = face
+            side_of[(int(z), int(x))] = face
         edges = {(min(a, b), max(a, b)) for a, b in side_of}
         changed = False
         touched: set[int] = set()
@@ -218,7 +218,8 @@ def import_file(
             cleaned,
             shape_id=relative,
             style=style,
-            rng=np.random.default_rng(rng.bit_generator.seed_seq),
+            # numpy types seed_seq as ISeedSequence; a Generator's is a SeedSequence
+            rng=np.random.default_rng(rng.bit_generator.seed_seq),  # type: ignore[arg-type]
             n_points=points,
             extra={"source_file": relative, "welded": weld},
             tolerate=tolerate,

@@ -14,6 +14,7 @@ edges, so everything stored goes through :mod:`spacemesh.data.validate`.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -83,7 +84,7 @@ def _m3():
     return manifold3d
 
 
-def _choice(rng: np.random.Generator, weights: dict[str, float]) -> str:
+def _choice(rng: np.random.Generator, weights: Mapping[str, float]) -> str:
     names = list(weights)
     p = np.array([weights[n] for n in names], dtype=np.float64)
     return names[int(rng.choice(len(names), p=p / p.sum()))]

@@ -33,7 +33,7 @@ from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import overload
+from typing import Any, overload
 
 import numpy as np
 
@@ -222,7 +222,9 @@ def write_manifest(directory: Path, header: dict, shard_files: Sequence[str]) ->
         The manifest.
     """
     directory = Path(directory)
-    shards, rejections, splits = [], {}, dict.fromkeys(SPLITS, 0)
+    shards: list[dict[str, Any]] = []
+    rejections: dict[str, int] = {}
+    splits = dict.fromkeys(SPLITS, 0)
     stored = attempts = 0
     skipped: list = []
     failed: list = []

@@ -160,7 +160,10 @@ def build_shard(config: SynthConfig, out: Path, k: int, report=None) -> dict:
     dict
         The shard summary.
     """
-    shapes, rejections, failed, attempts = [], Counter(), [], 0
+    shapes: list[dict] = []
+    rejections: Counter[str] = Counter()
+    failed: list[int] = []
+    attempts = 0
     for index in config.shard_range(k):
         shape, rejected, n = make_shape(config, index)
         attempts += n

@@ -381,7 +381,8 @@ def _match_all(
 
 def _sanitise(emb: Embeddings, alive: BoolArray) -> tuple[Embeddings, BoolArray]:
     """Replace non-finite entries; vertices with non-finite adjacency take no part."""
-    finite = np.isfinite(emb.adjacency).all(axis=1)
+    # numpy types all(axis=...) as bool | array; with an axis on a 2-D array it is an array
+    finite: BoolArray = np.isfinite(emb.adjacency).all(axis=1)  # type: ignore[assignment]
     perm_finite = [
         np.nan_to_num(np.asarray(a, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
         for a in (emb.root, emb.prev, emb.next)
@@ -508,7 +509,8 @@ def decode_connectivity(
                 return _finished(connectivity, stats, emb, options, took_part, positions, points)
             alive[pinched] = False
             stats["n_unpinched"] += int(pinched.size)
-            touched = np.isin(edges, pinched).any(axis=1)
+            # numpy types any(axis=...) as bool | array; here it is an array
+            touched = np.isin(edges, pinched).any(axis=1)  # type: ignore[assignment]
         dirty[edges[touched].reshape(-1)] = True
         edges = edges[~touched]
         old_offsets, old_local = offsets, local

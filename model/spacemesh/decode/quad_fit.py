@@ -58,7 +58,8 @@ def quad_fit_errors(
         near = np.minimum(squared_distances(p, positions[tris[quad, 0]]),
                           squared_distances(p, positions[tris[quad, 1]]))
         errors.append(np.bincount(quad, weights=near, minlength=len(pairs)))
-    return errors[0], errors[1], np.bincount(quad, minlength=len(pairs))
+    # numpy types bincount as intp: float64 here with weights, and intp is int64
+    return errors[0], errors[1], np.bincount(quad, minlength=len(pairs))  # type: ignore[return-value]
 
 
 class QuadFit:

@@ -405,7 +405,7 @@ def run_evaluation(
     for index, shape in enumerate(bar):
         centre, scale = normalisation(shape.mesh)
         gt = apply_normalisation(shape.mesh, centre, scale)
-        points = (np.asarray(shape.points, np.float64) - centre) / scale  # (P, 3)
+        points: FloatArray = (np.asarray(shape.points, np.float64) - centre) / scale  # (P, 3)
         points = corrupt_points(points, noise=noise, partial=partial, seed=[seed, index])
         reference = Reference.from_mesh(gt, seed=[seed, index, 0], options=options)
         normals = estimate_normals(points)  # (P, 3), what every method may use

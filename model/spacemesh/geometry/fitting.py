@@ -358,6 +358,7 @@ def fit_vertices(
         edges = _edges(triangles)
         length = float(np.mean(np.linalg.norm(
             positions[edges[:, 0]] - positions[edges[:, 1]], axis=1)))
+        assert noise is not None  # measured above when noise_spring > 0
         ratio = (float(noise) / length) ** 2 if length > 0 else 0.0
         options = replace(options, spring_weight=options.spring_weight
                           + options.noise_spring * ratio)

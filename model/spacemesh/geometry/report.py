@@ -127,10 +127,16 @@ def fit_report(mesh: PolygonMesh, points: FloatArray) -> FitReport:
     to_mesh = np.sqrt(np.maximum(gap, 0.0))
     samples = _surface_samples(mesh.vertices, triangles, MESH_SAMPLES)
     to_points, _ = cKDTree(points).query(samples)
-    values = [float(to_mesh.mean()), float(np.percentile(to_mesh, 95)),
-              float(to_points.mean()), float(np.percentile(to_points, 95))]
+    to_mesh_mean, to_mesh_p95 = float(to_mesh.mean()), float(np.percentile(to_mesh, 95))
+    to_points_mean = float(to_points.mean())
+    to_points_p95 = float(np.percentile(to_points, 95))
     return FitReport(
-        *values, *(v / relative for v in values),
+        points_to_mesh_mean=to_mesh_mean, points_to_mesh_p95=to_mesh_p95,
+        mesh_to_points_mean=to_points_mean, mesh_to_points_p95=to_points_p95,
+        points_to_mesh_mean_rel=to_mesh_mean / relative,
+        points_to_mesh_p95_rel=to_mesh_p95 / relative,
+        mesh_to_points_mean_rel=to_points_mean / relative,
+        mesh_to_points_p95_rel=to_points_p95 / relative,
         coverage=float(np.mean(to_mesh <= COVERAGE_FRACTION * relative)),
         components=face_components(mesh),
         self_intersections=self_intersection_fraction(mesh),

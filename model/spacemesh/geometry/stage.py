@@ -152,7 +152,9 @@ def split_longest_edges(positions: FloatArray, triangles: IntArray, target: int
             break
         length = np.linalg.norm(positions[src[half]] - positions[dst[half]], axis=1)
         used = np.zeros(len(tri), dtype=bool)
-        new_tri, new_pos, drop = [], [], []
+        new_tri: list[tuple[int, int, int]] = []
+        new_pos: list[FloatArray] = []
+        drop: list[int] = []
         for h in half[np.argsort(-length, kind="stable")].tolist():
             if len(positions) + len(new_pos) >= target:
                 break
@@ -265,7 +267,7 @@ def refine_geometry(
         tri, source = mesh.face_indices.reshape(-1, 3).astype(np.int64), None
     else:  # polygons: the fit only, on a triangulation
         tri, source = triangles_of(mesh)
-    positions = start_positions
+    positions: FloatArray = start_positions
     if (edits and triangle_mesh and target_vertices is not None
             and target_vertices > len(positions)):
         positions, tri = split_longest_edges(positions, tri, target_vertices)

@@ -160,7 +160,7 @@ def iter_lines(text: str) -> Iterator[str]:
             yield from chunk.splitlines() or [""]
 
 
-def load_json(data: bytes | str, fmt: str, limits: ReadLimits | None = None) -> Any:
+def load_json(data: bytes | bytearray | str, fmt: str, limits: ReadLimits | None = None) -> Any:
     """Parse JSON, its length and number of values checked before parsing.
 
     The values are counted from the separators and brackets (``,`` ``[`` ``{``, an upper

@@ -136,10 +136,10 @@ def parse_obj(data: bytes, limits: ReadLimits | None = None) -> ObjData:
     )
     bad = flat >= len(positions)
     if bad.any():
-        corner = int(np.flatnonzero(bad)[0])
-        face = int(np.searchsorted(offsets, corner, side="right") - 1)
+        bad_corner = int(np.flatnonzero(bad)[0])
+        face = int(np.searchsorted(offsets, bad_corner, side="right") - 1)
         raise MeshFormatError(
-            f"OBJ: line {face_lines[face]}: face refers to vertex {int(flat[corner]) + 1} "
+            f"OBJ: line {face_lines[face]}: face refers to vertex {int(flat[bad_corner]) + 1} "
             f"but the file has {len(positions)} vertices"
         )
     normal_array = np.frombuffer(normals, dtype=np.float64).reshape(-1, 3).copy()

@@ -15,6 +15,7 @@ import re
 from array import array
 from collections.abc import Iterator, Sequence
 from itertools import pairwise
+from typing import Any
 
 import numpy as np
 
@@ -52,7 +53,8 @@ class _Lines(Sequence[list[str]]):
 
     def __init__(self, lines: list[str]) -> None:
         self._lines = lines
-        self._at, self._tokens = -1, []
+        self._at = -1
+        self._tokens: list[str] = []
 
     def __len__(self) -> int:
         return len(self._lines)
@@ -133,7 +135,7 @@ class _Numbers:
     token that does not convert is remembered and reported once all are read."""
 
     def __init__(self, kind: str) -> None:
-        self.values = array(kind)
+        self.values: array[Any] = array(kind)
         self.convert = float if kind == "d" else int
         self.bad: tuple[int, str] | None = None  # (position, token)
         self.overflow = False

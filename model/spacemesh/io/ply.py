@@ -12,6 +12,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from itertools import pairwise
+from typing import Any, Literal, overload
 
 import numpy as np
 
@@ -159,7 +160,8 @@ class _Tokens:
     _BLOCK = 1 << 16  # characters split at a time
 
     def __init__(self, text: str) -> None:
-        self.text, self.pos, self.items = text, 0, []
+        self.text, self.pos = text, 0
+        self.items: list[str] = []
 
     def fill(self, count: int) -> int:
         """Split until ``count`` tokens are known (or the text ends); how many are known."""
@@ -171,6 +173,11 @@ class _Tokens:
             items.extend(text[self.pos : end].split())
             self.pos = end
         return len(items)
+
+    @overload
+    def __getitem__(self, key: int) -> str: ...
+    @overload
+    def __getitem__(self, key: slice) -> list[str]: ...
 
     def __getitem__(self, key: int | slice) -> str | list[str]:
         if isinstance(key, slice):
@@ -216,7 +223,7 @@ def _read_binary(data: bytes, pos: int, element: _Element) -> tuple[dict, int]:
         if pos + n * row.itemsize > len(data):
             raise MeshFormatError(ends_early)
         table = np.frombuffer(data, dtype=row, count=n, offset=pos)
-        values = {p.name: table[f"p{i}"] for i, p in enumerate(props)}
+        values: dict[str, Any] = {p.name: table[f"p{i}"] for i, p in enumerate(props)}
         return values, pos + n * row.itemsize
 
     min_row = sum((p.count_dtype or p.dtype).itemsize for p in props)
@@ -262,7 +269,9 @@ def _uniform_rows(
     n, props = element.count, element.properties
     if n == 0:
         return None
-    fields, lengths, cursor = [], {}, pos
+    fields: list[tuple[Any, ...]] = []
+    lengths: dict[int, int] = {}
+    cursor = pos
     for i, p in enumerate(props):
         if p.count_dtype is not None:
             if cursor + p.count_dtype.itemsize > len(data):
@@ -296,13 +305,13 @@ def _walk_rows(
     ends_early: str,
 ) -> int:
     """Walk rows one by one (lists of varying length), filling ``starts``/``counts``."""
-    layout = []
+    layout: list[tuple[int, int, int, bool, Literal["little", "big"], bool]] = []
     for i, p in enumerate(element.properties):
         if p.count_dtype is None:
             layout.append((i, p.dtype.itemsize, 0, False, "little", False))
         else:
             c = p.count_dtype
-            order = "big" if c.byteorder == ">" else "little"
+            order: Literal["little", "big"] = "big" if c.byteorder == ">" else "little"
             layout.append((i, c.itemsize, p.dtype.itemsize, True, order, c.kind == "i"))
     size = len(data)
     for r in range(element.count):

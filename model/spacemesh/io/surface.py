@@ -121,9 +121,10 @@ def load_cloud_input(
     if fmt in SURFACE_FORMATS:
         mesh = load_mesh(source, file_type=fmt, limits=limits)
         if mesh.n_faces and _has_area(mesh):
-            points, normals = sample_surface(mesh, int(n_points), np.random.default_rng(seed))
-            return CloudInput(points.astype(np.float64), normals.astype(np.float64), "mesh",
-                              fmt)
+            samples, sample_normals = sample_surface(mesh, int(n_points),
+                                                     np.random.default_rng(seed))
+            return CloudInput(samples.astype(np.float64), sample_normals.astype(np.float64),
+                              "mesh", fmt)
     points, normals = load_points(data, file_type=fmt, limits=limits)
     return CloudInput(points, normals, "points", fmt)
 

@@ -21,7 +21,7 @@ Graph interface (names of the ONNX inputs and outputs):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -137,4 +137,5 @@ def denoiser_fn(backend: Backend, volumes: list[np.ndarray], points: np.ndarray 
     """
     if points is None:
         return lambda x_t, t: backend.denoise(x_t, t, volumes)
-    return lambda x_t, t: backend.denoise(x_t, t, volumes, points)
+    local: Any = backend  # a local-point backend: its denoise also takes the points
+    return lambda x_t, t: local.denoise(x_t, t, volumes, points)
