@@ -16,6 +16,7 @@ import base64
 import json
 import struct
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -122,24 +123,24 @@ def _read_ply(data: bytes) -> tuple[np.ndarray, Faces]:
     for name, count, props in elements:
         if all(p[0] != "list" for p in props):
             dtype = np.dtype([(p[-1], order + _PLY_TYPES[p[0]]) for p in props])
-            table = np.frombuffer(data, dtype=dtype, count=count, offset=offset)
+            records = np.frombuffer(data, dtype=dtype, count=count, offset=offset)
             offset += dtype.itemsize * count
             if name == "vertex":
-                vertices = np.stack([table[a].astype(np.float64) for a in "xyz"], axis=1)
+                vertices = np.stack([records[a].astype(np.float64) for a in "xyz"], axis=1)
             continue
         if len(props) != 1:
             raise FormatError(f"PLY element {name!r}: only a single list property is read")
         _, count_type, item_type, _ = props[0]
         count_dtype = np.dtype(order + _PLY_TYPES[count_type])
         item_dtype = np.dtype(order + _PLY_TYPES[item_type])
-        rows: Faces = []
+        lists: Faces = []
         for _ in range(count):
             n = int(np.frombuffer(data, count_dtype, 1, offset)[0])
             offset += count_dtype.itemsize
-            rows.append(np.frombuffer(data, item_dtype, n, offset).astype(np.int64))
+            lists.append(np.frombuffer(data, item_dtype, n, offset).astype(np.int64))
             offset += item_dtype.itemsize * n
         if name == "face":
-            faces = rows
+            faces = lists
     return vertices, faces
 
 
@@ -159,7 +160,7 @@ def _gltf_arrays(doc: dict, buffers: Sequence[bytes]) -> tuple[np.ndarray, Faces
 
     primitive = doc["meshes"][0]["primitives"][0]
     vertices = accessor(primitive["attributes"]["POSITION"]).astype(np.float64)
-    node = next((n for n in doc.get("nodes", []) if n.get("mesh") == 0), {})
+    node: dict[str, Any] = next((n for n in doc.get("nodes", []) if n.get("mesh") == 0), {})
     if "matrix" in node:  # column-major 4x4
         matrix = np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T
         vertices = vertices @ matrix[:3, :3].T + matrix[:3, 3]

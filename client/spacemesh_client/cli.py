@@ -284,7 +284,8 @@ def _add_option_flags(parser: argparse.ArgumentParser, names: Sequence[str]) -> 
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser (every command takes the connection options)."""
-    common = argparse.ArgumentParser(add_help=False)
+    # the parents are _Parser too: subcommands (of the same class) take only their kind
+    common = _Parser(add_help=False)
     connection = common.add_argument_group("connection")
     connection.add_argument("--url", default=os.environ.get(URL_ENV) or DEFAULT_URL,
                             help=f"http(s)://host:port (REST) or grpc://host:port (gRPC); "
@@ -300,7 +301,7 @@ def build_parser() -> argparse.ArgumentParser:
                             help="PEM file of the CA (or self-signed) certificate that "
                             "https:// and grpcs:// URLs are checked against (default: the "
                             "system's)")
-    options = argparse.ArgumentParser(add_help=False)
+    options = _Parser(add_help=False)
     options.add_argument("-o", "--output", required=True,
                          help=f"output mesh; the extension picks the format ({', '.join(WRITTEN)}"
                          ", or any trimesh writes)")
