@@ -27,6 +27,7 @@ from fastapi.openapi.utils import get_openapi
 from fastapi.responses import JSONResponse, Response
 from starlette.datastructures import UploadFile
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.types import Message, Receive
 
 from spacemesh.io.limits import ReadLimits
 from spacemesh_service import problems as P
@@ -167,7 +168,7 @@ class ClientDisconnected(Exception):
     """The client closed the connection before its answer was ready."""
 
 
-async def _disconnected(receive: Callable[[], Awaitable[dict[str, Any]]]) -> None:
+async def _disconnected(receive: Receive) -> None:
     """Return when the client closes the connection (the body must have been read)."""
     while (await receive())["type"] != "http.disconnect":
         pass
@@ -221,7 +222,7 @@ def _limited(request: Request, limit: int) -> Request:
     received = 0
     receive = request.receive
 
-    async def limited_receive() -> dict[str, Any]:
+    async def limited_receive() -> Message:
         nonlocal received
         message = await receive()
         if message["type"] == "http.request":
@@ -471,7 +472,7 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
                           f"{engine.model_name} version {engine.model_version}")
         return without_paths(engine.metadata())
 
-    model_errors = {404: problem_response("No such model", {
+    model_errors: dict[int | str, dict[str, Any]] = {404: problem_response("No such model", {
         "missing": (P.MODEL_NOT_FOUND, "no model foo")})}
 
     @app.get("/v2/models/{name}", tags=["models"], responses=model_errors)

@@ -324,7 +324,7 @@ class Batcher:
         self._batch_seconds = elapsed if not self._batch_seconds else (
             0.8 * self._batch_seconds + 0.2 * elapsed)
 
-    async def _run_call(self, job: _Job) -> None:
+    async def _run_call(self, job: _Job, call: SoloCall) -> None:
         loop = asyncio.get_running_loop()
         start = time.perf_counter()
         job.queue_seconds = start - job.enqueued
@@ -336,7 +336,7 @@ class Batcher:
                 loop.call_soon_threadsafe(job.progress, done, total)
 
         try:
-            result = await loop.run_in_executor(self._executor, lambda: job.call(progress))
+            result = await loop.run_in_executor(self._executor, lambda: call(progress))
         except _AllCancelled:
             log.info("stopped a cancelled call")
             if self.metrics is not None:
@@ -349,8 +349,9 @@ class Batcher:
         self._settle(job, Outcome(result, 1, job.queue_seconds))
 
     async def _run(self, batch: list[_Job]) -> None:
-        if batch[0].call is not None:  # alone by its key
-            await self._run_call(batch[0])
+        call = batch[0].call
+        if call is not None:  # alone by its key
+            await self._run_call(batch[0], call)
             return
         log.debug("running a batch of %d", len(batch))
         loop = asyncio.get_running_loop()
@@ -375,7 +376,8 @@ class Batcher:
 
         staged = stage if any(job.stage is not None for job in batch) else None
         try:
-            results = await self._call(loop, [j.request for j in batch], progress, staged)
+            requests = [j.request for j in batch if j.request is not None]  # no call here
+            results = await self._call(loop, requests, progress, staged)
         except _AllCancelled:
             log.info("stopped a batch of %d cancelled requests", len(batch))
             if self.metrics is not None:
@@ -391,9 +393,9 @@ class Batcher:
             return
         self._record_duration(time.perf_counter() - start)
         if self.metrics is not None and results:
-            for stage in BATCH_STAGES:
-                if stage in results[0].timings:
-                    self.metrics.observe_stage(stage, results[0].timings[stage])
+            for stage_name in BATCH_STAGES:
+                if stage_name in results[0].timings:
+                    self.metrics.observe_stage(stage_name, results[0].timings[stage_name])
         for job, result in zip(batch, results, strict=True):
             self._settle(job, Outcome(result, len(batch), job.queue_seconds))
 

@@ -29,7 +29,14 @@ import numpy as np
 
 from spacemesh.io.limits import ReadLimits
 from spacemesh.mesh import PolygonMesh
-from spacemesh.repair import RegionError, RepairPlan, plan_repair, repair_mesh, verify_repair
+from spacemesh.repair import (
+    AutoPlan,
+    RegionError,
+    RepairPlan,
+    plan_repair,
+    repair_mesh,
+    verify_repair,
+)
 from spacemesh.repair.region import Region
 from spacemesh.runtime.options import GenerateOptions, OptionError
 from spacemesh.runtime.pipeline import GenerateRequest, MeshGenerator
@@ -157,7 +164,7 @@ class _RepairJob:
 
     mesh: PolygonMesh
     region: Region
-    plan: RepairPlan
+    plan: RepairPlan | AutoPlan
     options: RequestOptions
 
 
@@ -198,6 +205,21 @@ class Engine:
         """Model loaded, warm-up passed, not draining."""
         return self.state == "ready"
 
+    @property
+    def _generator(self) -> MeshGenerator:
+        """:attr:`generator`, once given or loaded (everything but :meth:`start` and the
+        model facts runs after that)."""
+        if self.generator is None:  # pragma: no cover - start() loads it first
+            raise RuntimeError("the model is not loaded (Engine.start)")
+        return self.generator
+
+    @property
+    def _batcher(self) -> Batcher:
+        """:attr:`batcher`, once :meth:`start` made it (requests are admitted after)."""
+        if self.batcher is None:  # pragma: no cover - admit() refuses requests before
+            raise RuntimeError("the engine is not started (Engine.start)")
+        return self.batcher
+
     async def start(self) -> None:
         """Load the model (unless given), run the warm-up, start the batcher.
 
@@ -219,7 +241,7 @@ class Engine:
         if self.state != "loading":  # drained while loading
             return
         s = self.settings
-        self.batcher = Batcher(self.generator.generate_batch, max_batch_size=s.max_batch_size,
+        self.batcher = Batcher(self._generator.generate_batch, max_batch_size=s.max_batch_size,
                                max_delay_s=s.max_batch_delay_ms / 1000, queue_size=s.queue_size,
                                metrics=self.metrics)
         self.batcher.start()
@@ -235,12 +257,12 @@ class Engine:
         )
 
     def _warm_up(self) -> None:
-        spec = self.generator.spec
+        spec = self._generator.spec
         points = fibonacci_sphere(max(spec.n_points, self.settings.min_points))
         normals = points.copy() if spec.normals else None
         options = GenerateOptions(steps=min(self.default_steps, spec.schedule.timesteps))
         started = time.perf_counter()
-        self.generator.generate_batch([GenerateRequest(points, normals, options)])
+        self._generator.generate_batch([GenerateRequest(points, normals, options)])
         log.info("warm-up inference took %.2f s", time.perf_counter() - started)
 
     def begin_drain(self) -> None:
@@ -284,15 +306,15 @@ class Engine:
     @property
     def default_steps(self) -> int:
         """Steps of a request that names none."""
-        return self.settings.default_steps or self.generator.spec.steps
+        return self.settings.default_steps or self._generator.spec.steps
 
     @property
     def max_steps(self) -> int:
-        return min(self.settings.max_steps, self.generator.spec.schedule.timesteps)
+        return min(self.settings.max_steps, self._generator.spec.schedule.timesteps)
 
     def metadata(self) -> dict[str, Any]:
         """KServe v2 model metadata, extended with limits, formats, data card and metrics."""
-        spec = self.generator.spec
+        spec = self._generator.spec
         manifest = self.manifest
         return {
             "name": self.model_name,
@@ -334,10 +356,10 @@ class Engine:
                 ) -> tuple[Any, RequestOptions]:
         points, normals, source, body_options = parse(self.read_limits)
         merged = {**{k: v for k, v in options.items() if v is not None}, **body_options}
-        opts = resolve_request(merged, GENERATE_ROUTE_OPTIONS, self.generator.spec,
+        opts = resolve_request(merged, GENERATE_ROUTE_OPTIONS, self._generator.spec,
                                self.settings)
         cloud = validate_cloud(points, normals, self.settings, source=source,
-                               needs_normals=self.generator.spec.normals)
+                               needs_normals=self._generator.spec.normals)
         return cloud, opts
 
     async def generate(self, parse: ParseFn, options: dict[str, Any], *,
@@ -398,7 +420,7 @@ class Engine:
         self.metrics.observe_stage("decode_input", decode_s)
         request = GenerateRequest(cloud.points, cloud.normals, opts.resolved)
         outcome = await self._queued(
-            self.batcher.submit(request, key=opts.batch_key, progress=progress, stage=stage),
+            self._batcher.submit(request, key=opts.batch_key, progress=progress, stage=stage),
             decode_s)
         result = outcome.result
         self.metrics.observe_stage("queue", outcome.queue_seconds)
@@ -440,8 +462,8 @@ class Engine:
                           "the work was cancelled",
                           timeout_s=self.settings.request_timeout_s) from None
         except QueueFull:
-            raise Problem(P.QUEUE_FULL, f"{self.batcher.depth} requests are waiting already",
-                          retry_after=self.batcher.retry_after()) from None
+            raise Problem(P.QUEUE_FULL, f"{self._batcher.depth} requests are waiting already",
+                          retry_after=self._batcher.retry_after()) from None
         except ShuttingDown:
             raise Problem(P.SHUTTING_DOWN, "the server is draining before it exits",
                           retry_after=1) from None
@@ -455,12 +477,12 @@ class Engine:
     # ------------------------------------------------------------------ repair
     def _decode_repair(self, upload: MeshUpload, region: Any,
                        options: dict[str, Any]) -> _RepairJob:
-        opts = resolve_request(options, REPAIR_ROUTE_OPTIONS, self.generator.spec,
+        opts = resolve_request(options, REPAIR_ROUTE_OPTIONS, self._generator.spec,
                                self.settings)
         shape = read_region(region, self.read_limits)
         mesh, _ = read_mesh_upload(upload.data, upload.filename, self.read_limits)
         try:
-            plan = plan_repair(mesh, shape, self.generator.spec.max_vertices,
+            plan = plan_repair(mesh, shape, self._generator.spec.max_vertices,
                                weld=opts.weld, max_growth=opts.max_growth)
         except RegionError as error:
             raise P.region_problem(error) from None
@@ -525,7 +547,7 @@ class Engine:
                                plan=job.plan, weld=opts.weld)
 
         outcome = await self._queued(
-            self.batcher.submit_call(run, progress=progress, stage=stage), decode_s)
+            self._batcher.submit_call(run, progress=progress, stage=stage), decode_s)
         result = outcome.result
         issues = verify_repair(job.plan, result)
         if issues:  # a faulty repair is refused, never returned
@@ -546,10 +568,10 @@ class Engine:
         timings["encode_output"] = time.perf_counter() - t0
         timings["total"] = time.perf_counter() - started
         m = self.metrics
-        for stage in ("queue", "cut", "patch", "encoder", "sampler", "connectivity", "splice",
-                      "encode_output"):
-            if stage in timings:
-                m.observe_repair_stage(stage, timings[stage])
+        for stage_name in ("queue", "cut", "patch", "encoder", "sampler", "connectivity",
+                           "splice", "encode_output"):
+            if stage_name in timings:
+                m.observe_repair_stage(stage_name, timings[stage_name])
         m.repairs.labels(stats.fallback).inc()
         m.repair_region_faces.observe(stats.region_faces)
         return Reply(encoded, options, self.model_name, self.model_version, timings,

@@ -91,8 +91,8 @@ PointsRequest = create_model("PointsRequest", __base__=_PointsBody,
 PointsRequest.__doc__ = "JSON body of ``POST /generate``."
 
 #: :class:`~spacemesh.geometry.report.FitReport` as JSON.
-FitReportModel = create_model(
-    "FitReportModel", **{f: (float | int | None, ...) for f in FitReport.__dataclass_fields__})
+_FIT_FIELDS: dict[str, Any] = {f: (float | int | None, ...) for f in FitReport.__dataclass_fields__}
+FitReportModel = create_model("FitReportModel", **_FIT_FIELDS)
 FitReportModel.__doc__ = ("How well the mesh fits the uploaded points "
                           "(`spacemesh.geometry.report.FitReport`).")
 
@@ -107,8 +107,9 @@ class MeshStatsModel(BaseModel):
     oriented: bool
     components: int
     genus: int
-    fit: FitReportModel | None = Field(None, description="The fit report (generated "
-                                       "meshes).")  # type: ignore[valid-type]
+    # FitReportModel is a class, made at import by create_model (mypy sees a variable)
+    fit: FitReportModel | None = Field(  # type: ignore[valid-type]
+        None, description="The fit report (generated meshes).")
 
 
 class SampleScoreModel(BaseModel):

@@ -9,6 +9,7 @@ is built from these fields (:mod:`spacemesh.cli.serve`), so a new field is a new
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -145,7 +146,7 @@ class Settings(BaseModel):
         return ENV_PREFIX + field.upper()
 
     @classmethod
-    def from_env(cls, environ: dict[str, str] | None = None, **overrides: Any) -> Settings:
+    def from_env(cls, environ: Mapping[str, str] | None = None, **overrides: Any) -> Settings:
         """Settings from explicit values, then ``SPACEMESH_*`` variables, then defaults.
 
         Parameters
@@ -164,10 +165,10 @@ class Settings(BaseModel):
         ValueError
             A value does not parse or is out of range (the message names the variable).
         """
-        environ = os.environ if environ is None else environ
+        env: Mapping[str, str] = os.environ if environ is None else environ
         values: dict[str, Any] = {}
         for name in cls.model_fields:
-            raw = environ.get(cls.env_name(name))
+            raw = env.get(cls.env_name(name))
             if raw is not None and raw != "":
                 values[name] = raw
         values.update({k: v for k, v in overrides.items() if v is not None})
