@@ -24,7 +24,7 @@ import struct
 import tokenize
 import zipfile
 import zlib
-from typing import BinaryIO
+from typing import IO, BinaryIO
 
 import numpy as np
 
@@ -155,7 +155,7 @@ def _is_number(token: str) -> bool:
     return True
 
 
-def _npy_header(stream: BinaryIO, fmt: str) -> tuple[tuple[int, ...], np.dtype]:
+def _npy_header(stream: IO[bytes], fmt: str) -> tuple[tuple[int, ...], np.dtype]:
     """The shape and dtype an ``.npy`` stream declares (only its header is read)."""
     try:
         version = np.lib.format.read_magic(stream)
@@ -276,7 +276,7 @@ def parse_npz(
                     limit=MAX_NPZ_MEMBERS,
                 )
             if "points" in members:
-                wanted = [k for k in ("points", "normals") if k in members]
+                wanted: list[str] = [k for k in ("points", "normals") if k in members]
             elif len(members) == 1:
                 wanted = list(members)
             else:

@@ -527,7 +527,7 @@ def repair_mesh(
     steps: int | None = None,
     method: str | None = None,
     progress: ProgressFn | None = None,
-    plan: RepairPlan | None = None,
+    plan: RepairPlan | AutoPlan | None = None,
     weld: bool = False,
     fit_patch: bool = True,
     max_growth: float | None = None,
@@ -554,7 +554,7 @@ def repair_mesh(
         Sampler (default: the model's).
     progress : callable, optional
         ``progress(done, total)`` after each denoiser step.
-    plan : RepairPlan, optional
+    plan : RepairPlan or AutoPlan, optional
         From :func:`plan_repair` (computed when None), made with the same ``weld``.
     weld : bool
         Merge vertices at exactly equal positions (split at UV seams, hard edges) before
@@ -650,6 +650,7 @@ def repair_mesh(
             fewest = (drop, samples, candidates, dropped, fill, spliced)
         if drop <= 0:
             break  # no handle spliced in (a handle lowers the Euler characteristic by 2)
+    assert fewest is not None  # set by the first of the TOPOLOGY_ATTEMPTS (at least one)
     drop, samples, candidates, dropped, fill, spliced = fewest
 
     t0 = time.perf_counter()
@@ -700,6 +701,7 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
                  allowed: BoolArray, index: int) -> RepairResult:
         step = plan_repair(mesh, faces, spec.max_vertices, max_growth=plan.max_growth,
                            tolerated=tolerated)
+        assert isinstance(step, RepairPlan)  # a face mask is never an automatic region
         if (step.cut.region & ~allowed).any():
             raise RegionError(REGION_GROWTH_EXCEEDED, "the pass grows beyond its planned "
                               "region")

@@ -24,7 +24,9 @@ Rules (see docs/REPAIR.md):
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -36,6 +38,7 @@ from spacemesh.repair.region import (
     WHOLE_MESH_REGION,
     Region,
     RegionError,
+    parse_region,
     region_faces,
 )
 from spacemesh.repair.weld import coincident_vertices
@@ -303,7 +306,7 @@ def boundary_loops(hole: IntArray) -> tuple[IntArray, IntArray, IntArray, list[I
     return boundary, loop_next, loop_prev, loops
 
 
-def cut_region(mesh: PolygonMesh, region: Region | dict | BoolArray,
+def cut_region(mesh: PolygonMesh, region: Region | Mapping[str, Any] | BoolArray,
                tolerated: BoolArray | None = None) -> Cut:
     """Cut a region out of ``mesh`` (rules in the module docstring).
 
@@ -331,8 +334,8 @@ def cut_region(mesh: PolygonMesh, region: Region | dict | BoolArray,
         if region.shape != (mesh.n_faces,):
             raise ValueError(f"a face mask must have shape ({mesh.n_faces},)")
         requested = region_faces(mesh, Region.from_faces(np.flatnonzero(region)))
-    else:
-        requested = region_faces(mesh, region)
+    else:  # a region or its JSON form (anything else is invalid-region)
+        requested = region_faces(mesh, parse_region(region))
     grown = grow_region(mesh, requested)
     if grown.all():
         raise RegionError(WHOLE_MESH_REGION, "the region grows to the whole mesh: every kept "

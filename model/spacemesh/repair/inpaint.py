@@ -138,7 +138,7 @@ def inpaint_tokens(
     targets = np.concatenate([known, np.asarray(hole_points, np.float64).reshape(-1, 3)])
     n = len(targets)
     known_x0 = np.concatenate([known, np.ones((n_known, 1))], axis=1)  # (K, 4)
-    x = rng.standard_normal((n, 4))  # (N, 4)
+    x: FloatArray = rng.standard_normal((n, 4))  # (N, 4)
     denoise = denoiser_fn(backend, volumes, points)
     total = len(steps)
     for done, i in enumerate(reversed(range(total)), start=1):

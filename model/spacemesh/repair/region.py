@@ -222,10 +222,12 @@ class Region:
     def vertex_mask(self, vertices: FloatArray) -> BoolArray:
         """(V,) vertices inside a sphere or box region."""
         if self.kind == "sphere":
+            assert self.center is not None  # Region.sphere sets it
             with np.errstate(over="ignore"):  # a radius past 1e154 squares to inf
                 d2 = np.sum((vertices - self.center) ** 2, axis=1)
                 return d2 <= np.float64(self.radius) ** 2
         if self.kind == "box":
+            assert self.lower is not None and self.upper is not None  # Region.box sets them
             return np.all((vertices >= self.lower) & (vertices <= self.upper), axis=1)
         raise ValueError(f"a {self.kind} region has no vertex test")
 
@@ -261,17 +263,20 @@ class Region:
         if self.kind == "auto":
             return {"auto": self.mode}
         if self.kind == "sphere":
+            assert self.center is not None  # Region.sphere sets it
             return {"sphere": {"center": self.center.tolist(), "radius": self.radius}}
+        assert self.lower is not None and self.upper is not None  # a box: Region.box sets them
         return {"box": {"min": self.lower.tolist(), "max": self.upper.tolist()}}
 
 
-def parse_region(data: Mapping[str, Any] | Region) -> Region:
+def parse_region(data: object) -> Region:
     """Read the JSON form of a region (see the module docstring).
 
     Parameters
     ----------
     data : dict or Region
-        Exactly one of the keys ``faces``, ``vertices``, ``sphere``, ``box``, ``auto``.
+        Exactly one of the keys ``faces``, ``vertices``, ``sphere``, ``box``, ``auto``;
+        anything else (any JSON value, a face mask that is not boolean) is refused.
 
     Returns
     -------

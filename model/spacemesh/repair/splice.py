@@ -168,16 +168,16 @@ def _match(emb: Embeddings, edges: IntArray, n_boundary: int, loop_next: IntArra
         clean = np.flatnonzero(~dirty & (degree > 0))
         new_clean = clean[clean >= n_boundary]
         if new_clean.size:
-            d = degree[new_clean]
-            within = np.arange(d.sum()) - np.repeat(np.cumsum(d) - d, d)
-            local[np.repeat(offsets[new_clean], d) + within] = previous.local[
-                np.repeat(previous.offsets[new_clean], d) + within]
+            sizes = degree[new_clean]
+            within = np.arange(sizes.sum()) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+            local[np.repeat(offsets[new_clean], sizes) + within] = previous.local[
+                np.repeat(previous.offsets[new_clean], sizes) + within]
         b_clean = clean[clean < n_boundary]
         if b_clean.size:
-            d = k[b_clean] + 1
-            within = np.arange(d.sum()) - np.repeat(np.cumsum(d) - d, d)
-            b_perm[np.repeat(b_offsets[b_clean], d) + within] = previous.b_perm[
-                np.repeat(previous.b_offsets[b_clean], d) + within]
+            sizes = k[b_clean] + 1
+            within = np.arange(sizes.sum()) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+            b_perm[np.repeat(b_offsets[b_clean], sizes) + within] = previous.b_perm[
+                np.repeat(previous.b_offsets[b_clean], sizes) + within]
     fallbacks = 0
     is_new = np.arange(n) >= n_boundary
     for d, vertices in group_by_degree(offsets).items():
@@ -313,7 +313,8 @@ def fill_hole(
     options = options or DecodeOptions()
     n = emb.n_vertices
     is_new = np.arange(n) >= n_boundary
-    finite = np.isfinite(emb.adjacency).all(axis=1)
+    # numpy types all(axis=...) as bool | array; with an axis on a 2-D array it is an array
+    finite: BoolArray = np.isfinite(emb.adjacency).all(axis=1)  # type: ignore[assignment]
     clean = Embeddings(
         np.where(finite[:, None], emb.adjacency, 0.0),
         float(emb.tau) if np.isfinite(emb.tau) else -np.inf,

@@ -121,6 +121,7 @@ class GenerateOptions:
                                        f"not {start!r}")
         if start == "noise" and self.start_time is not None:
             raise OptionError("start_time", "start_time applies to start=points only")
+        start_time: float | None  # None with start=noise: the whole diffusion
         start_time = spec.start_time if self.start_time is None else self.start_time
         if start == "points":
             try:

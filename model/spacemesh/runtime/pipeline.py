@@ -23,7 +23,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -50,6 +50,9 @@ from spacemesh.runtime.options import GenerateOptions
 from spacemesh.runtime.sampler import ProgressFn, StageFn, sample, split_tokens
 from spacemesh.runtime.schedule import NoiseSchedule
 from spacemesh.typed import FloatArray, IntArray
+
+if TYPE_CHECKING:
+    from spacemesh.runtime.repository import ModelRepository
 
 #: Seed of the fixed generator that picks the encoder's points from a larger cloud.
 POINT_SUBSET_SEED = 0
@@ -158,7 +161,7 @@ class ModelSpec:
             NoiseSchedule(np.asarray(betas, dtype=np.float64)) if betas is not None
             else NoiseSchedule.from_config(diffusion["schedule"], diffusion["timesteps"])
         )
-        params = (
+        params: dict[str, FloatArray] | None = (
             {k: np.asarray(v, np.float64) for k, v in reduction_params.items()}
             if reduction_params else None
         )
@@ -420,7 +423,7 @@ class MeshGenerator:
         self.backend = backend
         self.spec = spec
         self.name = name
-        self.repository = None  # set by from_repository
+        self.repository: ModelRepository | None = None  # set by from_repository
 
     @classmethod
     def from_repository(
@@ -560,6 +563,7 @@ class MeshGenerator:
     @staticmethod
     def _sampler_key(options: GenerateOptions) -> tuple[int, str, str, float]:
         start_time = 1.0 if options.start_time is None else float(options.start_time)
+        assert options.steps is not None  # resolved options (GenerateOptions.resolve)
         return int(options.steps), str(options.sampler), str(options.start), start_time
 
     def _denoiser_steps(self, key: tuple[int, str, str, float]) -> int:
@@ -603,6 +607,7 @@ class MeshGenerator:
         pick = choose_points(len(unit), self.spec.n_points, rng)
         columns = [unit[pick]]
         if self.spec.normals:
+            assert n is not None  # checked above
             length = np.linalg.norm(n, axis=1, keepdims=True)
             columns.append((n / np.where(length > 0, length, 1.0))[pick])
         cloud = np.concatenate(columns, axis=1).astype(np.float32)

@@ -54,9 +54,9 @@ def min_area_triangles(points: FloatArray) -> IntArray:
     while stack:
         a, b = stack.pop()
         if b - a >= 2:
-            k = int(best[a, b])
-            triangles.append((a, k, b))
-            stack += [(a, k), (k, b)]
+            c = int(best[a, b])
+            triangles.append((a, c, b))
+            stack += [(a, c), (c, b)]
     return np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
 
 

@@ -118,8 +118,8 @@ def ring_planes(mesh: PolygonMesh, free: BoolArray, patch: BoolArray
             or not _has_crease(mesh, faces, normal)):
         return None
     normals, points = [], []
-    for k, unit in zip(big, units, strict=True):
-        corners = np.unique(mesh.face_indices[(cluster == k)[mesh.face_of_corner]])
+    for which, unit in zip(big, units, strict=True):
+        corners = np.unique(mesh.face_indices[(cluster == which)[mesh.face_of_corner]])
         x = mesh.vertices[corners]
         centre = x.mean(axis=0)
         _, spread, vt = np.linalg.svd(x - centre, full_matrices=False)

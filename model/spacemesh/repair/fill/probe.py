@@ -81,7 +81,7 @@ def fill_error(truth: FloatArray, fill: FloatArray) -> float:
     for source, target in ((truth, fill), (fill, truth)):
         points, weight = _grid(source)
         d = surface_distance(points, target)
-        total += float(np.sum(weight * d**2) / max(np.sum(weight), 1e-300))
+        total += float(np.sum(weight * d**2) / max(float(np.sum(weight)), 1e-300))
     return total
 
 

@@ -50,9 +50,10 @@ class _Triangles:
 
     def __init__(self, triangles: list[list[int]], taken: set[tuple[int, int]]) -> None:
         self.taken = taken  # edges of the faces outside the patch (never made by a flip)
-        self.tris: list[list[int] | None] = [list(t) for t in triangles]
+        tris = [list(t) for t in triangles]
+        self.tris: list[list[int] | None] = list(tris)
         self.edges: dict[tuple[int, int], list[int]] = {}
-        for t, tri in enumerate(self.tris):
+        for t, tri in enumerate(tris):
             self._link(t, tri)
 
     def _link(self, t: int, tri: list[int]) -> None:
