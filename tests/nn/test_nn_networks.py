@@ -10,14 +10,17 @@ from spacemesh.nn.config import (  # noqa: E402
     CONFIGS,
     ModelConfig,
     get_config,
-    model_from_config,
 )
 from spacemesh.nn.losses import (  # noqa: E402
     PermutationReduction,
     degree_groups,
     permutation_loss,
 )
-from spacemesh.nn.model import NeighbourTable, padded_permutation_loss  # noqa: E402
+from spacemesh.nn.model import (  # noqa: E402
+    NeighbourTable,
+    model_from_config,
+    padded_permutation_loss,
+)
 from spacemesh.train.batching import concat_connectivity  # noqa: E402
 
 
