@@ -160,7 +160,8 @@ def _report(mesh: Mesh, output: Path, seconds: float, as_json: bool) -> None:
 
 
 def _fit_line(mesh: Mesh) -> str:
-    """``; fit: points->mesh 0.012, mesh->points 0.010 of the diagonal, coverage 91%``."""
+    """``; fit: points->mesh 0.012, mesh->points 0.010 of the diagonal, coverage 91%; 1 piece,
+    genus 0``."""
     fit = mesh.stats.fit
     if not fit:
         return ""
@@ -169,6 +170,10 @@ def _fit_line(mesh: Mesh) -> str:
             f"diagonal, coverage {100 * fit.get('coverage', float('nan')):.0f}%")
     if len(mesh.sample_scores) > 1:
         line += f", best of {len(mesh.sample_scores)} seeds"
+    if "pieces" in fit:  # the fit report's topology (servers from 2026-12 on)
+        pieces, loops = int(fit["pieces"]), int(fit.get("boundary_loops", 0))
+        line += f"; {pieces} piece{'' if pieces == 1 else 's'}, genus {int(fit['genus'])}"
+        line += f", {loops} boundary loop{'' if loops == 1 else 's'}" if loops else ""
     return line
 
 

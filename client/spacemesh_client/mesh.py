@@ -76,7 +76,9 @@ class MeshStats:
         ``mesh_to_points_mean``, ``mesh_to_points_p95`` (input units), the same with
         ``_rel`` (fractions of the bounding-box diagonal), ``coverage`` (share of points
         within 1% of the diagonal from the mesh), ``components``,
-        ``self_intersections`` (share of faces), ``diagonal`` and ``n_points``.
+        ``self_intersections`` (share of faces), ``diagonal``, ``n_points``, and the
+        topology a user sees: ``pieces`` (connected through shared edges after welding
+        equal positions), ``genus`` and ``boundary_loops``.
     """
 
     vertices: int

@@ -205,3 +205,77 @@ def check_topology(mesh: PolygonMesh) -> TopologyReport:
         n_components=n_components,
         euler_characteristic=euler,
     )
+
+
+@dataclass(frozen=True)
+class SurfaceTopology:
+    """What a user sees of a mesh's topology: its pieces, their genus, its open rims.
+
+    ``pieces`` are the components of faces connected through shared edges, after equal
+    positions are welded; ``genus`` is ``(2 pieces - chi - boundary_loops) / 2`` (summed
+    over pieces, ``chi = V - E + F`` of the welded mesh); ``boundary_loops`` are the
+    connected runs of edges with one face.
+    """
+
+    pieces: int
+    genus: int
+    boundary_loops: int
+
+
+def weld_equal_positions(mesh: PolygonMesh) -> PolygonMesh:
+    """``mesh`` with vertices at bit-equal positions merged (the first of each kept).
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+
+    Returns
+    -------
+    PolygonMesh
+        Same faces, indices into the distinct positions (in order of first use).
+    """
+    if mesh.n_vertices == 0:
+        return mesh
+    _, first, inverse = np.unique(mesh.vertices, axis=0, return_index=True,
+                                  return_inverse=True)
+    inverse = inverse.reshape(-1)
+    # renumber in order of each distinct position's first vertex
+    order = np.argsort(first, kind="stable")
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    vertices = mesh.vertices[first[order]]
+    return PolygonMesh(vertices, rank[inverse][mesh.face_indices], mesh.face_offsets)
+
+
+def surface_topology(mesh: PolygonMesh) -> SurfaceTopology:
+    """Pieces, genus and boundary loops of ``mesh`` after welding equal positions.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+        Edge-manifold for the genus to mean what it says (every output of the service is).
+
+    Returns
+    -------
+    SurfaceTopology
+        All zero for a mesh without faces.
+    """
+    if mesh.n_faces == 0:
+        return SurfaceTopology(pieces=0, genus=0, boundary_loops=0)
+    welded = weld_equal_positions(mesh)
+    pieces, _ = face_components(welded)
+    keys = edge_keys(welded.halfedges, welded.n_vertices)
+    unique, counts = np.unique(keys, return_counts=True)
+    used = np.zeros(welded.n_vertices, dtype=bool)
+    used[welded.face_indices] = True
+    euler = int(used.sum()) - len(unique) + welded.n_faces
+    open_keys = unique[counts == 1]  # (B,) edges with one face
+    loops = 0
+    if len(open_keys):
+        n = max(welded.n_vertices, 1)
+        a, b = open_keys // n, open_keys % n
+        graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n))
+        _, label = connected_components(graph, directed=False)
+        loops = len(np.unique(label[np.concatenate([a, b])]))
+    return SurfaceTopology(pieces=int(pieces), genus=int((2 * pieces - euler - loops) // 2),
+                           boundary_loops=int(loops))

@@ -123,3 +123,5 @@ def test_the_cli_sends_the_options_and_prints_the_fit(url, case, tmp_path):
     done = subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert "; fit: points->mesh " in done.stdout and "best of 2 seeds" in done.stdout
+    pieces, genus = summary["fit"]["pieces"], summary["fit"]["genus"]
+    assert f"; {pieces} piece{'' if pieces == 1 else 's'}, genus {genus}" in done.stdout

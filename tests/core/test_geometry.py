@@ -188,8 +188,11 @@ def test_the_fit_report_measures_distances_coverage_and_components():
     two = _mesh(np.concatenate([unit.vertices, unit.vertices + 5]),
                 np.concatenate([_triangles(unit), _triangles(unit) + unit.n_vertices]))
     assert fit_report(two, points).components == 2
+    assert (good.pieces, good.genus, good.boundary_loops) == (1, 0, 0)
+    assert (fit_report(two, points).pieces, fit_report(two, points).genus) == (2, 0)
     empty = fit_report(PolygonMesh.empty(), points)
     assert np.isnan(empty.score) and empty.coverage == 0.0
+    assert (empty.pieces, empty.genus, empty.boundary_loops) == (0, 0, 0)
     scaled = fit_report(unit.with_vertices(unit.vertices * 10), points * 10)
     assert scaled.mesh_to_points_mean_rel == pytest.approx(good.mesh_to_points_mean_rel,
                                                            rel=1e-6)

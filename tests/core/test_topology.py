@@ -1,7 +1,12 @@
 import numpy as np
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.topology import check_topology
+from spacemesh.topology import (
+    SurfaceTopology,
+    check_topology,
+    surface_topology,
+    weld_equal_positions,
+)
 from tests.factories import cube_quads, icosphere, prism, torus_grid
 
 
@@ -46,3 +51,31 @@ def test_repeated_vertex_face():
     report = check_topology(PolygonMesh.from_faces(v, [[0, 1, 2, 0, 3, 4]]))
     assert report.n_repeated_vertex_faces == 1
     assert not report.is_manifold
+
+
+def test_surface_topology_counts_pieces_genus_and_boundary_loops():
+    sphere, torus = icosphere(1), torus_grid()
+    assert surface_topology(sphere) == SurfaceTopology(pieces=1, genus=0, boundary_loops=0)
+    assert surface_topology(torus) == SurfaceTopology(pieces=1, genus=1, boundary_loops=0)
+    both = PolygonMesh.from_faces(
+        np.concatenate([sphere.vertices, torus.vertices + 5.0]),
+        sphere.faces + [np.asarray(f) + sphere.n_vertices for f in torus.faces])
+    assert surface_topology(both) == SurfaceTopology(pieces=2, genus=1, boundary_loops=0)
+    # the faces around vertex 0 removed: one rim; two faces far apart removed: two rims
+    faces = sphere.faces
+    around = [f for f in faces if 0 not in np.asarray(f).tolist()]
+    assert surface_topology(PolygonMesh.from_faces(sphere.vertices, around)).boundary_loops == 1
+    centres = np.array([sphere.vertices[np.asarray(f)].mean(axis=0) for f in faces])
+    far = int(np.argmin(centres @ centres[0]))  # the face opposite face 0
+    two_holes = [f for k, f in enumerate(faces) if k not in (0, far)]
+    opened = surface_topology(PolygonMesh.from_faces(sphere.vertices, two_holes))
+    assert opened == SurfaceTopology(pieces=1, genus=0, boundary_loops=2)
+
+
+def test_surface_topology_welds_equal_positions_first():
+    sphere = icosphere(1)
+    corners = sphere.vertices[np.asarray(sphere.faces)].reshape(-1, 3)  # a triangle soup
+    soup = PolygonMesh.from_faces(corners, np.arange(len(corners)).reshape(-1, 3))
+    assert check_topology(soup).n_components == sphere.n_faces  # unwelded: all apart
+    assert surface_topology(soup) == SurfaceTopology(pieces=1, genus=0, boundary_loops=0)
+    assert weld_equal_positions(soup).n_vertices == sphere.n_vertices

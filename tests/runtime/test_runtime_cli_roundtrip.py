@@ -69,6 +69,15 @@ def test_generate_options_and_fit_report(toy_model, tmp_path):
     assert summary["seed"] in (3, 4)
     assert set(summary["fit"]) == set(FitReport.__dataclass_fields__)
     assert summary["fit"]["n_points"] == 150
+    fit = summary["fit"]
+    plain = subprocess.run([*CLI, "generate", str(points), "-o", str(out), "--model",
+                            str(toy_model.repository), "--seed", str(summary["seed"]),
+                            "--start", "points", "--start-time", "0", "--target-vertices", "60",
+                            "--raw", "--threads", "1"],
+                           capture_output=True, text=True, timeout=120)
+    assert plain.returncode == 0, plain.stderr[-3000:]
+    piece = "piece" if fit["pieces"] == 1 else "pieces"
+    assert f"; {fit['pieces']} {piece}, genus {fit['genus']}" in plain.stdout
 
 
 @pytest.mark.parametrize(("flags", "message"), [

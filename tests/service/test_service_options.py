@@ -190,3 +190,10 @@ def test_every_generated_mesh_reports_its_fit(http, stub, case):
                                              seed=case.good_seed))
     assert reply.stats.HasField("fit") and reply.stats.fit.n_points == len(case.points)
     assert reply.stats.fit.coverage == fit["coverage"]
+    # the topology a user sees: the same numbers as the mesh's own check, on every transport
+    assert fit["pieces"] >= 1 and fit["boundary_loops"] == 0
+    assert fit["genus"] == response.json()["stats"]["genus"]
+    assert response.headers["x-spacemesh-fit-pieces"] == str(fit["pieces"])
+    assert response.headers["x-spacemesh-fit-genus"] == str(fit["genus"])
+    assert (reply.stats.fit.pieces, reply.stats.fit.genus, reply.stats.fit.boundary_loops) == (
+        fit["pieces"], fit["genus"], fit["boundary_loops"])

@@ -139,4 +139,15 @@ def generate(
                    f"({result.timings['total']:.2f} s); fit: points->mesh "
                    f"{fit.get('points_to_mesh_mean_rel', float('nan')):.4g}, mesh->points "
                    f"{fit.get('mesh_to_points_mean_rel', float('nan')):.4g} of the diagonal, "
-                   f"coverage {100 * fit.get('coverage', float('nan')):.0f}%")
+                   f"coverage {100 * fit.get('coverage', float('nan')):.0f}%"
+                   f"{_topology_text(fit)}")
+
+
+def _topology_text(fit: dict) -> str:
+    """``; 1 piece, genus 1`` (and the boundary loops of an open mesh) from a fit report."""
+    if "pieces" not in fit:
+        return ""
+    pieces = int(fit["pieces"])
+    text = f"; {pieces} piece{'' if pieces == 1 else 's'}, genus {int(fit['genus'])}"
+    loops = int(fit.get("boundary_loops", 0))
+    return text + (f", {loops} boundary loop{'' if loops == 1 else 's'}" if loops else "")

@@ -10,7 +10,10 @@ lines and ``samples=K`` (which keeps the seed with the lowest :attr:`FitReport.s
 * each also as a fraction of the input's bounding-box diagonal (``*_rel``);
 * ``coverage``: the share of input points within :data:`COVERAGE_FRACTION` of the
   diagonal from the mesh;
-* ``components``: connected components of faces;
+* ``components``: connected components of faces (faces sharing a vertex are connected);
+* ``pieces``, ``genus``, ``boundary_loops``: the topology a user sees
+  (:func:`spacemesh.topology.surface_topology`: pieces connected through shared edges
+  after welding equal positions, their summed genus, the open rims);
 * ``self_intersections``: the share of faces that intersect another face
   (:mod:`spacemesh.geometry.intersections`).
 """
@@ -28,6 +31,7 @@ from spacemesh.geometry.intersections import self_intersection_fraction
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangles_of
 from spacemesh.primitives.closest import nearest_triangles
+from spacemesh.topology import surface_topology
 from spacemesh.typed import FloatArray
 
 #: Input points measured at most (a fixed subset of larger clouds).
@@ -60,6 +64,9 @@ class FitReport:
     self_intersections: float
     diagonal: float
     n_points: int
+    pieces: int
+    genus: int
+    boundary_loops: int
 
     @property
     def score(self) -> float:
@@ -119,9 +126,12 @@ def fit_report(mesh: PolygonMesh, points: FloatArray) -> FitReport:
     diagonal = float(np.linalg.norm(np.ptp(points, axis=0))) if len(points) else 0.0
     relative = diagonal if diagonal > 0 else 1.0
     nan = float("nan")
+    topology = surface_topology(mesh)
+    shape = {"pieces": topology.pieces, "genus": topology.genus,
+             "boundary_loops": topology.boundary_loops}
     if mesh.n_faces == 0 or len(points) == 0:
         return FitReport(nan, nan, nan, nan, nan, nan, nan, nan, 0.0, face_components(mesh),
-                         0.0, diagonal, len(points))
+                         0.0, diagonal, len(points), **shape)
     triangles, _ = triangles_of(mesh)
     _, gap = nearest_triangles(points, mesh.vertices, triangles)
     to_mesh = np.sqrt(np.maximum(gap, 0.0))
@@ -140,5 +150,5 @@ def fit_report(mesh: PolygonMesh, points: FloatArray) -> FitReport:
         coverage=float(np.mean(to_mesh <= COVERAGE_FRACTION * relative)),
         components=face_components(mesh),
         self_intersections=self_intersection_fraction(mesh),
-        diagonal=diagonal, n_points=len(points),
+        diagonal=diagonal, n_points=len(points), **shape,
     )
