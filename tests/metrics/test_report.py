@@ -33,6 +33,9 @@ def fake_rows():
                     "oriented": True,
                     "valid": True,
                     "components": 1,
+                    "pieces": 1,
+                    "genus": 0,
+                    "topology": method != "psr" or i == 0,
                     "self_intersections": 0.01,
                     "edge_length_w1": 0.1,
                     "corner_angle_w1": 5.0,
@@ -61,6 +64,7 @@ def test_summary_and_tables(tmp_path):
     assert summary["ours"]["cd"] == 1e-3 and summary["ours"]["valid"] == 1.0
     assert summary["bpa"]["n_ok"] == 0 and summary["bpa"]["valid"] == 0.0
     assert math.isnan(summary["bpa"]["cd"])
+    assert summary["ours"]["topology"] == 1.0 and summary["psr"]["topology"] == 0.5
     assert summary["ours"]["degrees"] == {3: 190 / 196, 4: 6 / 196}
     table = markdown_tables(summary)
     assert "| Ours | **1.00** |" in table  # CD in 1e-3, best value in bold
@@ -82,3 +86,18 @@ def test_histogram_png(tmp_path):
     }
     path = plot_histograms(distributions, summarise(fake_rows()), tmp_path / "h.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_topology_agreement_compares_pieces_and_genus_with_the_ground_truth():
+    from spacemesh.examples import icosphere, torus_grid
+    from spacemesh.metrics.compare import Reference, score_mesh
+    from spacemesh.primitives import normalize
+
+    sphere, _, _ = normalize(icosphere(2))
+    torus, _, _ = normalize(torus_grid())
+    reference = Reference.from_mesh(sphere)
+    same = score_mesh(sphere, reference)
+    assert (same["pieces"], same["genus"], same["topology"]) == (1, 0, True)
+    other = score_mesh(torus, reference)
+    assert (other["pieces"], other["genus"], other["topology"]) == (1, 1, False)
+

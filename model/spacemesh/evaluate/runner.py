@@ -316,6 +316,9 @@ def _row(
             oriented=False,
             valid=False,
             components=0,
+            pieces=0,
+            genus=0,
+            topology=False,
             degrees="",
         )
     return row

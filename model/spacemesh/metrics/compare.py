@@ -6,7 +6,9 @@ is computed once per shape and shared by our model and every baseline.
 
 Row keys (see :data:`METRIC_KEYS`): ``cd``, ``f1``, ``ecd``, ``ef1``, ``in`` (a fraction),
 ``n_vertices``, ``n_faces``, ``manifold``, ``watertight``, ``oriented``, ``valid``,
-``components``, ``self_intersections`` (fraction of faces), ``edge_length_w1``,
+``components``, ``pieces`` and ``genus`` (:func:`spacemesh.topology.surface_topology`),
+``topology`` (pieces and genus both equal the ground truth's), ``self_intersections``
+(fraction of faces), ``edge_length_w1``,
 ``corner_angle_w1``, ``mean_edge_length``, ``mean_corner_angle`` and ``degrees`` (the
 face-degree histogram as ``"3:120 4:8"``). A prediction with no surface gets NaN for
 every geometric metric.
@@ -32,6 +34,7 @@ from spacemesh.metrics.quality import (
     topology_flags,
 )
 from spacemesh.metrics.sampling import N_SAMPLES, SurfaceSamples, sample_mesh
+from spacemesh.topology import SurfaceTopology, surface_topology
 from spacemesh.typed import FloatArray
 
 #: Every key of a row from :func:`score_mesh`, in table order.
@@ -48,6 +51,9 @@ METRIC_KEYS = (
     "oriented",
     "valid",
     "components",
+    "pieces",
+    "genus",
+    "topology",
     "self_intersections",
     "edge_length_w1",
     "corner_angle_w1",
@@ -92,6 +98,8 @@ class Reference:
     edge_lengths : (E,) float64
     corner_angles : (S,) float64
     options : MetricOptions
+    topology : SurfaceTopology
+        The ground truth's pieces, genus and boundary loops.
     """
 
     mesh: PolygonMesh
@@ -101,6 +109,7 @@ class Reference:
     edge_lengths: FloatArray
     corner_angles: FloatArray
     options: MetricOptions
+    topology: SurfaceTopology
 
     @classmethod
     def from_mesh(
@@ -132,6 +141,7 @@ class Reference:
             edge_lengths(mesh),
             corner_angles(mesh),
             options,
+            surface_topology(mesh),
         )
 
 
@@ -161,6 +171,10 @@ def score_mesh(
     options = reference.options
     row: dict[str, Any] = {"n_vertices": int(mesh.n_vertices), "n_faces": int(mesh.n_faces)}
     row.update(topology_flags(mesh))
+    shape = surface_topology(mesh)
+    row.update(pieces=shape.pieces, genus=shape.genus,
+               topology=(shape.pieces, shape.genus) == (reference.topology.pieces,
+                                                         reference.topology.genus))
     samples = sample_mesh(mesh, options.samples, seed)
     if len(samples):
         scores = chamfer_f1(

@@ -64,7 +64,7 @@ MEAN_KEYS = (
     "seconds",
 )
 #: Rates (over all shapes).
-RATE_KEYS = ("manifold", "watertight", "oriented", "valid")
+RATE_KEYS = ("manifold", "watertight", "oriented", "valid", "topology")
 #: Whether lower is better, for the metrics that get a bold best value.
 LOWER_IS_BETTER = {
     "cd": True,
@@ -76,6 +76,7 @@ LOWER_IS_BETTER = {
     "edge_length_w1": True,
     "corner_angle_w1": True,
     "valid": False,
+    "topology": False,
 }
 
 
@@ -234,14 +235,16 @@ def markdown_tables(summary: dict[str, dict[str, Any]]) -> str:
         )
     lines += [
         "",
-        "| Method | valid % ↑ | manifold % | watertight % | oriented % | self-int. faces % ↓ "
+        "| Method | valid % ↑ | topology % ↑ | manifold % | watertight % | oriented % "
+        "| self-int. faces % ↓ "
         "| edge-length W1 ↓ | corner-angle W1 (deg) ↓ | median CD (1e-3) | face degrees "
         "| s/shape |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for method, s in summary.items():
         lines.append(
             f"| {method_label(method)} | {_cell(summary, method, 'valid', 100, 0)} "
+            f"| {_cell(summary, method, 'topology', 100, 0)} "
             f"| {_fmt(100 * s['manifold'], 0)} | {_fmt(100 * s['watertight'], 0)} "
             f"| {_fmt(100 * s['oriented'], 0)} "
             f"| {_cell(summary, method, 'self_intersections', 100, 2)} "
