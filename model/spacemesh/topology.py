@@ -13,7 +13,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import edge_keys
+from spacemesh.primitives import edge_keys, weld
 from spacemesh.typed import IntArray
 
 
@@ -223,7 +223,7 @@ class SurfaceTopology:
 
 
 def weld_equal_positions(mesh: PolygonMesh) -> PolygonMesh:
-    """``mesh`` with vertices at bit-equal positions merged (the first of each kept).
+    """``mesh`` with vertices at exactly equal positions merged (:func:`spacemesh.primitives.weld`).
 
     Parameters
     ----------
@@ -232,19 +232,12 @@ def weld_equal_positions(mesh: PolygonMesh) -> PolygonMesh:
     Returns
     -------
     PolygonMesh
-        Same faces, indices into the distinct positions (in order of first use).
+        Same faces, indices into the distinct positions (in lexicographic order).
     """
     if mesh.n_vertices == 0:
         return mesh
-    _, first, inverse = np.unique(mesh.vertices, axis=0, return_index=True,
-                                  return_inverse=True)
-    inverse = inverse.reshape(-1)
-    # renumber in order of each distinct position's first vertex
-    order = np.argsort(first, kind="stable")
-    rank = np.empty_like(order)
-    rank[order] = np.arange(len(order))
-    vertices = mesh.vertices[first[order]]
-    return PolygonMesh(vertices, rank[inverse][mesh.face_indices], mesh.face_offsets)
+    vertices, inverse = weld(np.asarray(mesh.vertices, dtype=np.float64))
+    return PolygonMesh(vertices, inverse[mesh.face_indices], mesh.face_offsets)
 
 
 def surface_topology(mesh: PolygonMesh) -> SurfaceTopology:

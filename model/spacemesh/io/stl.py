@@ -15,8 +15,8 @@ import numpy as np
 from spacemesh.io.errors import MeshFormatError, check_vertices, decode_text, require_nonempty
 from spacemesh.io.limits import UNLIMITED, ReadLimits
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import triangulate_manifold
-from spacemesh.typed import FloatArray, IntArray
+from spacemesh.primitives import triangulate_manifold, weld
+from spacemesh.typed import FloatArray
 
 _RECORD = np.dtype(
     [("normal", "<f4", (3,)), ("corners", "<f4", (3, 3)), ("attribute", "<u2")]
@@ -93,30 +93,6 @@ def load_stl(data: bytes, limits: ReadLimits | None = None) -> PolygonMesh:
     corners = check_vertices(corners, "STL")
     vertices, inverse = weld(corners)
     return PolygonMesh.from_faces(vertices, inverse.reshape(-1, 3))
-
-
-def weld(corners: FloatArray) -> tuple[FloatArray, IntArray]:
-    """Merge exactly equal rows, like ``np.unique(corners, axis=0, return_inverse=True)``.
-
-    Parameters
-    ----------
-    corners : (C, 3) float64
-        Positions; ``-0.0`` and ``0.0`` count as equal.
-
-    Returns
-    -------
-    vertices : (V, 3) float64
-        The distinct rows in lexicographic order.
-    inverse : (C,) int64
-        ``vertices[inverse] == corners``.
-    """
-    order = np.lexsort((corners[:, 2], corners[:, 1], corners[:, 0]))
-    ordered = corners[order]
-    new = np.ones(len(ordered), dtype=bool)
-    new[1:] = np.any(ordered[1:] != ordered[:-1], axis=1)
-    inverse = np.empty(len(corners), dtype=np.int64)
-    inverse[order] = np.cumsum(new) - 1
-    return ordered[new], inverse
 
 
 def export_stl(mesh: PolygonMesh) -> bytes:

@@ -8,7 +8,8 @@
   mesh restricted to some faces;
 * :mod:`~spacemesh.primitives.sampling`: points sampled on a surface;
 * :mod:`~spacemesh.primitives.frame`: the unit frame of a mesh;
-* :mod:`~spacemesh.primitives.decimation`: quadric-error decimation.
+* :mod:`~spacemesh.primitives.decimation`: quadric-error decimation;
+* :mod:`~spacemesh.primitives.welding`: exactly equal positions merged.
 
 They read and make :class:`~spacemesh.mesh.PolygonMesh` and import nothing else of
 ours, so any layer may use them.
@@ -29,6 +30,7 @@ from spacemesh.primitives.triangles import (
     triangulate_manifold,
     triangulate_polygon,
 )
+from spacemesh.primitives.welding import weld
 
 __all__ = [
     "decimate",
@@ -46,4 +48,5 @@ __all__ = [
     "triangulate_manifold",
     "triangulate_polygon",
     "vertices_of",
+    "weld",
 ]

@@ -5,7 +5,7 @@ UV coordinates or normal change (UV seams, hard edges, flat shading): the copies
 a position but not an index, so the readers (which never weld) hand over a mesh that is
 open along every seam, and a repair answers ``defects-outside-region``. Welding merges
 vertices at *exactly* equal positions (``-0.0`` equals ``0.0``; nothing is snapped
-within a tolerance), with :func:`spacemesh.io.stl.weld`, the STL reader's own weld.
+within a tolerance), with :func:`spacemesh.primitives.weld`, the STL reader's own weld.
 
 Rules (see docs/REPAIR.md):
 
@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from spacemesh.io.stl import weld
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import weld
 from spacemesh.repair.region import Region, check_range, parse_region
 from spacemesh.typed import BoolArray, IntArray
 
