@@ -38,7 +38,7 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "real")
     parser.add_argument("--categories", default=",".join(CATEGORIES))
     parser.add_argument("--split", choices=("dev", "test", "all"), default="test")
-    parser.add_argument("--baselines", default="psr,psr_star,psr_star_gt")
+    parser.add_argument("--baselines", default="psr_star,psr_star_gt,psr_true,psr_true_gt")
     parser.add_argument("--modes", default="default")
     parser.add_argument("--noise", type=float, default=0.0)
     parser.add_argument("--partial", action="store_true")

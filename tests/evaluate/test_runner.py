@@ -127,3 +127,32 @@ def test_gallery_renders_points_meshes_and_failures(tmp_path):
     )
     path = render_gallery([row], tmp_path / "g.png")
     assert path.read_bytes()[:8] == PNG
+
+
+def test_true_normals_reach_the_true_baselines_and_the_normals_mode():
+    """psr_true reads the shape's own normals (here turned inward, so its surface comes
+    out inside-out while PSR* from estimated normals does not), ``normals`` passes them
+    to our pipeline, and a shape without true normals gets a failed row, not a crash."""
+    mesh = icosphere(3)
+    points, normals = sample_surface(mesh, 2048, np.random.default_rng(0))
+    inward = EvalShape("inward", mesh, points, "example", -normals)
+    bare = EvalShape("bare", mesh, points, "example")
+    model = HullModel()
+    out = run_evaluation(
+        [inward, bare], generator=model, modes=("default", "normals"),
+        baselines=("psr_star", "psr_true", "psr_true_gt"), gallery=0, progress=False,
+    )
+    rows = {(r["shape_id"], r["method"]): r for r in out.rows}
+    assert [r["method"] for r in out.rows[:6]] == [
+        "ours", "ours_normals", "psr_star", "psr_true", "psr_true_gt", "gt"]
+    assert model.calls[0][1] is None
+    np.testing.assert_allclose(model.calls[1][1], -normals)
+    assert rows["bare", "ours_normals"]["status"] == "failed: no true normals"
+    assert rows["bare", "psr_true"]["status"] == "failed: no true normals"
+    assert rows["bare", "psr_star"]["status"] == "ok"
+    assert rows["inward", "psr_star"]["oriented"] and rows["inward", "psr_true"]["status"] == "ok"
+    assert rows["inward", "psr_true_gt"]["n_vertices"] <= mesh.n_vertices + 2
+    assert abs(rows["inward", "psr_true"]["n_vertices"] - rows["inward", "ours"]["n_vertices"]) \
+        <= 0.1 * rows["inward", "ours"]["n_vertices"] + 2
+    # IN: the share of inaccurate normals, about all of them on an inside-out surface
+    assert rows["inward", "psr_star"]["in"] < 0.1 < 0.9 < rows["inward", "psr_true"]["in"]

@@ -48,8 +48,10 @@ def evaluate(
         ),
     ] = None,
     baselines: Annotated[
-        str, typer.Option("--baselines", help="Comma-separated: psr, psr_star, bpa (or none).")
-    ] = "psr,psr_star,bpa",
+        str, typer.Option("--baselines", help="Comma-separated: psr, psr_star, psr_star_gt, "
+                          "psr_true, psr_true_gt, bpa (or none); psr_true: from the true "
+                          "normals.")
+    ] = "psr,psr_star,psr_true,bpa",
     split: Annotated[
         str, typer.Option("--split", help="Dataset split: train, val, test or all.")
     ] = "test",

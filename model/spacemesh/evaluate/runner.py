@@ -7,9 +7,12 @@ For every shape (a dataset record, or a mesh file normalised and sampled):
    conditioning points, in the same frame;
 2. normals are *estimated* from the points (:func:`spacemesh.baselines.estimate_normals`),
    as a user would; the baselines get them, and so does our model if it reads normals;
+   the points' *true* normals (the ground truth's face normals, kept by
+   :func:`mesh_shapes` and the datasets) go to the ``psr_true`` baselines and to the
+   ``normals`` mode of our pipeline;
 3. ours (``MeshGenerator.generate``), then PSR, PSR* (PSR decimated to our vertex count
    for that shape, or the ground truth's when ours failed or with
-   ``psr_star_target="gt"``) and BPA;
+   ``psr_star_target="gt"``), PSR* from the true normals and BPA;
 4. each mesh is scored with :func:`spacemesh.metrics.score_mesh`; the ground truth itself,
    sampled with another seed, is scored too (the ``gt`` row: the best any method can get
    with 10,000 samples).
@@ -47,11 +50,23 @@ from spacemesh.metrics.sampling import apply_normalisation, normalisation
 from spacemesh.threads import limit_threads
 from spacemesh.typed import FloatArray
 
-#: Baselines the runner knows, in table order (``psr_star_gt``: PSR decimated to the
-#: ground truth's vertex count).
-BASELINES = ("psr", "psr_star", "psr_star_gt", "bpa")
+#: Baselines the runner knows, in table order. ``psr_star``: screened Poisson from
+#: normals estimated from the points, decimated to our vertex count; ``psr_star_gt``: the
+#: same at the ground truth's vertex count; ``psr_true`` and ``psr_true_gt``: the same
+#: two from the points' true normals (the strong baseline).
+BASELINES = ("psr", "psr_star", "psr_star_gt", "psr_true", "psr_true_gt", "bpa")
+#: Baselines made from screened Poisson, with the normals each reads ("estimated" or
+#: "true") and the vertex count it is decimated to (None: PSR as it comes).
+POISSON_BASELINES: dict[str, tuple[str, str | None]] = {
+    "psr": ("estimated", None),
+    "psr_star": ("estimated", "ours"),
+    "psr_star_gt": ("estimated", "gt"),
+    "psr_true": ("true", "ours"),
+    "psr_true_gt": ("true", "gt"),
+}
 #: Modes of our pipeline the runner knows: the method name of each row, the generate
-#: options it runs with (``gt``: ``target_vertices`` = the ground truth's count) and, for
+#: options it runs with (``gt``: ``target_vertices`` = the ground truth's count, the
+#: compactness row; ``normals``: the points' true normals go with them) and, for
 #: the ablations, what it changes in the geometry stage
 #: (:class:`spacemesh.geometry.GeometryOptions` fields; ``fit``: VertexFitOptions fields).
 MODES: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
@@ -63,6 +78,7 @@ MODES: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
     "denoise": ("ours_denoise", {"start_time": 0.05}, {}),
     "gt_denoise": ("ours_gt_denoise", {"start_time": 0.05}, {}),
     "gt": ("ours_gt", {}, {}),
+    "normals": ("ours_normals", {}, {}),
     "no_fit": ("ours_no_fit", {}, {"fit": {"iterations": 0}}),
     "no_flips": ("ours_no_flips", {}, {"flips": False}),
     "no_sharp": ("ours_no_sharp", {}, {"fit": {"plane_weight": 0.0}}),
@@ -97,12 +113,15 @@ class EvalShape:
         Conditioning points on the ground truth, in the mesh's frame.
     category : str
         e.g. the dataset style or the mesh's category.
+    normals : (P, 3) float, optional
+        The points' true normals (the ground truth's normal where each was sampled).
     """
 
     shape_id: str
     mesh: PolygonMesh
     points: FloatArray
     category: str = ""
+    normals: FloatArray | None = None
 
 
 def dataset_shapes(
@@ -125,7 +144,8 @@ def dataset_shapes(
 
     dataset = open_dataset(directory, None if split == "all" else split)
     count = len(dataset) if limit is None else min(limit, len(dataset))
-    return [EvalShape(r.shape_id, r.mesh, r.points, r.style) for r in dataset[:count]]
+    return [EvalShape(r.shape_id, r.mesh, r.points, r.style, r.normals)
+            for r in dataset[:count]]
 
 
 def mesh_shapes(
@@ -135,7 +155,8 @@ def mesh_shapes(
     points: int = N_POINTS,
     seed: int = 0,
 ) -> list[EvalShape]:
-    """Mesh files as evaluation shapes: normalised, with ``points`` sampled points each.
+    """Mesh files as evaluation shapes: normalised, with ``points`` sampled points each
+    (and their true normals).
 
     Parameters
     ----------
@@ -156,9 +177,9 @@ def mesh_shapes(
     shapes = []
     for i, path in enumerate(paths):
         mesh, _, _ = normalize(load_mesh(path))
-        cloud, _ = sample_surface(mesh, points, np.random.default_rng([seed, i]))
+        cloud, normals = sample_surface(mesh, points, np.random.default_rng([seed, i]))
         category = categories[i] if categories is not None else ""
-        shapes.append(EvalShape(Path(path).name, mesh, cloud, category))
+        shapes.append(EvalShape(Path(path).name, mesh, cloud, category, normals))
     return shapes
 
 
@@ -276,14 +297,24 @@ def corrupt_points(points: FloatArray, *, noise: float = 0.0, partial: bool = Fa
     -------
     (P', 3) float64
     """
-    points = np.asarray(points, dtype=np.float64)
+    points = np.asarray(points, dtype=np.float64)[scan_kept(points, partial)]
+    return _noisy(points, noise, seed) if noise > 0 else points
+
+
+def scan_kept(points: FloatArray, partial: bool) -> np.ndarray:
+    """(P,) bool: the points a one-sided scan keeps (all of them unless ``partial``), so
+    that their true normals can follow them."""
+    points = np.asarray(points)
+    if not partial:
+        return np.ones(len(points), dtype=bool)
+    return points[:, 0] >= np.median(points[:, 0])
+
+
+def _noisy(points: FloatArray, noise: float, seed: int | list[int]) -> FloatArray:
+    """``points`` with Gaussian noise of ``noise`` times their bounding-box diagonal."""
     rng = np.random.default_rng(seed)
-    if partial:
-        points = points[points[:, 0] >= np.median(points[:, 0])]
-    if noise > 0:
-        diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
-        points = points + rng.normal(scale=noise * diagonal, size=points.shape)
-    return points
+    diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
+    return points + rng.normal(scale=noise * diagonal, size=points.shape)
 
 
 def _row(
@@ -409,7 +440,10 @@ def run_evaluation(
         centre, scale = normalisation(shape.mesh)
         gt = apply_normalisation(shape.mesh, centre, scale)
         points: FloatArray = (np.asarray(shape.points, np.float64) - centre) / scale  # (P, 3)
+        kept = scan_kept(points, partial)
         points = corrupt_points(points, noise=noise, partial=partial, seed=[seed, index])
+        true_normals = (None if shape.normals is None
+                        else np.asarray(shape.normals, np.float64)[kept])  # (P', 3)
         reference = Reference.from_mesh(gt, seed=[seed, index, 0], options=options)
         normals = estimate_normals(points)  # (P, 3), what every method may use
         meshes: dict[str, tuple[PolygonMesh | None, str, float]] = {}
@@ -421,28 +455,34 @@ def run_evaluation(
                 extra = dict(extra, seed=seed, steps=steps)
                 if mode in ("gt", "gt_denoise"):
                     extra["target_vertices"] = gt.n_vertices
+                given = normals if wants_normals else None
+                if mode == "normals":
+                    given = true_normals
+                    if given is None:
+                        meshes[method] = (None, "failed: no true normals", 0.0)
+                        continue
                 with _geometry_changed(generator, geometry):
-                    meshes[method] = _timed(_generate, generator, points,
-                                            normals if wants_normals else None, **extra)
-        if any(b in baselines for b in ("psr", "psr_star", "psr_star_gt")):
-            bar.set_postfix_str("psr")
-            psr = _timed(screened_poisson, points, normals, threads=threads)
-            if "psr" in baselines:
-                meshes["psr"] = psr
-            ours = meshes.get("ours", (None,))[0] if psr_star_target == "ours" else None
-            targets = {
-                "psr_star": ours.n_vertices if ours is not None and ours.n_faces
-                else gt.n_vertices,
-                "psr_star_gt": gt.n_vertices,
-            }
-            for name, target in targets.items():
-                if name not in baselines:
-                    continue
-                if psr[0] is None:
-                    meshes[name] = psr
+                    meshes[method] = _timed(_generate, generator, points, given, **extra)
+        ours = meshes.get("ours", (None,))[0] if psr_star_target == "ours" else None
+        ours_count = ours.n_vertices if ours is not None and ours.n_faces else gt.n_vertices
+        poisson: dict[str, tuple[PolygonMesh | None, str, float]] = {}
+        for name in (b for b in baselines if b in POISSON_BASELINES):
+            which, target = POISSON_BASELINES[name]
+            if which not in poisson:
+                bar.set_postfix_str(f"psr ({which} normals)")
+                if which == "true" and true_normals is None:
+                    poisson[which] = (None, "failed: no true normals", 0.0)
                 else:
-                    star = _timed(psr_star, psr[0], target)
-                    meshes[name] = (star[0], star[1], star[2] + psr[2])
+                    oriented = normals if which == "estimated" else true_normals
+                    poisson[which] = _timed(screened_poisson, points, oriented,
+                                            threads=threads)
+            psr = poisson[which]
+            if target is None or psr[0] is None:
+                meshes[name] = psr
+            else:
+                count = ours_count if target == "ours" else gt.n_vertices
+                star = _timed(psr_star, psr[0], count)
+                meshes[name] = (star[0], star[1], star[2] + psr[2])
         if "bpa" in baselines:
             bar.set_postfix_str("bpa")
             meshes["bpa"] = _timed(ball_pivoting, points, normals)

@@ -43,9 +43,12 @@ METHOD_LABELS = {
     "ours_no_fit": "Ours without the vertex fit",
     "ours_no_flips": "Ours without edge flips",
     "ours_no_sharp": "Ours without sharp features",
+    "ours_normals": "Ours (true normals)",
     "psr": "PSR",
     "psr_star": "PSR*",
     "psr_star_gt": "PSR* (GT count)",
+    "psr_true": "PSR* (true normals)",
+    "psr_true_gt": "PSR* (true normals, GT count)",
     "bpa": "BPA",
     "gt": "GT (resampled)",
 }

@@ -47,6 +47,7 @@ from spacemesh.runtime.large import (
     network_vertices,
 )
 from spacemesh.runtime.options import GenerateOptions
+from spacemesh.runtime.pieces import drop_fragments
 from spacemesh.runtime.sampler import ProgressFn, StageFn, sample, split_tokens
 from spacemesh.runtime.schedule import NoiseSchedule
 from spacemesh.typed import FloatArray, IntArray
@@ -694,12 +695,15 @@ class MeshGenerator:
             geometry_stats: dict[str, Any] = {}
             if not options.raw:
                 stage("geometry", b + 1, len(jobs))
+                mesh, dropped = drop_fragments(mesh)
+                geometry_stats["n_fragments_dropped"] = dropped
                 unit, normals = prepared.fit_points()
                 refined = refine_geometry(
                     mesh, unit, normals, self.spec.geometry,
                     target_vertices=self.vertex_count(options) if start == "points" else None,
                 )
-                mesh, geometry_stats = _outward(refined.mesh), refined.stats
+                mesh = _outward(refined.mesh)
+                geometry_stats.update(refined.stats)
             mesh = mesh.with_vertices(mesh.vertices * prepared.scale + prepared.centre)
             e2 = time.perf_counter()
             stage("report", b + 1, len(jobs))

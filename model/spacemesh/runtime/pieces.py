@@ -1,0 +1,108 @@
+"""Fragments: tiny pieces of a decoded mesh that sit beside a larger one.
+
+The connectivity network sometimes closes three to eight vertices near a larger piece
+into a piece of their own: a flat two-triangle pillow or a small tetrahedral knot on the
+surface of the part they belong to. Such a fragment adds a piece that the points do not
+have (the output's topology disagrees with the object's) and covers almost nothing, so
+:func:`drop_fragments` removes it. A small piece *away* from the others (a separate part
+of the object) is kept, however small, as is every piece of a mesh that has nothing but
+fragments.
+
+Removing whole closed pieces keeps a closed oriented manifold closed, oriented and
+manifold: the decode's guarantee holds for the result.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import faces_subset, triangles_of
+from spacemesh.topology import face_components, weld_equal_positions
+from spacemesh.typed import FloatArray, IntArray
+
+
+@dataclass(frozen=True)
+class FragmentPolicy:
+    """What counts as a fragment.
+
+    Attributes
+    ----------
+    max_vertices : int
+        A fragment has at most this many vertices...
+    max_area_share : float
+        ... at most this share of the mesh's area...
+    max_gap_edges : float
+        ... and a vertex within this many median edge lengths of a vertex of a larger
+        piece (a piece further away is a part of its own).
+    """
+
+    max_vertices: int = 8
+    max_area_share: float = 0.02
+    max_gap_edges: float = 2.0
+
+
+def drop_fragments(mesh: PolygonMesh, policy: FragmentPolicy | None = None
+                   ) -> tuple[PolygonMesh, int]:
+    """``mesh`` without its fragments (see the module docstring).
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+        A valid decode (closed oriented manifold pieces).
+    policy : FragmentPolicy, optional
+
+    Returns
+    -------
+    mesh : PolygonMesh
+        The same mesh when it has no fragment; otherwise its other pieces, with unused
+        vertices removed.
+    dropped : int
+        How many pieces were removed.
+    """
+    policy = policy or FragmentPolicy()
+    if mesh.n_faces == 0:
+        return mesh, 0
+    n_pieces, label = face_components(weld_equal_positions(mesh))  # (F,) piece of each face
+    if n_pieces < 2:
+        return mesh, 0
+    fragment = _fragments(mesh, n_pieces, label, policy)  # (n_pieces,) bool
+    if not fragment.any() or fragment.all():
+        return mesh, 0
+    kept, _ = faces_subset(mesh, ~fragment[label]).remove_unreferenced_vertices()
+    return kept, int(fragment.sum())
+
+
+def _fragments(mesh: PolygonMesh, n_pieces: int, label: IntArray,
+               policy: FragmentPolicy) -> np.ndarray:
+    """(n_pieces,) bool: which pieces are fragments."""
+    tri, source = triangles_of(mesh)  # (T, 3), (T,)
+    corners = mesh.vertices[tri]  # (T, 3, 3)
+    areas = 0.5 * np.linalg.norm(
+        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    piece_area = np.bincount(label[source], weights=areas, minlength=n_pieces)
+    share = piece_area / max(float(piece_area.sum()), np.finfo(float).tiny)
+    vertex_piece = np.full(mesh.n_vertices, -1, dtype=np.int64)
+    vertex_piece[mesh.face_indices] = np.repeat(label, mesh.face_sizes)
+    used = vertex_piece >= 0
+    piece_vertices = np.bincount(vertex_piece[used], minlength=n_pieces)
+    small = (piece_vertices <= policy.max_vertices) & (share <= policy.max_area_share)
+    if not small.any() or small.all():
+        return small
+    reach = policy.max_gap_edges * _median_edge(mesh)
+    large_vertices = np.flatnonzero(used & ~small[np.maximum(vertex_piece, 0)])
+    tree = cKDTree(mesh.vertices[large_vertices])
+    fragment = np.zeros(n_pieces, dtype=bool)
+    for piece in np.flatnonzero(small):
+        gaps, _ = tree.query(mesh.vertices[vertex_piece == piece])
+        fragment[piece] = bool(np.min(gaps) <= reach)
+    return fragment
+
+
+def _median_edge(mesh: PolygonMesh) -> float:
+    """The median length of the mesh's face sides."""
+    sides: FloatArray = mesh.vertices[mesh.halfedges[:, 1]] - mesh.vertices[mesh.halfedges[:, 0]]
+    return float(np.median(np.linalg.norm(sides, axis=1)))
