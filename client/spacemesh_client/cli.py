@@ -170,6 +170,9 @@ def _fit_line(mesh: Mesh) -> str:
             f"diagonal, coverage {100 * fit.get('coverage', float('nan')):.0f}%")
     if len(mesh.sample_scores) > 1:
         line += f", best of {len(mesh.sample_scores)} seeds"
+    if fit.get("tolerance") is not None:
+        line += (f", tolerance {fit['tolerance']:g} "
+                 f"{'met' if fit.get('tolerance_met') else 'not met'}")
     if "pieces" in fit:  # the fit report's topology (servers from 2026-12 on)
         pieces, loops = int(fit["pieces"]), int(fit.get("boundary_loops", 0))
         line += f"; {pieces} piece{'' if pieces == 1 else 's'}, genus {int(fit['genus'])}"

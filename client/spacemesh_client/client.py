@@ -139,7 +139,8 @@ class Client(_Options):
                  format: str | None = DEFAULT_FORMAT, seed: int | None = None,
                  steps: int | None = None, sampler: str | None = None,
                  start: str | None = None, start_time: float | None = None,
-                 target_vertices: int | None = None, samples: int | None = None,
+                 target_vertices: int | None = None, tolerance: float | None = None,
+                 samples: int | None = None,
                  raw: bool | None = None, filename: str | None = None,
                  progress: ProgressFn | None = None, stage: StageFn | None = None) -> Mesh:
         """Point cloud in, oriented manifold polygon mesh out.
@@ -171,6 +172,10 @@ class Client(_Options):
             begins; 0 uses the chosen points as they are.
         target_vertices : int, optional
             Vertices of the mesh (within 10%), 4..10,000; needs ``start="points"``.
+        tolerance : float, optional
+            The smallest mesh whose mean distance from the points to the mesh is at most
+            this fraction of the points' bounding-box diagonal (1e-4..0.5); not with
+            ``target_vertices``. ``Mesh.stats.fit`` reports ``tolerance_met``.
         samples : int, optional
             Generate seeds ``seed .. seed + samples - 1`` (1..16) and return the mesh
             that fits the points best (``Mesh.seed`` is its seed, ``Mesh.sample_scores``
@@ -185,8 +190,9 @@ class Client(_Options):
         stage : callable, optional
             ``stage(name, done, total)`` for each progress event of the stream: as each
             stage begins (``queued``, ``encoder``, ``sampler``, ``connectivity``,
-            ``decode``, ``geometry``, ``report``, ``encode_output``) and per sampler
-            step (``sampler``), over either transport.
+            ``decode``, ``geometry``, ``report``, ``encode_output``; with ``tolerance``,
+            ``tolerance`` before each try of the search, which then runs the stages
+            again) and per sampler step (``sampler``), over either transport.
 
         Returns
         -------
@@ -203,7 +209,7 @@ class Client(_Options):
         source = points_input(points, normals, filename)
         options = chosen(seed=seed, steps=steps, sampler=sampler, start=start,
                          start_time=start_time, target_vertices=target_vertices,
-                         samples=samples, raw=raw)
+                         tolerance=tolerance, samples=samples, raw=raw)
         return self._retrying(
             lambda: self._transport.generate(source, format, options,
                                              reporter(progress, stage)))
@@ -362,7 +368,8 @@ class AsyncClient(_Options):
                        format: str | None = DEFAULT_FORMAT, seed: int | None = None,
                        steps: int | None = None, sampler: str | None = None,
                        start: str | None = None, start_time: float | None = None,
-                       target_vertices: int | None = None, samples: int | None = None,
+                       target_vertices: int | None = None, tolerance: float | None = None,
+                       samples: int | None = None,
                        raw: bool | None = None, filename: str | None = None,
                        progress: ProgressFn | None = None,
                        stage: StageFn | None = None) -> Mesh:
@@ -370,7 +377,7 @@ class AsyncClient(_Options):
         source = points_input(points, normals, filename)
         options = chosen(seed=seed, steps=steps, sampler=sampler, start=start,
                          start_time=start_time, target_vertices=target_vertices,
-                         samples=samples, raw=raw)
+                         tolerance=tolerance, samples=samples, raw=raw)
         return await self._retrying(
             lambda: self._transport.generate(source, format, options,
                                              reporter(progress, stage)))

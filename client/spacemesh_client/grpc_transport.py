@@ -157,9 +157,12 @@ def repair_message(pb: Any, mesh: Upload, region: Mapping[str, Any], fmt: str | 
 
 
 def _fields(message: Any) -> dict[str, Any]:
-    """A message's fields by name (maps as dicts, repeated messages as lists of dicts)."""
+    """A message's fields by name (maps as dicts, repeated messages as lists of dicts;
+    ``optional`` fields left unset are left out)."""
     out = {}
     for f in message.DESCRIPTOR.fields:
+        if f.has_presence and f.message_type is None and not message.HasField(f.name):
+            continue
         value = getattr(message, f.name)
         if hasattr(value, "items"):
             value = dict(value)

@@ -25,9 +25,12 @@ def _bool(text: str) -> bool:
     return text.strip().lower() == "true"
 
 
-def _number(text: str) -> float | int:
-    """``"5"`` -> 5, ``"0.25"`` -> 0.25 (``nan`` and ``inf`` as floats)."""
+def _number(text: str) -> float | int | bool:
+    """``"5"`` -> 5, ``"0.25"`` -> 0.25 (``nan`` and ``inf`` as floats), ``"true"`` ->
+    True."""
     text = text.strip()
+    if text.lower() in ("true", "false"):
+        return text.lower() == "true"
     return int(text) if text.lstrip("-").isdigit() else float(text)
 
 

@@ -65,6 +65,8 @@ GENERATE_OPTIONS: tuple[Option, ...] = (
            "from, 0..1 (0: the chosen points as they are)"),
     Option("target_vertices", int, "vertices of the mesh (within 10%%), 4..10,000; needs "
            "--start points"),
+    Option("tolerance", float, "the smallest mesh whose mean distance from the points is "
+           "at most this fraction of their diagonal, 1e-4..0.5; not with --target-vertices"),
     Option("samples", int, "try this many seeds (1..16) and keep the mesh that fits best"),
     Option("raw", bool, "the networks' mesh without the geometry stage"),
 )

@@ -18,7 +18,7 @@ the service's policy (a random seed when none is given, ``settings.default_steps
 :meth:`GenerateOptions.resolve` once, then ``settings.max_steps``. A bad generate option
 is a 422 ``invalid-option`` naming it; a bad ``format`` or ``weld`` a 400
 ``invalid-parameter``. Generate-only options (``start``, ``start_time``,
-``target_vertices``, ``samples``, ``raw``) are not options of ``/repair``.
+``target_vertices``, ``tolerance``, ``samples``, ``raw``) are not options of ``/repair``.
 """
 
 from __future__ import annotations
@@ -35,7 +35,9 @@ from spacemesh.runtime.options import (
     MAX_SAMPLES,
     MAX_SEED,
     MAX_TARGET_VERTICES,
+    MAX_TOLERANCE,
     MIN_TARGET_VERTICES,
+    MIN_TOLERANCE,
     OPTION_FIELDS,
     START_MODES,
     GenerateOptions,
@@ -54,11 +56,12 @@ RANDOM_SEED_BITS = 31
 TRUE_WORDS = ("true", "1", "yes", "on", "t", "y")
 FALSE_WORDS = ("false", "0", "no", "off", "f", "n")
 #: Generate options that ``/repair`` does not take.
-GENERATE_ONLY = ("start", "start_time", "target_vertices", "samples", "raw")
+GENERATE_ONLY = ("start", "start_time", "target_vertices", "tolerance", "samples", "raw")
 
 #: What the service adds to an option's description (instead of "Default: the model's.").
 _NOTES = {"seed": "Picked at random (and reported) when absent.",
-          "target_vertices": "Needs `start=points`."}
+          "target_vertices": "Needs `start=points`.",
+          "tolerance": "Needs `start=points`; not with `target_vertices`."}
 #: Values an option may take, where they are a fixed set.
 _CHOICES: dict[str, tuple[str, ...]] = {"sampler": METHODS, "start": START_MODES,
                                         "format": OUTPUT_FORMATS}
@@ -66,6 +69,7 @@ _CHOICES: dict[str, tuple[str, ...]] = {"sampler": METHODS, "start": START_MODES
 _RANGES: dict[str, tuple[float | None, float | None]] = {
     "seed": (0, MAX_SEED), "steps": (1, None), "start_time": (0.0, 1.0),
     "target_vertices": (MIN_TARGET_VERTICES, MAX_TARGET_VERTICES), "samples": (1, MAX_SAMPLES),
+    "tolerance": (MIN_TOLERANCE, MAX_TOLERANCE),
     "max_growth": (0.0, 1.0),
 }
 _JSON_TYPES = {bool: "boolean", int: "integer", float: "number", str: "string"}

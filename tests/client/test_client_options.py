@@ -22,6 +22,8 @@ from spacemesh_client import errors as E
 from spacemesh_client.cli import build_parser
 from spacemesh_client.options import GENERATE_OPTIONS, OPTION_NAMES, REPAIR_OPTION_NAMES
 
+#: Fit report fields that only a tolerance request has.
+TOLERANCE_FIELDS = {"tolerance", "tolerance_met"}
 #: Keywords of ``generate`` that are not generate options.
 NOT_OPTIONS = {"points", "self", "normals", "format", "filename", "progress", "stage"}
 CLI = [sys.executable, "-c", "from spacemesh_client.cli import main; main()"]
@@ -69,12 +71,29 @@ def test_sdk_sends_every_option_and_reads_the_report(client, case):
                             "start": "points", "start_time": 0.0, "target_vertices": 60,
                             "samples": 2, "raw": False}
     assert mesh.seed in (3, 4) and [s for s, _ in mesh.sample_scores] == [3, 4]
-    assert set(mesh.stats.fit) == set(FitReport.__dataclass_fields__)
+    assert set(mesh.stats.fit) == set(FitReport.__dataclass_fields__) - TOLERANCE_FIELDS
     assert mesh.stats.fit["n_points"] == len(cloud)
     assert mesh.stats.to_dict()["fit"] == mesh.stats.fit
     raw = client.generate(cloud, seed=mesh.seed, start="points", raw=True, format="obj")
     assert raw.options["raw"] is True and raw.options["samples"] == 1
     assert "target_vertices" not in raw.options
+
+
+def test_a_tolerance_request_reports_the_tolerance_over_both_transports(rest_url, grpc_url,
+                                                                       case):
+    meshes = []
+    for url in (rest_url, grpc_url):
+        with Client(url, timeout=60, retry=RetryPolicy.never()) as c:
+            meshes.append(c.generate(case.points, seed=case.good_seed, start="points",
+                                     tolerance=0.05, format="obj"))
+    rest, grpc_mesh = meshes
+    assert rest.stats.fit == grpc_mesh.stats.fit and rest.data == grpc_mesh.data
+    assert set(rest.stats.fit) == set(FitReport.__dataclass_fields__)
+    fit = rest.stats.fit
+    assert fit["tolerance"] == 0.05 and isinstance(fit["tolerance_met"], bool)
+    assert fit["tolerance_met"] == (fit["points_to_mesh_mean_rel"] <= 0.05)
+    assert rest.options["tolerance"] == grpc_mesh.options["tolerance"] == 0.05
+    assert "target_vertices" not in rest.options
 
 
 def test_the_fit_report_is_the_same_over_both_transports(rest_url, grpc_url, case):
@@ -119,7 +138,7 @@ def test_the_cli_sends_the_options_and_prints_the_fit(url, case, tmp_path):
     assert summary["options"]["start"] == "points" and summary["options"]["raw"] is True
     assert summary["options"]["target_vertices"] == 60 and summary["options"]["samples"] == 2
     assert [s for s, _ in summary["sample_scores"]] == [2, 3]
-    assert set(summary["fit"]) == set(FitReport.__dataclass_fields__)
+    assert set(summary["fit"]) == set(FitReport.__dataclass_fields__) - TOLERANCE_FIELDS
     done = subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert "; fit: points->mesh " in done.stdout and "best of 2 seeds" in done.stdout

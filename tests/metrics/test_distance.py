@@ -17,7 +17,7 @@ from spacemesh.metrics import (
     sample_mesh,
     score_mesh,
 )
-from spacemesh.runtime.pipeline import flip_faces
+from spacemesh.runtime.finishing import flip_faces
 
 
 def unit_cube():

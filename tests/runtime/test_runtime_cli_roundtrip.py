@@ -13,6 +13,8 @@ from spacemesh.io import load_mesh
 from spacemesh.topology import check_topology
 
 CLI = [sys.executable, "-c", "from spacemesh.cli import main; main()"]
+#: Fit report fields that only a tolerance request has.
+TOLERANCE_FIELDS = {"tolerance", "tolerance_met"}
 
 
 def test_train_export_generate_round_trip(toy_model, tmp_path):
@@ -67,7 +69,7 @@ def test_generate_options_and_fit_report(toy_model, tmp_path):
             summary["samples"], summary["raw"]) == ("points", 0.0, 60, 2, True)
     assert [seed for seed, _ in summary["sample_scores"]] == [3, 4]
     assert summary["seed"] in (3, 4)
-    assert set(summary["fit"]) == set(FitReport.__dataclass_fields__)
+    assert set(summary["fit"]) == set(FitReport.__dataclass_fields__) - TOLERANCE_FIELDS
     assert summary["fit"]["n_points"] == 150
     fit = summary["fit"]
     plain = subprocess.run([*CLI, "generate", str(points), "-o", str(out), "--model",
@@ -138,3 +140,28 @@ def test_generate_refuses_what_the_service_refuses(toy_model, tmp_path, points, 
     assert done.stderr.count("\n") == 1 and f"({kind})" in done.stderr
     assert str(info.value) in done.stderr
     assert not out.exists()
+
+
+def test_the_cli_searches_a_tolerance_and_refuses_it_with_a_target(toy_model, tmp_path):
+    from spacemesh.geometry.report import FitReport
+
+    points = tmp_path / "points.xyz"
+    d = np.random.default_rng(2).normal(size=(150, 3))
+    np.savetxt(points, d / np.linalg.norm(d, axis=1, keepdims=True))
+    out = tmp_path / "mesh.obj"
+    base = [*CLI, "generate", str(points), "-o", str(out), "--model", str(toy_model.repository),
+            "--seed", "3", "--start", "points", "--threads", "1", "--tolerance", "0.05"]
+    done = subprocess.run([*base, "--json"], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    summary = json.loads(done.stdout)
+    fit = summary["fit"]
+    assert summary["tolerance"] == 0.05 and summary["target_vertices"] is None
+    assert set(fit) == set(FitReport.__dataclass_fields__)
+    assert fit["tolerance_met"] == (fit["points_to_mesh_mean_rel"] <= 0.05)
+    plain = subprocess.run(base, capture_output=True, text=True, timeout=300)
+    assert plain.returncode == 0, plain.stderr[-3000:]
+    assert f", tolerance 0.05 {'met' if fit['tolerance_met'] else 'not met'}" in plain.stdout
+    both = subprocess.run([*base, "--target-vertices", "60"], capture_output=True, text=True,
+                          timeout=120)
+    assert both.returncode == 2 and "Traceback" not in both.stderr
+    assert both.stderr.strip().count("\n") == 0 and "--tolerance" in both.stderr

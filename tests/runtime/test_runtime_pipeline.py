@@ -10,12 +10,9 @@ pytest.importorskip("onnxruntime")
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import signed_volume
 from spacemesh.runtime import GenerateRequest, MeshGenerator
+from spacemesh.runtime.finishing import flip_faces
 from spacemesh.runtime.options import GenerateOptions, OptionError
-from spacemesh.runtime.pipeline import (
-    drop_duplicates,
-    flip_faces,
-    normalize_points,
-)
+from spacemesh.runtime.pipeline import drop_duplicates, normalize_points
 from spacemesh.topology import check_topology
 
 

@@ -269,6 +269,9 @@ BAD_OPTIONS = [
     ({"samples": 0}, "samples"),
     ({"samples": 17}, "samples"),
     ({"raw": "maybe"}, "raw"),
+    ({"start": "points", "tolerance": 0.9}, "tolerance"),
+    ({"start": "points", "tolerance": 0.01, "target_vertices": 60}, "tolerance"),
+    ({"start": "noise", "tolerance": 0.01}, "tolerance"),
 ]
 
 

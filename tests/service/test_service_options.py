@@ -28,6 +28,7 @@ GOOD_OPTIONS = [
     {"start": "points", "target_vertices": 60},
     {"start": "points", "start_time": 0.5, "steps": 4},
     {"start": "points", "samples": 3},
+    {"start": "points", "tolerance": 0.05},
     {"start": "noise", "sampler": "ddpm", "steps": 4},
 ]
 
@@ -53,7 +54,8 @@ def expected(generator, cloud, options: dict):
 
 
 def fit_headers(fit: dict) -> dict[str, str]:
-    return {"x-spacemesh-fit-" + k.replace("_", "-"): str(v) for k, v in fit.items()}
+    return {"x-spacemesh-fit-" + k.replace("_", "-"): str(v).lower() if isinstance(v, bool)
+            else str(v) for k, v in fit.items()}
 
 
 # ---------------------------------------------------------------------- 422s
@@ -99,7 +101,7 @@ def test_generate_only_options_are_not_options_of_repair(http):
                                             "samples": 0, "raw": "maybe"},
                          files=files, data=region)
     assert response.status_code == 200, response.text  # ignored, as any unknown parameter
-    for name in ("start", "start_time", "target_vertices", "samples", "raw"):
+    for name in ("start", "start_time", "target_vertices", "tolerance", "samples", "raw"):
         assert name not in pb.RepairRequest.DESCRIPTOR.fields_by_name
         assert f"x-spacemesh-{name.replace('_', '-')}" not in response.headers
     assert "x-spacemesh-fit-coverage" not in response.headers  # no points: no fit report
@@ -123,10 +125,14 @@ def test_rest_options_reach_the_generator(http, generator, cloud, options):
         assert h[header] == str(getattr(resolved, name))
         assert body[name] == getattr(resolved, name)
     assert h["x-spacemesh-raw"] == str(resolved.raw).lower() and body["raw"] is resolved.raw
-    if resolved.target_vertices is None:
-        assert "x-spacemesh-target-vertices" not in h and body["target_vertices"] is None
-    else:
-        assert h["x-spacemesh-target-vertices"] == str(resolved.target_vertices)
+    for name in ("target_vertices", "tolerance"):
+        header = f"x-spacemesh-{name.replace('_', '-')}"
+        if getattr(resolved, name) is None:
+            assert header not in h and body[name] is None
+        else:
+            assert h[header] == str(getattr(resolved, name)) and body[name] == getattr(
+                resolved, name)
+    assert (resolved.tolerance is None) == ("tolerance_met" not in result.fit.to_dict())
     assert len(body["vertices"]) == result.mesh.n_vertices
     assert len(body["faces"]) == result.mesh.n_faces
     fit = result.fit.to_dict()
@@ -150,8 +156,12 @@ def test_grpc_options_reach_the_generator(stub, generator, cloud, options):
             continue
         assert getattr(reply, name) == getattr(resolved, name), name
     assert reply.HasField("target_vertices") == (resolved.target_vertices is not None)
+    assert reply.HasField("tolerance") == (resolved.tolerance is not None)
+    if resolved.tolerance is not None:
+        assert reply.tolerance == resolved.tolerance
     assert reply.stats.vertices == result.mesh.n_vertices
-    fit = {f.name: getattr(reply.stats.fit, f.name) for f in pb.FitReport.DESCRIPTOR.fields}
+    fit = {f.name: getattr(reply.stats.fit, f.name) for f in pb.FitReport.DESCRIPTOR.fields
+           if not f.has_presence or reply.stats.fit.HasField(f.name)}
     assert fit == result.fit.to_dict()
     assert [(s.seed, s.score) for s in reply.sample_scores] == result.sample_scores
     assert load_mesh(reply.mesh, file_type="obj").n_faces == result.mesh.n_faces

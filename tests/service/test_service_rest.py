@@ -267,8 +267,10 @@ def test_openapi(http):
     assert body["application/json"]["examples"]
     assert [p["name"] for p in generate["parameters"]] == [
         "format", "seed", "steps", "sampler", "start", "start_time", "target_vertices",
-        "samples", "raw"]
+        "tolerance", "samples", "raw"]
     schemas = {p["name"]: p["schema"] for p in generate["parameters"]}
+    assert schemas["tolerance"] == {**schemas["tolerance"], "type": "number",
+                                    "minimum": 1e-4, "maximum": 0.5}
     assert schemas["samples"] == {**schemas["samples"], "type": "integer", "minimum": 1,
                                   "maximum": 16}
     assert schemas["start"]["enum"] == ["noise", "points"]

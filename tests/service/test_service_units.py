@@ -186,7 +186,8 @@ def test_the_option_table_is_generate_options():
     assert [o.name for o in GENERATE_ROUTE_OPTIONS] == ["format", *OPTION_FIELDS]
     kinds = {o.name: o.kind for o in GENERATE_OPTIONS}
     assert kinds == {"seed": int, "steps": int, "sampler": str, "start": str,
-                     "start_time": float, "target_vertices": int, "samples": int, "raw": bool}
+                     "start_time": float, "target_vertices": int, "tolerance": float,
+                     "samples": int, "raw": bool}
     assert all(o.description for o in GENERATE_OPTIONS)
     assert "farthest-point" in {o.name: o.description for o in GENERATE_OPTIONS}["start"]
 
@@ -293,7 +294,9 @@ def test_the_fit_report_becomes_headers_json_and_grpc_by_its_field_names():
     from spacemesh_service.outputs import encode_mesh
 
     mesh = cube_quads()
-    fit = fit_report(mesh, mesh.vertices).to_dict()
+    plain = fit_report(mesh, mesh.vertices)
+    fit = replace(plain, tolerance=0.01, tolerance_met=True).to_dict()
+    assert set(fit) - set(plain.to_dict()) == {"tolerance", "tolerance_met"}
     encoded = encode_mesh(mesh, "json", {"seed": 1}, fit)
     assert json.loads(encoded.body)["stats"]["fit"] == fit
     headers = stats_headers(encoded.stats)
@@ -303,8 +306,11 @@ def test_the_fit_report_becomes_headers_json_and_grpc_by_its_field_names():
     assert headers["X-SpaceMesh-Fit-Points-To-Mesh-Mean-Rel"] == str(fit["points_to_mesh_mean_rel"])
     assert headers["X-SpaceMesh-Fit-Self-Intersections"] == str(fit["self_intersections"])
     assert headers["X-SpaceMesh-Fit-Components"] == "1"
+    assert headers["X-SpaceMesh-Fit-Tolerance-Met"] == "true"
     message = stats_to_pb(encoded.stats)
     assert {f.name: getattr(message.fit, f.name) for f in message.fit.DESCRIPTOR.fields} == fit
+    without = stats_to_pb(replace(encoded.stats, fit=plain.to_dict())).fit
+    assert not without.HasField("tolerance") and not without.HasField("tolerance_met")
     assert not stats_to_pb(replace(encoded.stats, fit=None)).HasField("fit")
     nan = {**fit, "points_to_mesh_mean": float("nan")}
     assert json.loads(encode_mesh(mesh, "json", {}, nan).body)["stats"]["fit"][

@@ -59,6 +59,12 @@ def generate(
         int | None, typer.Option("--target-vertices", help="Vertices of the mesh (within "
                                  "10%), 4..10,000; needs --start points.")
     ] = None,
+    tolerance: Annotated[
+        float | None, typer.Option("--tolerance", help="The smallest mesh whose mean distance "
+                                   "from the points is at most this fraction of their "
+                                   "bounding-box diagonal, 1e-4..0.5 (not with "
+                                   "--target-vertices).")
+    ] = None,
     samples: Annotated[
         int, typer.Option("--samples", help="Try this many seeds (1..16) from --seed on and "
                           "keep the mesh that fits the points best.")
@@ -111,7 +117,7 @@ def generate(
 
     options = GenerateOptions(seed=seed, steps=steps, sampler=sampler, start=start,
                               start_time=start_time, target_vertices=target_vertices,
-                              samples=samples, raw=raw)
+                              tolerance=tolerance, samples=samples, raw=raw)
     try:
         result = generator.generate(points, normals, options, progress=report)
     except OptionError as error:
@@ -140,7 +146,14 @@ def generate(
                    f"{fit.get('points_to_mesh_mean_rel', float('nan')):.4g}, mesh->points "
                    f"{fit.get('mesh_to_points_mean_rel', float('nan')):.4g} of the diagonal, "
                    f"coverage {100 * fit.get('coverage', float('nan')):.0f}%"
-                   f"{_topology_text(fit)}")
+                   f"{_tolerance_text(fit)}{_topology_text(fit)}")
+
+
+def _tolerance_text(fit: dict) -> str:
+    """``, tolerance 0.005 met`` (or ``not met``) from a fit report ("" without one)."""
+    if fit.get("tolerance") is None:
+        return ""
+    return f", tolerance {fit['tolerance']:g} {'met' if fit.get('tolerance_met') else 'not met'}"
 
 
 def _topology_text(fit: dict) -> str:

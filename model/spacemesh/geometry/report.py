@@ -15,7 +15,10 @@ lines and ``samples=K`` (which keeps the seed with the lowest :attr:`FitReport.s
   (:func:`spacemesh.topology.surface_topology`: pieces connected through shared edges
   after welding equal positions, their summed genus, the open rims);
 * ``self_intersections``: the share of faces that intersect another face
-  (:mod:`spacemesh.geometry.intersections`).
+  (:mod:`spacemesh.geometry.intersections`);
+* ``tolerance`` and ``tolerance_met``: with a ``tolerance`` request only, the tolerance
+  asked for and whether ``points_to_mesh_mean_rel`` reached it
+  (:mod:`spacemesh.runtime.tolerance`).
 """
 
 from __future__ import annotations
@@ -67,6 +70,8 @@ class FitReport:
     pieces: int
     genus: int
     boundary_loops: int
+    tolerance: float | None = None
+    tolerance_met: bool | None = None
 
     @property
     def score(self) -> float:
@@ -74,8 +79,9 @@ class FitReport:
         return self.points_to_mesh_mean_rel + self.mesh_to_points_mean_rel
 
     def to_dict(self) -> dict[str, float | int]:
-        """Every field by name."""
-        return asdict(self)
+        """Every field by name (``tolerance`` and ``tolerance_met`` only when set)."""
+        return {k: v for k, v in asdict(self).items()
+                if v is not None or k not in ("tolerance", "tolerance_met")}
 
 
 def face_components(mesh: PolygonMesh) -> int:
@@ -127,11 +133,10 @@ def fit_report(mesh: PolygonMesh, points: FloatArray) -> FitReport:
     relative = diagonal if diagonal > 0 else 1.0
     nan = float("nan")
     topology = surface_topology(mesh)
-    shape = {"pieces": topology.pieces, "genus": topology.genus,
-             "boundary_loops": topology.boundary_loops}
     if mesh.n_faces == 0 or len(points) == 0:
         return FitReport(nan, nan, nan, nan, nan, nan, nan, nan, 0.0, face_components(mesh),
-                         0.0, diagonal, len(points), **shape)
+                         0.0, diagonal, len(points), topology.pieces, topology.genus,
+                         topology.boundary_loops)
     triangles, _ = triangles_of(mesh)
     _, gap = nearest_triangles(points, mesh.vertices, triangles)
     to_mesh = np.sqrt(np.maximum(gap, 0.0))
@@ -150,5 +155,6 @@ def fit_report(mesh: PolygonMesh, points: FloatArray) -> FitReport:
         coverage=float(np.mean(to_mesh <= COVERAGE_FRACTION * relative)),
         components=face_components(mesh),
         self_intersections=self_intersection_fraction(mesh),
-        diagonal=diagonal, n_points=len(points), **shape,
+        diagonal=diagonal, n_points=len(points), pieces=topology.pieces,
+        genus=topology.genus, boundary_loops=topology.boundary_loops,
     )

@@ -27,6 +27,9 @@ MAX_SAMPLES = 16
 MIN_TARGET_VERTICES = 4
 #: Most vertices a mesh may be asked for.
 MAX_TARGET_VERTICES = 10_000
+#: Smallest and largest ``tolerance`` (fractions of the input's bounding-box diagonal).
+MIN_TOLERANCE = 1e-4
+MAX_TOLERANCE = 0.5
 #: The vertex start a release records in ``manifest["sampler"]``: farthest-point
 #: samples of the input, with points on sharp features counted twice as far
 #: (``feature_boost``), not denoised (the shipped denoiser moves good vertices away
@@ -73,6 +76,12 @@ class GenerateOptions:
     target_vertices : int, optional
         Vertices of the final mesh (within 10%); without it the count is a fixed
         function of the input (the same for every seed).
+    tolerance : float, optional
+        The mesh's size is the smallest the search finds whose mean distance from the
+        input points to the mesh is at most this fraction of the input's bounding-box
+        diagonal (the fit report's ``points_to_mesh_mean_rel``; ``tolerance_met`` says
+        whether it was reached within the search's cap). Not with ``target_vertices``;
+        needs ``start=points``.
     samples : int
         Seeds ``seed .. seed + samples - 1`` are generated and the mesh that fits the
         input best is returned (ties: the lower seed).
@@ -87,6 +96,7 @@ class GenerateOptions:
     start: str | None = None
     start_time: float | None = None
     target_vertices: int | None = None
+    tolerance: float | None = None
     samples: int = 1
     raw: bool = False
 
@@ -100,8 +110,8 @@ class GenerateOptions:
         Returns
         -------
         GenerateOptions
-            No field is None except ``target_vertices`` and, with ``start=noise``,
-            ``start_time``; resolving it again gives it back unchanged.
+            No field is None except ``target_vertices``, ``tolerance`` and, with
+            ``start=noise``, ``start_time``; resolving it again gives it back unchanged.
 
         Raises
         ------
@@ -141,10 +151,20 @@ class GenerateOptions:
                 raise OptionError("target_vertices",
                                   "target_vertices needs start=points (from noise the "
                                   "network picks the count)")
+        if self.tolerance is not None:
+            _tolerance(self.tolerance)
+            if self.target_vertices is not None:
+                raise OptionError("tolerance", "tolerance and target_vertices cannot both be "
+                                               "set: the tolerance chooses the vertex count")
+            if start == "noise":
+                raise OptionError("tolerance", "tolerance needs start=points (from noise the "
+                                               "network picks the count)")
         _integer("samples", self.samples, 1, MAX_SAMPLES)
         if not isinstance(self.raw, bool):
             raise OptionError("raw", f"raw must be true or false, not {self.raw!r}")
-        return replace(self, steps=steps, sampler=sampler, start=start, start_time=start_time)
+        tolerance = None if self.tolerance is None else float(self.tolerance)
+        return replace(self, steps=steps, sampler=sampler, start=start, start_time=start_time,
+                       tolerance=tolerance)
 
     def to_dict(self) -> dict[str, Any]:
         """The options by public name."""
@@ -153,6 +173,20 @@ class GenerateOptions:
 
 #: Public option names, in the order of :class:`GenerateOptions`.
 OPTION_FIELDS = tuple(f.name for f in fields(GenerateOptions))
+
+
+def _tolerance(value: Any) -> float:
+    """``value`` as a float in ``[MIN_TOLERANCE, MAX_TOLERANCE]``."""
+    if isinstance(value, bool):
+        raise OptionError("tolerance", f"tolerance must be a number, not {value!r}")
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise OptionError("tolerance", f"tolerance must be a number, not {value!r}") from None
+    if not MIN_TOLERANCE <= number <= MAX_TOLERANCE:  # NaN fails too
+        raise OptionError("tolerance", f"tolerance must be in {MIN_TOLERANCE:g}..."
+                                       f"{MAX_TOLERANCE:g} of the diagonal, not {value}")
+    return number
 
 
 def _integer(name: str, value: Any, low: int, high: int) -> int:

@@ -34,12 +34,11 @@ from spacemesh.geometry import (
     farthest_point_sampling,
     feature_weights,
     fit_report,
-    refine_geometry,
 )
 from spacemesh.geometry.policy import decode_changes
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import signed_volume
 from spacemesh.runtime.backend import Backend, ConnectivityOutputs, denoiser_fn
+from spacemesh.runtime.finishing import finish_geometry, outward
 from spacemesh.runtime.large import (
     DEFAULT_LARGE_MESHES,
     check_large_meshes,
@@ -47,9 +46,9 @@ from spacemesh.runtime.large import (
     network_vertices,
 )
 from spacemesh.runtime.options import GenerateOptions
-from spacemesh.runtime.pieces import drop_fragments
 from spacemesh.runtime.sampler import ProgressFn, StageFn, sample, split_tokens
 from spacemesh.runtime.schedule import NoiseSchedule
+from spacemesh.runtime.tolerance import attempt_options, search_vertex_count
 from spacemesh.typed import FloatArray, IntArray
 
 if TYPE_CHECKING:
@@ -242,6 +241,9 @@ class GenerateResult:
         How well the mesh fits the uploaded points.
     sample_scores : list of (int, float)
         ``(seed, fit score)`` of every seed tried, in seed order.
+    tolerance_tries : list of (int, float)
+        With ``tolerance``: every vertex count the search tried and its
+        ``points_to_mesh_mean_rel``, in order (:mod:`spacemesh.runtime.tolerance`).
     """
 
     mesh: PolygonMesh
@@ -252,6 +254,7 @@ class GenerateResult:
     geometry_stats: dict[str, Any] = field(default_factory=dict)
     fit: FitReport | None = None
     sample_scores: list[tuple[int, float]] = field(default_factory=list)
+    tolerance_tries: list[tuple[int, float]] = field(default_factory=list)
 
     @property
     def seed(self) -> int:
@@ -399,15 +402,6 @@ def drop_duplicates(positions: FloatArray, alive: np.ndarray,
     return alive
 
 
-def flip_faces(mesh: PolygonMesh) -> PolygonMesh:
-    """The same mesh with every face's orientation reversed."""
-    start = np.repeat(mesh.face_offsets[:-1], mesh.face_sizes)
-    end = np.repeat(mesh.face_offsets[1:], mesh.face_sizes)
-    position = np.arange(mesh.face_indices.size)
-    reversed_indices = mesh.face_indices[start + end - 1 - position]
-    return PolygonMesh(mesh.vertices, reversed_indices, mesh.face_offsets)
-
-
 class MeshGenerator:
     """Generates meshes from point clouds with one model.
 
@@ -507,7 +501,10 @@ class MeshGenerator:
 
         Requests with different sampler settings (steps, sampler, start, start time)
         run as separate groups; a request with ``samples = K`` runs its K seeds in its
-        group and keeps the best-fitting mesh.
+        group and keeps the best-fitting mesh. A request with a ``tolerance`` runs on
+        its own, after the others, as a search over vertex counts
+        (:mod:`spacemesh.runtime.tolerance`; its stage events include ``tolerance``,
+        the ``done``-th of at most ``total`` tries).
 
         Parameters
         ----------
@@ -536,6 +533,8 @@ class MeshGenerator:
         inputs = [self.prepare_input(r, o) for r, o in zip(requests, resolved, strict=True)]
         jobs: list[tuple[int, GenerateOptions]] = []  # (request index, one seed)
         for index, options in enumerate(resolved):
+            if options.tolerance is not None:
+                continue  # searched below
             jobs += [(index, replace(options, seed=options.seed + k))
                      for k in range(options.samples)]
         groups: dict[tuple[int, str, str, float], list[int]] = {}
@@ -556,9 +555,36 @@ class MeshGenerator:
             done += self._denoiser_steps(key)
         results = []
         for index, options in enumerate(resolved):
+            if options.tolerance is not None:
+                results.append(self._within_tolerance(requests[index], options, progress,
+                                                      stage))
+                continue
             tried = [outcomes[j] for j, (i, _) in enumerate(jobs) if i == index]
             results.append(_best_fit([r for r in tried if r is not None], options))
         return results
+
+    def _within_tolerance(self, request: GenerateRequest, options: GenerateOptions,
+                          progress: ProgressFn | None, stage: StageFn | None
+                          ) -> GenerateResult:
+        """The smallest mesh within ``options.tolerance`` (resolved options)."""
+        assert options.tolerance is not None
+        tolerance = float(options.tolerance)
+
+        def run(count: int) -> GenerateResult:
+            attempt = replace(request, options=attempt_options(options, count))
+            return self.generate_batch([attempt], progress=progress, stage=stage)[0]
+
+        def on_try(done: int, total: int) -> None:
+            if stage is not None:
+                stage("tolerance", done, total)
+
+        found, met, tried = search_vertex_count(run, tolerance, self.vertex_count(options),
+                                                on_try=on_try)
+        found.options = replace(found.options, tolerance=tolerance, target_vertices=None)
+        if found.fit is not None:
+            found.fit = replace(found.fit, tolerance=tolerance, tolerance_met=met)
+        found.tolerance_tries = tried
+        return found
 
     # ------------------------------------------------------------------ stages
     @staticmethod
@@ -690,20 +716,16 @@ class MeshGenerator:
                                               [v[b:b + 1] for v in volumes])
                 decoded = self._decode(positions[b, :m], prefix, 0, alive[b, :m], prepared)
                 decoded.stats["large_meshes"] = "split"
-            mesh = _outward(decoded.mesh)
+            mesh = outward(decoded.mesh)
             e1 = time.perf_counter()
             geometry_stats: dict[str, Any] = {}
             if not options.raw:
                 stage("geometry", b + 1, len(jobs))
-                mesh, dropped = drop_fragments(mesh)
-                geometry_stats["n_fragments_dropped"] = dropped
                 unit, normals = prepared.fit_points()
-                refined = refine_geometry(
+                mesh, geometry_stats = finish_geometry(
                     mesh, unit, normals, self.spec.geometry,
                     target_vertices=self.vertex_count(options) if start == "points" else None,
                 )
-                mesh = _outward(refined.mesh)
-                geometry_stats.update(refined.stats)
             mesh = mesh.with_vertices(mesh.vertices * prepared.scale + prepared.centre)
             e2 = time.perf_counter()
             stage("report", b + 1, len(jobs))
@@ -722,11 +744,6 @@ class MeshGenerator:
 
 def _no_stage(name: str, done: int, total: int) -> None:
     """A :data:`~spacemesh.runtime.sampler.StageFn` that reports nowhere."""
-
-
-def _outward(mesh: PolygonMesh) -> PolygonMesh:
-    """``mesh`` with its faces flipped when its signed volume is negative."""
-    return flip_faces(mesh) if mesh.n_faces and signed_volume(mesh) < 0 else mesh
 
 
 def _best_fit(tried: list[GenerateResult], options: GenerateOptions) -> GenerateResult:

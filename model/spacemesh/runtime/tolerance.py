@@ -1,0 +1,126 @@
+"""``tolerance``: the smallest mesh whose points fit within a distance.
+
+A request with ``tolerance = t`` asks for the smallest mesh whose mean distance from the
+input points to the mesh (the fit report's ``points_to_mesh_mean_rel``, a fraction of
+the input's bounding-box diagonal) is at most ``t``. The distance falls as vertices are
+added, though not strictly, so :func:`search_vertex_count` brackets the count on a
+doubling ladder from the model's default count and bisects the bracket geometrically:
+
+1. generate at the default count (200 for the shipped model);
+2. met: halve the count until it is no longer met (or :data:`MIN_SEARCH_VERTICES`);
+   not met: double it until it is (or :data:`MAX_SEARCH_VERTICES`);
+3. bisect between the largest count that missed and the smallest that met until they
+   are within :data:`BRACKET_RATIO` of each other, or :data:`MAX_TRIES` meshes were made.
+
+The smallest mesh that met the tolerance is returned; when none did (the cap or the
+tries ran out), the one closest to it, with ``tolerance_met`` false in its fit report.
+Each try is a whole generate at ``target_vertices = count`` with the request's other
+options, so the result is the same mesh a request for that count would get.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import replace
+from typing import TypeVar
+
+import numpy as np
+
+from spacemesh.runtime.options import GenerateOptions
+
+#: Fewest and most vertices the search tries.
+MIN_SEARCH_VERTICES = 8
+MAX_SEARCH_VERTICES = 4_000
+#: Most meshes one search makes (its time is about this many generates).
+MAX_TRIES = 8
+#: The bisection stops once the smallest count that met and the largest that missed are
+#: within this ratio.
+BRACKET_RATIO = 1.15
+
+#: A generate's result (:class:`~spacemesh.runtime.pipeline.GenerateResult`).
+Result = TypeVar("Result")
+
+
+def distance_of(result: object) -> float:
+    """The fit report's ``points_to_mesh_mean_rel`` of a result (inf without one)."""
+    fit = getattr(result, "fit", None)
+    value = float("inf") if fit is None else float(fit.points_to_mesh_mean_rel)
+    return value if np.isfinite(value) else float("inf")
+
+
+def search_vertex_count(
+    run: Callable[[int], Result],
+    tolerance: float,
+    start: int,
+    *,
+    on_try: Callable[[int, int], None] | None = None,
+) -> tuple[Result, bool, list[tuple[int, float]]]:
+    """Find the smallest vertex count whose mesh fits within ``tolerance``.
+
+    Parameters
+    ----------
+    run : callable
+        ``run(count)``: the result generated at ``target_vertices = count``.
+    tolerance : float
+        Most ``points_to_mesh_mean_rel`` allowed.
+    start : int
+        The first count tried (clipped to the search's range).
+    on_try : callable, optional
+        ``on_try(k, MAX_TRIES)`` before the ``k``-th try (1-based).
+
+    Returns
+    -------
+    result
+        The smallest result that met the tolerance, else the closest one.
+    met : bool
+    tried : list of (int, float)
+        Every count tried and its distance, in order.
+    """
+    count = int(min(max(start, MIN_SEARCH_VERTICES), MAX_SEARCH_VERTICES))
+    results: dict[int, Result] = {}
+    tried: list[tuple[int, float]] = []
+    smallest_met: int | None = None
+    largest_missed: int | None = None
+    for k in range(1, MAX_TRIES + 1):
+        if on_try is not None:
+            on_try(k, MAX_TRIES)
+        result = run(count)
+        results[count] = result
+        distance = distance_of(result)
+        tried.append((count, distance))
+        if distance <= tolerance:
+            smallest_met = count if smallest_met is None else min(smallest_met, count)
+        else:
+            largest_missed = count if largest_missed is None else max(largest_missed, count)
+        following = _next_count(smallest_met, largest_missed)
+        if following is None or following in results:
+            break
+        count = following
+    if smallest_met is not None:
+        return results[smallest_met], True, tried
+    closest = min(tried, key=lambda pair: (pair[1], pair[0]))[0]
+    return results[closest], False, tried
+
+
+def _next_count(smallest_met: int | None, largest_missed: int | None) -> int | None:
+    """The next count to try, or None when the search is done."""
+    if smallest_met is None:  # nothing met yet: double, up to the cap
+        assert largest_missed is not None
+        if largest_missed >= MAX_SEARCH_VERTICES:
+            return None
+        return min(2 * largest_missed, MAX_SEARCH_VERTICES)
+    if largest_missed is None:  # everything met so far: halve, down to the floor
+        if smallest_met <= MIN_SEARCH_VERTICES:
+            return None
+        return max(smallest_met // 2, MIN_SEARCH_VERTICES)
+    if smallest_met <= largest_missed or smallest_met <= BRACKET_RATIO * largest_missed:
+        return None  # bracketed (or the distance went up with the count: stop there)
+    middle = round(math.sqrt(smallest_met * largest_missed))
+    return middle if largest_missed < middle < smallest_met else None
+
+
+def attempt_options(options: GenerateOptions, count: int) -> GenerateOptions:
+    """One try's options: the request's, with ``target_vertices = count`` instead of the
+    tolerance."""
+    return replace(options, tolerance=None, target_vertices=count)

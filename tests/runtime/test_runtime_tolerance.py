@@ -1,0 +1,85 @@
+"""The tolerance search: the smallest vertex count whose distance is within tolerance."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+from spacemesh.runtime.options import GenerateOptions, OptionError
+from spacemesh.runtime.tolerance import (
+    BRACKET_RATIO,
+    MAX_SEARCH_VERTICES,
+    MAX_TRIES,
+    MIN_SEARCH_VERTICES,
+    attempt_options,
+    search_vertex_count,
+)
+
+
+@pytest.fixture(scope="module")
+def toy_generator(toy_model):
+    from spacemesh.runtime import MeshGenerator
+
+    return MeshGenerator.from_repository(toy_model.repository, intra_op_threads=1)
+
+
+def made(distance_of_count):
+    """A fake generate: its result's fit distance is ``distance_of_count(count)``."""
+    calls = []
+
+    def run(count):
+        calls.append(count)
+        fit = SimpleNamespace(points_to_mesh_mean_rel=distance_of_count(count))
+        return SimpleNamespace(count=count, fit=fit)
+
+    return run, calls
+
+
+@pytest.mark.parametrize(("tolerance", "smallest"), [(0.01, 100), (0.002, 500), (0.05, 20)])
+def test_the_search_brackets_the_smallest_count_that_meets_it(tolerance, smallest):
+    run, calls = made(lambda n: 1.0 / n)
+    result, met, tried = search_vertex_count(run, tolerance, 200)
+    assert met and result.fit.points_to_mesh_mean_rel <= tolerance
+    assert smallest <= result.count <= BRACKET_RATIO * smallest + 1
+    assert len(calls) <= MAX_TRIES and [c for c, _ in tried] == calls
+    assert len(set(calls)) == len(calls)  # no count is made twice
+
+
+def test_an_unreachable_tolerance_returns_the_closest_mesh_unmet():
+    run, calls = made(lambda n: 0.5 + 1.0 / n)
+    result, met, tried = search_vertex_count(run, 0.01, 200)
+    assert not met and result.count == max(calls) == MAX_SEARCH_VERTICES
+    assert [c for c, _ in tried] == calls
+    run, calls = made(lambda n: 0.0)
+    result, met, _ = search_vertex_count(run, 0.01, 200)
+    assert met and result.count == MIN_SEARCH_VERTICES
+
+
+def test_a_distance_that_is_not_monotone_or_not_finite_still_ends():
+    run, calls = made(lambda n: 0.001 if n % 3 else 0.02)
+    result, met, _ = search_vertex_count(run, 0.01, 200)
+    assert met and result.count % 3 and len(calls) <= MAX_TRIES
+    run, calls = made(lambda n: float("nan"))
+    result, met, _ = search_vertex_count(run, 0.01, 200)
+    assert not met and len(calls) <= MAX_TRIES
+
+
+def test_tries_ask_for_a_count_instead_of_the_tolerance():
+    options = GenerateOptions(seed=4, start="points", tolerance=0.01, samples=2)
+    assert attempt_options(options, 300) == GenerateOptions(seed=4, start="points",
+                                                            target_vertices=300, samples=2)
+
+
+@pytest.mark.parametrize(("fields", "message"), [
+    ({"tolerance": 0.0}, "tolerance must be in"),
+    ({"tolerance": float("nan")}, "tolerance must be in"),
+    ({"tolerance": "loose"}, "tolerance must be a number"),
+    ({"tolerance": True}, "tolerance must be a number"),
+    ({"tolerance": 0.01, "target_vertices": 100}, "cannot both be set"),
+    ({"tolerance": 0.01, "start": "noise"}, "needs start=points"),
+])
+def test_bad_tolerances_name_the_option(toy_generator, fields, message):
+    with pytest.raises(OptionError, match=message) as info:
+        GenerateOptions(**fields).resolve(toy_generator.spec)
+    assert info.value.option == "tolerance"
