@@ -61,26 +61,11 @@ def main() -> int:
     pin_threads(args.threads)  # before pymeshlab and onnxruntime load
     from spacemesh.cli.evaluate import parse_baselines
     from spacemesh.evaluate.runner import mesh_shapes, parse_modes, run_evaluation, write_report
-    from spacemesh.io import load_mesh
     from spacemesh.metrics.report import markdown_tables, summarise
     from spacemesh.runtime import MeshGenerator
-    from spacemesh.topology import check_topology
 
     wanted = set(args.categories.split(","))
-    with SPLIT_FILE.open() as handle:
-        chosen = {e["file"] for e in csv.DictReader(handle)
-                  if args.split in ("all", e["split"])}
-    with manifest.open() as handle:
-        entries = [e for e in csv.DictReader(handle)
-                   if e["category"] in wanted and e["file"] in chosen]
-    paths, categories = [], []
-    for entry in sorted(entries, key=lambda e: (e["category"], int(e["n_vertices"]))):
-        path = args.meshes / entry["file"]
-        if check_topology(load_mesh(path)).is_closed_oriented_manifold:
-            paths.append(path)
-            categories.append(entry["category"])
-        else:
-            print(f"skipped {entry['file']}: not a closed oriented manifold")
+    paths, categories = split_meshes(args.meshes, args.split, wanted)
     shapes = mesh_shapes(paths, categories=categories, seed=args.seed)[: args.limit]
     generator = MeshGenerator.from_repository(args.model, intra_op_threads=args.threads)
     result = run_evaluation(
@@ -112,6 +97,28 @@ def main() -> int:
     paths_out["table"].write_text("\n".join(sections))
     print(paths_out["table"].read_text())
     return 0
+
+
+def split_meshes(meshes: Path, split: str, wanted: set[str]) -> tuple[list[Path], list[str]]:
+    """The closed oriented manifold meshes of one split (``dev``, ``test`` or ``all``) and
+    categories, sorted by category and vertex count, with their categories."""
+    from spacemesh.io import load_mesh
+    from spacemesh.topology import check_topology
+
+    with SPLIT_FILE.open() as handle:
+        chosen = {e["file"] for e in csv.DictReader(handle) if split in ("all", e["split"])}
+    with (meshes / "manifest.csv").open() as handle:
+        entries = [e for e in csv.DictReader(handle)
+                   if e["category"] in wanted and e["file"] in chosen]
+    paths, categories = [], []
+    for entry in sorted(entries, key=lambda e: (e["category"], int(e["n_vertices"]))):
+        path = meshes / entry["file"]
+        if check_topology(load_mesh(path)).is_closed_oriented_manifold:
+            paths.append(path)
+            categories.append(entry["category"])
+        else:
+            print(f"skipped {entry['file']}: not a closed oriented manifold")
+    return paths, categories
 
 
 if __name__ == "__main__":

@@ -48,7 +48,7 @@ from spacemesh.runtime.large import (
 from spacemesh.runtime.options import GenerateOptions
 from spacemesh.runtime.sampler import ProgressFn, StageFn, sample, split_tokens
 from spacemesh.runtime.schedule import NoiseSchedule
-from spacemesh.runtime.tolerance import attempt_options, search_vertex_count
+from spacemesh.runtime.tolerance import aim, attempt_options, distance_of, search_vertex_count
 from spacemesh.typed import FloatArray, IntArray
 
 if TYPE_CHECKING:
@@ -578,8 +578,9 @@ class MeshGenerator:
             if stage is not None:
                 stage("tolerance", done, total)
 
-        found, met, tried = search_vertex_count(run, tolerance, self.vertex_count(options),
-                                                on_try=on_try)
+        found, _, tried = search_vertex_count(run, aim(tolerance), self.vertex_count(options),
+                                              on_try=on_try)
+        met = distance_of(found) <= tolerance
         found.options = replace(found.options, tolerance=tolerance, target_vertices=None)
         if found.fit is not None:
             found.fit = replace(found.fit, tolerance=tolerance, tolerance_met=met)
