@@ -15,7 +15,7 @@ from spacemesh.metrics import (
     topology_flags,
 )
 from spacemesh.metrics.quality import self_intersecting_faces
-from spacemesh.runtime.pipeline import flip_faces
+from spacemesh.runtime.finishing import flip_faces
 
 pytest.importorskip("pymeshlab")
 
