@@ -151,8 +151,8 @@ class GenerateOptions:
                 raise OptionError("target_vertices",
                                   "target_vertices needs start=points (from noise the "
                                   "network picks the count)")
-        if self.tolerance is not None:
-            _tolerance(self.tolerance)
+        tolerance = None if self.tolerance is None else _tolerance(self.tolerance)
+        if tolerance is not None:
             if self.target_vertices is not None:
                 raise OptionError("tolerance", "tolerance and target_vertices cannot both be "
                                                "set: the tolerance chooses the vertex count")
@@ -162,7 +162,6 @@ class GenerateOptions:
         _integer("samples", self.samples, 1, MAX_SAMPLES)
         if not isinstance(self.raw, bool):
             raise OptionError("raw", f"raw must be true or false, not {self.raw!r}")
-        tolerance = None if self.tolerance is None else float(self.tolerance)
         return replace(self, steps=steps, sampler=sampler, start=start, start_time=start_time,
                        tolerance=tolerance)
 
