@@ -511,6 +511,12 @@ def signed_volume(mesh: PolygonMesh) -> float:
     return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
 
 
+def triangle_areas(vertices: FloatArray, triangles: IntArray) -> FloatArray:
+    """(T,) area of each triangle ``vertices[triangles[t]]``."""
+    p = vertices[triangles]  # (T, 3, 3)
+    return np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1) / 2
+
+
 def surface_area(mesh: PolygonMesh) -> float:
     """Total area of the triangulated faces.
 
@@ -523,8 +529,7 @@ def surface_area(mesh: PolygonMesh) -> float:
     float
     """
     tri, _ = triangles_of(mesh)
-    p = mesh.vertices[tri]  # (T, 3, 3)
-    return float(np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum() / 2)
+    return float(triangle_areas(mesh.vertices, tri).sum())
 
 
 def fan_volumes(mesh: PolygonMesh) -> FloatArray:

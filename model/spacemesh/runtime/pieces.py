@@ -20,7 +20,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import faces_subset, triangles_of
+from spacemesh.primitives import faces_subset, triangle_areas, triangles_of
 from spacemesh.topology import face_components, weld_equal_positions
 from spacemesh.typed import FloatArray, IntArray
 
@@ -80,9 +80,7 @@ def _fragments(mesh: PolygonMesh, n_pieces: int, label: IntArray,
                policy: FragmentPolicy) -> np.ndarray:
     """(n_pieces,) bool: which pieces are fragments."""
     tri, source = triangles_of(mesh)  # (T, 3), (T,)
-    corners = mesh.vertices[tri]  # (T, 3, 3)
-    areas = 0.5 * np.linalg.norm(
-        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    areas = triangle_areas(mesh.vertices, tri)  # (T,)
     piece_area = np.bincount(label[source], weights=areas, minlength=n_pieces)
     share = piece_area / max(float(piece_area.sum()), np.finfo(float).tiny)
     vertex_piece = np.full(mesh.n_vertices, -1, dtype=np.int64)
