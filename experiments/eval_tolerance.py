@@ -36,6 +36,9 @@ def main() -> int:
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--limit", type=int, default=None)
+    parser.add_argument("--margin", type=float, default=None,
+                        help="the search's aim as a fraction of the tolerance (default: "
+                             "spacemesh.runtime.tolerance.TOLERANCE_MARGIN)")
     args = parser.parse_args()
     if not (args.meshes / "manifest.csv").is_file():
         print(f"skipped: {args.meshes / 'manifest.csv'} not found")
@@ -49,6 +52,10 @@ def main() -> int:
     from spacemesh.primitives import sample_surface, triangles_of
     from spacemesh.primitives.closest import nearest_triangles
     from spacemesh.runtime import MeshGenerator
+    from spacemesh.runtime import tolerance as tolerance_search
+
+    if args.margin is not None:
+        tolerance_search.TOLERANCE_MARGIN = args.margin
 
     paths, categories = split_meshes(args.meshes, args.split, set(args.categories.split(",")))
     shapes = mesh_shapes(paths, categories=categories, seed=args.seed)[: args.limit]
@@ -72,7 +79,8 @@ def main() -> int:
         print(f"{shape.shape_id[:48]:48s} {shape.category:11s} truth->mesh {distance:.5f} "
               f"({'ok' if within[-1] else 'OVER'}), fit met {met[-1]}, "
               f"{counts[-1]} vertices, {seconds[-1]:.1f} s", flush=True)
-    print(f"\n{args.split} split, tolerance {args.tolerance:g}, {len(shapes)} meshes: "
+    print(f"\n{args.split} split, tolerance {args.tolerance:g}, margin "
+          f"{tolerance_search.TOLERANCE_MARGIN:g}, {len(shapes)} meshes: "
           f"truth->mesh within it on {100 * np.mean(within):.0f}%, fit report met on "
           f"{100 * np.mean(met):.0f}%; vertices median {np.median(counts):.0f} "
           f"(mean {np.mean(counts):.0f}); seconds median {np.median(seconds):.1f}, "

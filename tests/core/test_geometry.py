@@ -12,6 +12,7 @@ from spacemesh.geometry import (
     VertexFitOptions,
     farthest_point_sampling,
     fit_report,
+    fit_score,
     fit_vertices,
     refine_geometry,
 )
@@ -196,6 +197,18 @@ def test_the_fit_report_measures_distances_coverage_and_components():
     scaled = fit_report(unit.with_vertices(unit.vertices * 10), points * 10)
     assert scaled.mesh_to_points_mean_rel == pytest.approx(good.mesh_to_points_mean_rel,
                                                            rel=1e-6)
+
+
+def test_fit_score_is_the_reports_score_without_the_rest():
+    sphere = icosphere(2)
+    points, _ = sample_surface(sphere, 25_000, np.random.default_rng(6))  # over the cap
+    points[3] = np.nan  # a non-finite row is left out by both
+    for mesh in (sphere, sphere.with_vertices(sphere.vertices * 0.7)):
+        assert fit_score(mesh, points) == pytest.approx(fit_report(mesh, points).score,
+                                                        rel=1e-12)
+    assert fit_score(sphere, points) < fit_score(sphere.with_vertices(sphere.vertices * 0.7),
+                                                 points)
+    assert fit_score(PolygonMesh.empty(), points) == np.inf
 
 
 def test_the_stage_fits_a_coarse_decode_and_keeps_it_valid():

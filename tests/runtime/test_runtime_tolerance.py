@@ -83,3 +83,25 @@ def test_bad_tolerances_name_the_option(toy_generator, fields, message):
     with pytest.raises(OptionError, match=message) as info:
         GenerateOptions(**fields).resolve(toy_generator.spec)
     assert info.value.option == "tolerance"
+
+
+def test_a_tolerance_request_prepares_its_points_once_for_all_tries(toy_generator):
+    import numpy as np
+
+    from spacemesh.runtime import GenerateRequest, MeshGenerator
+
+    class Counting(MeshGenerator):
+        prepared = 0
+
+        def prepare_input(self, request, options=None):
+            Counting.prepared += 1
+            return super().prepare_input(request, options)
+
+    generator = Counting(toy_generator.backend, toy_generator.spec)
+    points = np.random.default_rng(3).normal(size=(400, 3))
+    points /= np.linalg.norm(points, axis=1, keepdims=True)
+    options = GenerateOptions(seed=1, steps=2, tolerance=0.02)
+    [result] = generator.generate_batch([GenerateRequest(points, None, options)])
+    assert len(result.tolerance_tries) >= 2  # the search ran more than one generate
+    assert Counting.prepared == 1
+    assert result.fit.tolerance == 0.02 and result.options.target_vertices is None

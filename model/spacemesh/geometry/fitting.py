@@ -40,6 +40,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
+from spacemesh.primitives import triangle_areas
 from spacemesh.primitives.closest import (
     _subtriangle_centroids,
     closest_points_on_triangles,
@@ -433,8 +434,7 @@ def fit_to_surface(positions: FloatArray, triangles: IntArray, moving: BoolArray
     corners = surface_points[surface_triangles]  # (S, 3, 3)
     weights = _subtriangle_centroids(FIT_SAMPLE_LEVEL)  # (G, 3)
     samples = np.einsum("gk,skd->sgd", weights, corners).reshape(-1, 3)  # (S G, 3)
-    area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
-                                         corners[:, 2] - corners[:, 0]), axis=1)
+    area = triangle_areas(surface_points, surface_triangles)  # (S,)
     mass = np.repeat(area, len(weights))
     mass = mass / max(float(mass.mean()), 1e-300)  # (S G,), mean 1
     n = len(x)

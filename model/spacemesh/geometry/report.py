@@ -32,7 +32,7 @@ from scipy.spatial import cKDTree
 
 from spacemesh.geometry.intersections import self_intersection_fraction
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import triangles_of
+from spacemesh.primitives import triangle_areas, triangles_of
 from spacemesh.primitives.closest import nearest_triangles
 from spacemesh.topology import surface_topology
 from spacemesh.typed import FloatArray
@@ -75,7 +75,8 @@ class FitReport:
 
     @property
     def score(self) -> float:
-        """Lower is better: the two mean distances summed, relative to the diagonal."""
+        """Lower is better: the two mean distances summed, relative to the diagonal
+        (:func:`fit_score` computes it alone)."""
         return self.points_to_mesh_mean_rel + self.mesh_to_points_mean_rel
 
     def to_dict(self) -> dict[str, float | int]:
@@ -97,8 +98,7 @@ def face_components(mesh: PolygonMesh) -> int:
 
 def _surface_samples(vertices: FloatArray, triangles: np.ndarray, count: int) -> FloatArray:
     corners = vertices[triangles]  # (T, 3, 3)
-    area = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
-                                   corners[:, 2] - corners[:, 0]), axis=1)
+    area = triangle_areas(vertices, triangles)  # (T,)
     rng = np.random.default_rng(REPORT_SEED)
     weights = area / area.sum() if area.sum() > 0 else None
     pick = rng.choice(len(triangles), count, p=weights)
@@ -107,6 +107,44 @@ def _surface_samples(vertices: FloatArray, triangles: np.ndarray, count: int) ->
     u, v = np.where(flip, 1 - u, u), np.where(flip, 1 - v, v)
     c = corners[pick]
     return c[:, 0] + u[:, None] * (c[:, 1] - c[:, 0]) + v[:, None] * (c[:, 2] - c[:, 0])
+
+
+def _report_points(points: FloatArray) -> tuple[FloatArray, float]:
+    """The finite rows of ``points`` the report measures (a fixed subset beyond
+    :data:`MAX_REPORT_POINTS`), and their bounding-box diagonal."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    points = points[np.isfinite(points).all(axis=1)]
+    if len(points) > MAX_REPORT_POINTS:
+        pick = np.random.default_rng(REPORT_SEED).choice(len(points), MAX_REPORT_POINTS,
+                                                         replace=False)
+        points = points[np.sort(pick)]
+    diagonal = float(np.linalg.norm(np.ptp(points, axis=0))) if len(points) else 0.0
+    return points, diagonal
+
+
+def _distances(mesh: PolygonMesh, points: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """(P,) distance of each point to the mesh's surface and (:data:`MESH_SAMPLES`,)
+    distance of each surface sample to the nearest point; ``mesh`` has faces."""
+    triangles, _ = triangles_of(mesh)
+    _, gap = nearest_triangles(points, mesh.vertices, triangles)
+    to_mesh = np.sqrt(np.maximum(gap, 0.0))
+    samples = _surface_samples(mesh.vertices, triangles, MESH_SAMPLES)
+    to_points, _ = cKDTree(points).query(samples)
+    return to_mesh, np.asarray(to_points, dtype=np.float64)
+
+
+def fit_score(mesh: PolygonMesh, points: FloatArray) -> float:
+    """:attr:`FitReport.score` alone, without the topology and the intersection test.
+
+    For choosing between candidate meshes of the same points: equal to
+    ``fit_report(mesh, points).score``, infinite for a mesh without faces (or no points).
+    """
+    points, diagonal = _report_points(points)
+    if mesh.n_faces == 0 or len(points) == 0:
+        return float("inf")
+    to_mesh, to_points = _distances(mesh, points)
+    relative = diagonal if diagonal > 0 else 1.0
+    return float(to_mesh.mean()) / relative + float(to_points.mean()) / relative
 
 
 def fit_report(mesh: PolygonMesh, points: FloatArray) -> FitReport:
@@ -123,13 +161,7 @@ def fit_report(mesh: PolygonMesh, points: FloatArray) -> FitReport:
     FitReport
         Distances are NaN and coverage 0 for a mesh without faces.
     """
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    points = points[np.isfinite(points).all(axis=1)]
-    if len(points) > MAX_REPORT_POINTS:
-        pick = np.random.default_rng(REPORT_SEED).choice(len(points), MAX_REPORT_POINTS,
-                                                         replace=False)
-        points = points[np.sort(pick)]
-    diagonal = float(np.linalg.norm(np.ptp(points, axis=0))) if len(points) else 0.0
+    points, diagonal = _report_points(points)
     relative = diagonal if diagonal > 0 else 1.0
     nan = float("nan")
     topology = surface_topology(mesh)
@@ -137,11 +169,7 @@ def fit_report(mesh: PolygonMesh, points: FloatArray) -> FitReport:
         return FitReport(nan, nan, nan, nan, nan, nan, nan, nan, 0.0, face_components(mesh),
                          0.0, diagonal, len(points), topology.pieces, topology.genus,
                          topology.boundary_loops)
-    triangles, _ = triangles_of(mesh)
-    _, gap = nearest_triangles(points, mesh.vertices, triangles)
-    to_mesh = np.sqrt(np.maximum(gap, 0.0))
-    samples = _surface_samples(mesh.vertices, triangles, MESH_SAMPLES)
-    to_points, _ = cKDTree(points).query(samples)
+    to_mesh, to_points = _distances(mesh, points)
     to_mesh_mean, to_mesh_p95 = float(to_mesh.mean()), float(np.percentile(to_mesh, 95))
     to_points_mean = float(to_points.mean())
     to_points_p95 = float(np.percentile(to_points, 95))

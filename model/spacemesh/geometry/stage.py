@@ -29,7 +29,7 @@ from spacemesh.encode import connectivity_from_faces
 from spacemesh.geometry.fitting import VertexFitOptions, fit_vertices, plane_fits
 from spacemesh.geometry.intersections import intersecting_triangles, self_intersecting_faces
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import triangles_of
+from spacemesh.primitives import triangle_areas, triangles_of
 from spacemesh.typed import FloatArray, IntArray
 
 #: Rounds of the intersection guard's halfway backtracking.
@@ -170,9 +170,7 @@ def split_longest_edges(positions: FloatArray, triangles: IntArray, target: int
             drop += [f1, f2]
         if not new_pos:  # no edge can split (a pillow): split the largest triangle
             corners = positions[tri]
-            area = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
-                                           corners[:, 2] - corners[:, 0]), axis=1)
-            f = int(np.argmax(area))
+            f = int(np.argmax(triangle_areas(positions, tri)))
             a, b, c = tri[f].tolist()
             m = len(positions)
             new_pos.append(corners[f].mean(axis=0))

@@ -6,9 +6,9 @@ An upload's normals enter only the geometry stage's tangent-plane quadrics
 surface pin vertices that farthest-point sampling put *near* a crease onto it, which on
 some shapes (a cube, a faceted cylinder, low-poly organics) fits worse than the plane
 fits' own normals. So with normals the stage runs twice, with them and without, and the
-mesh whose fit report scores better (:attr:`spacemesh.geometry.report.FitReport.score`,
-measured against the same points) is kept: normals never make the result fit the points
-worse. On the 27 dev meshes this gave CD 1.17e-3 against 1.22e-3 from bare points and
+mesh whose fit scores better (:func:`spacemesh.geometry.report.fit_score`, the fit
+report's score against the same points) is kept: normals never make the result fit the
+points worse. On the 27 dev meshes this gave CD 1.17e-3 against 1.22e-3 from bare points and
 1.30e-3 with the normals always used, and no mesh more than 10% worse than without.
 """
 
@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from spacemesh.geometry import GeometryOptions, fit_report, refine_geometry
+from spacemesh.geometry import GeometryOptions, fit_score, refine_geometry
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import signed_volume
 from spacemesh.runtime.pieces import drop_fragments
@@ -79,7 +79,7 @@ def finish_geometry(
         stats = dict(refined.stats, n_fragments_dropped=dropped)
         if normals is not None:
             stats["normals_used"] = given is not None
-        score = fit_report(fitted, points).score if len(tries) > 1 else 0.0
+        score = fit_score(fitted, points) if len(tries) > 1 else 0.0
         score = score if np.isfinite(score) else np.inf
         if best is None or score < best[0]:
             best = (score, fitted, stats)

@@ -529,12 +529,29 @@ class MeshGenerator:
             An option out of range (before any network runs).
         """
         resolved = [r.options.resolve(self.spec) for r in requests]
-        # each request's points once, shared by its seeds (fails before any work)
+        # each request's points once, shared by its seeds and tries (fails before any work)
         inputs = [self.prepare_input(r, o) for r, o in zip(requests, resolved, strict=True)]
-        jobs: list[tuple[int, GenerateOptions]] = []  # (request index, one seed)
+        plain = [i for i, options in enumerate(resolved) if options.tolerance is None]
+        found = self._generate_prepared([(inputs[i], resolved[i]) for i in plain],
+                                        progress, stage)
+        results: list[GenerateResult | None] = [None] * len(requests)
+        for index, result in zip(plain, found, strict=True):
+            results[index] = result
         for index, options in enumerate(resolved):
-            if options.tolerance is not None:
-                continue  # searched below
+            if options.tolerance is not None:  # searched after the others
+                results[index] = self._within_tolerance(inputs[index], options, progress,
+                                                        stage)
+        return [result for result in results if result is not None]
+
+    def _generate_prepared(
+        self, items: Sequence[tuple[PreparedInput, GenerateOptions]],
+        progress: ProgressFn | None, stage: StageFn | None,
+    ) -> list[GenerateResult]:
+        """:meth:`generate_batch` on prepared inputs with resolved options (no
+        ``tolerance``): every request's seeds, grouped by sampler settings, the best
+        fit of each request's seeds in request order."""
+        jobs: list[tuple[int, GenerateOptions]] = []  # (request index, one seed)
+        for index, (_, options) in enumerate(items):
             jobs += [(index, replace(options, seed=options.seed + k))
                      for k in range(options.samples)]
         groups: dict[tuple[int, str, str, float], list[int]] = {}
@@ -548,31 +565,28 @@ class MeshGenerator:
                 if progress is not None:
                     progress(offset + step, total)
 
-            batch = self._run_group([(inputs[jobs[j][0]], jobs[j][1]) for j in members],
+            batch = self._run_group([(items[jobs[j][0]][0], jobs[j][1]) for j in members],
                                     key, report, stage or _no_stage)
             for j, result in zip(members, batch, strict=True):
                 outcomes[j] = result
             done += self._denoiser_steps(key)
         results = []
-        for index, options in enumerate(resolved):
-            if options.tolerance is not None:
-                results.append(self._within_tolerance(requests[index], options, progress,
-                                                      stage))
-                continue
+        for index, (_, options) in enumerate(items):
             tried = [outcomes[j] for j, (i, _) in enumerate(jobs) if i == index]
             results.append(_best_fit([r for r in tried if r is not None], options))
         return results
 
-    def _within_tolerance(self, request: GenerateRequest, options: GenerateOptions,
+    def _within_tolerance(self, prepared: PreparedInput, options: GenerateOptions,
                           progress: ProgressFn | None, stage: StageFn | None
                           ) -> GenerateResult:
-        """The smallest mesh within ``options.tolerance`` (resolved options)."""
+        """The smallest mesh within ``options.tolerance`` (resolved options), every try
+        on the same prepared points."""
         assert options.tolerance is not None
         tolerance = float(options.tolerance)
 
         def run(count: int) -> GenerateResult:
-            attempt = replace(request, options=attempt_options(options, count))
-            return self.generate_batch([attempt], progress=progress, stage=stage)[0]
+            attempt = attempt_options(options, count).resolve(self.spec)  # checks the count
+            return self._generate_prepared([(prepared, attempt)], progress, stage)[0]
 
         def on_try(done: int, total: int) -> None:
             if stage is not None:
