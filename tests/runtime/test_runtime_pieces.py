@@ -1,4 +1,5 @@
-"""Fragments (tiny pieces beside a larger one) leave the output; separate parts stay."""
+"""The points' own piece count; fragments (tiny pieces beside a larger one) leave the
+output; separate parts stay."""
 
 from __future__ import annotations
 
@@ -6,7 +7,8 @@ import numpy as np
 
 from spacemesh.examples import icosphere
 from spacemesh.mesh import PolygonMesh
-from spacemesh.runtime.pieces import FragmentPolicy, drop_fragments
+from spacemesh.primitives import sample_surface
+from spacemesh.runtime.pieces import FragmentPolicy, drop_fragments, point_pieces
 from spacemesh.topology import surface_topology
 from tests.validity import assert_valid_mesh
 
@@ -55,3 +57,18 @@ def test_the_policy_decides_what_is_small_and_what_is_near():
     assert drop_fragments(mesh, FragmentPolicy(max_area_share=1e-6))[1] == 0
     assert drop_fragments(mesh, FragmentPolicy(max_gap_edges=0.0))[1] == 0
     assert drop_fragments(mesh, FragmentPolicy())[1] == 1
+
+
+def test_the_points_pieces_are_their_separate_groups_outliers_aside():
+    rng = np.random.default_rng(4)
+    sphere, _ = sample_surface(icosphere(3), 2048, rng)
+    assert point_pieces(sphere) == 1
+    noisy = sphere + rng.normal(scale=0.01, size=sphere.shape)
+    assert point_pieces(noisy) == 1
+    apart = np.concatenate([sphere, sphere + np.array([3.0, 0.0, 0.0])])
+    assert point_pieces(apart) == 2
+    touching = np.concatenate([sphere, sphere + np.array([2.01, 0.0, 0.0])])  # a gap of 0.01
+    assert point_pieces(touching) == 1
+    stray = np.concatenate([sphere, rng.uniform(4, 9, size=(10, 3))])  # 0.5% outliers
+    assert point_pieces(stray) == 1
+    assert point_pieces(sphere[:1]) == 0

@@ -11,7 +11,7 @@ from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import signed_volume
 from spacemesh.runtime import GenerateRequest, MeshGenerator
 from spacemesh.runtime.finishing import flip_faces
-from spacemesh.runtime.options import GenerateOptions, OptionError
+from spacemesh.runtime.options import PIECE_RETRY_SEEDS, GenerateOptions, OptionError
 from spacemesh.runtime.pipeline import drop_duplicates, normalize_points
 from spacemesh.topology import check_topology
 
@@ -40,7 +40,10 @@ def test_results_are_valid_outward_meshes_with_timings(generator, cloud):
     assert set(result.timings) == {"encoder", "sampler", "connectivity", "extraction",
                                    "geometry", "report", "total"}
     assert result.steps == generator.spec.steps and result.method == generator.spec.method
-    assert result.fit is not None and result.sample_scores == [(3, result.fit.score)]
+    assert result.fit is not None and result.sample_scores[0][0] == 3
+    # more seeds only when seed 3's mesh did not have the points' pieces
+    assert (result.seed, result.fit.score) in result.sample_scores
+    assert len(result.sample_scores) in (1, 1 + PIECE_RETRY_SEEDS)
 
 
 def test_output_is_in_the_input_frame(generator, cloud):
@@ -72,7 +75,9 @@ def test_progress_is_reported_for_every_step(generator, cloud):
     seen = []
     generator.generate(cloud, seed=0, steps=4, start="noise",
                        progress=lambda d, t: seen.append((d, t)))
-    assert seen == [(1, 4), (2, 4), (3, 4), (4, 4)]
+    # one pass of the four steps, and another per seed group of a pieces retry
+    assert seen[:4] == [(1, 4), (2, 4), (3, 4), (4, 4)]
+    assert seen[4:] in ([], seen[:4])
     seen.clear()  # from the points at half the diffusion: the lower half of the steps
     generator.generate(cloud, seed=0, steps=4, start="points", start_time=0.5,
                        progress=lambda d, t: seen.append((d, t)))
@@ -160,3 +165,20 @@ def test_points_start_budget_raw_and_samples(generator, cloud):
     again = generator.generate(cloud, seed=best.seed, start="points")
     assert again.mesh.face_key_set() == best.mesh.face_key_set()
     assert again.fit.score == pytest.approx(best.fit.score)
+
+
+def test_the_seed_whose_pieces_agree_with_the_points_wins_over_a_closer_fit():
+    from types import SimpleNamespace
+
+    from spacemesh.runtime.pipeline import _best_fit
+
+    def tried(seed, pieces, score):
+        return SimpleNamespace(seed=seed, fit=SimpleNamespace(pieces=pieces, score=score))
+
+    options = GenerateOptions(seed=5, samples=3)
+    results = [tried(5, 2, 0.010), tried(6, 1, 0.012), tried(7, 1, 0.011)]
+    winner = _best_fit(results, options, expected_pieces=1)
+    assert winner.seed == 7 and winner.options.seed == 7 and winner.points_pieces == 1
+    assert winner.sample_scores == [(5, 0.010), (6, 0.012), (7, 0.011)]
+    # none agrees: the closest fit
+    assert _best_fit(results, options, expected_pieces=3).seed == 5

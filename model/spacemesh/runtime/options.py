@@ -36,8 +36,11 @@ MAX_TOLERANCE = 0.5
 #: from the surface: docs/RESULTS.md has the start-time sweep), 200 of them unless the
 #: request sets a target.
 POINTS_START = {"start": "points", "start_time": 0.0, "vertices": 200, "feature_boost": 1.0}
-#: Largest seed (int64 in the gRPC contract; seeds + samples stay below it).
-MAX_SEED = 2**63 - 1 - MAX_SAMPLES
+#: Seeds tried beyond a request's own when none of its meshes has as many pieces as the
+#: points (:mod:`spacemesh.runtime.pieces`).
+PIECE_RETRY_SEEDS = 4
+#: Largest seed (int64 in the gRPC contract; seeds + samples + retries stay below it).
+MAX_SEED = 2**63 - 1 - MAX_SAMPLES - PIECE_RETRY_SEEDS
 
 
 class OptionError(ValueError):

@@ -45,7 +45,8 @@ from spacemesh.runtime.large import (
     needs_split,
     network_vertices,
 )
-from spacemesh.runtime.options import GenerateOptions
+from spacemesh.runtime.options import PIECE_RETRY_SEEDS, GenerateOptions
+from spacemesh.runtime.pieces import point_pieces
 from spacemesh.runtime.sampler import ProgressFn, StageFn, sample, split_tokens
 from spacemesh.runtime.schedule import NoiseSchedule
 from spacemesh.runtime.tolerance import aim, attempt_options, distance_of, search_vertex_count
@@ -244,6 +245,8 @@ class GenerateResult:
     tolerance_tries : list of (int, float)
         With ``tolerance``: every vertex count the search tried and its
         ``points_to_mesh_mean_rel``, in order (:mod:`spacemesh.runtime.tolerance`).
+    points_pieces : int, optional
+        The pieces of the points' own surface (:func:`spacemesh.runtime.pieces.point_pieces`).
     """
 
     mesh: PolygonMesh
@@ -255,6 +258,7 @@ class GenerateResult:
     fit: FitReport | None = None
     sample_scores: list[tuple[int, float]] = field(default_factory=list)
     tolerance_tries: list[tuple[int, float]] = field(default_factory=list)
+    points_pieces: int | None = None
 
     @property
     def seed(self) -> int:
@@ -548,8 +552,31 @@ class MeshGenerator:
         progress: ProgressFn | None, stage: StageFn | None,
     ) -> list[GenerateResult]:
         """:meth:`generate_batch` on prepared inputs with resolved options (no
-        ``tolerance``): every request's seeds, grouped by sampler settings, the best
-        fit of each request's seeds in request order."""
+        ``tolerance``): the best fit of each request's seeds, in request order.
+
+        A mesh with as many pieces as the points (:func:`point_pieces`) is preferred
+        to any without; when none of a request's seeds has them,
+        :data:`PIECE_RETRY_SEEDS` more seeds run (stage ``pieces``) before choosing.
+        """
+        results = []
+        for (prepared, options), tried in zip(items, self._seed_results(items, progress,
+                                                                         stage), strict=True):
+            expected = point_pieces(prepared.cloud[:, :3])
+            if not options.raw and not any(_pieces_agree(r, expected) for r in tried):
+                if stage is not None:
+                    stage("pieces", 1, 1)
+                more = replace(options, seed=options.seed + options.samples,
+                               samples=PIECE_RETRY_SEEDS)
+                tried += self._seed_results([(prepared, more)], progress, stage)[0]
+            results.append(_best_fit(tried, options, expected))
+        return results
+
+    def _seed_results(
+        self, items: Sequence[tuple[PreparedInput, GenerateOptions]],
+        progress: ProgressFn | None, stage: StageFn | None,
+    ) -> list[list[GenerateResult]]:
+        """Every seed's result of each request (``samples`` seeds from its ``seed``),
+        the seeds of all requests grouped by sampler settings to share network calls."""
         jobs: list[tuple[int, GenerateOptions]] = []  # (request index, one seed)
         for index, (_, options) in enumerate(items):
             jobs += [(index, replace(options, seed=options.seed + k))
@@ -570,11 +597,8 @@ class MeshGenerator:
             for j, result in zip(members, batch, strict=True):
                 outcomes[j] = result
             done += self._denoiser_steps(key)
-        results = []
-        for index, (_, options) in enumerate(items):
-            tried = [outcomes[j] for j, (i, _) in enumerate(jobs) if i == index]
-            results.append(_best_fit([r for r in tried if r is not None], options))
-        return results
+        return [[r for j, (i, _) in enumerate(jobs) if i == index
+                 for r in [outcomes[j]] if r is not None] for index in range(len(items))]
 
     def _within_tolerance(self, prepared: PreparedInput, options: GenerateOptions,
                           progress: ProgressFn | None, stage: StageFn | None
@@ -761,16 +785,25 @@ def _no_stage(name: str, done: int, total: int) -> None:
     """A :data:`~spacemesh.runtime.sampler.StageFn` that reports nowhere."""
 
 
-def _best_fit(tried: list[GenerateResult], options: GenerateOptions) -> GenerateResult:
-    """The result of the seed that fits best (lowest fit score; ties: the lower seed),
-    with every seed's score and the request's resolved options at the winner's seed."""
+def _pieces_agree(result: GenerateResult, expected: int) -> bool:
+    """Whether ``result``'s mesh has ``expected`` pieces (the points' own count)."""
+    return result.fit is not None and result.fit.pieces == expected
+
+
+def _best_fit(tried: list[GenerateResult], options: GenerateOptions,
+              expected_pieces: int) -> GenerateResult:
+    """The result of the seed that fits best: one whose pieces agree with the points'
+    ``expected_pieces`` first, then the lowest fit score, then the lower seed; with
+    every seed's score and the request's resolved options at the winner's seed."""
     def score(result: GenerateResult) -> float:
         value = result.fit.score if result.fit is not None else float("nan")
         return value if np.isfinite(value) else float("inf")
 
     scores = [(r.seed, score(r)) for r in tried]
-    best = min(range(len(tried)), key=lambda i: (scores[i][1], scores[i][0]))
+    best = min(range(len(tried)), key=lambda i: (not _pieces_agree(tried[i], expected_pieces),
+                                                 scores[i][1], scores[i][0]))
     winner = tried[best]
     winner.options = replace(options, seed=winner.seed)
     winner.sample_scores = scores
+    winner.points_pieces = expected_pieces
     return winner
