@@ -48,7 +48,7 @@ def independent_check(record: MeshRecord) -> None:
 
 
 @pytest.mark.parametrize(
-    ("style", "count"), [("qem", 4), ("planar", 4), ("isotropic", 2), ("quad", 2)]
+    ("style", "count"), [("qem", 4), ("planar", 4), ("isotropic", 2), ("quad", 2), ("farthest", 3)]
 )
 def test_styles_make_valid_shapes(style, count):
     vmin = 8 if style == "planar" else SMALL["vertex_min"]

@@ -63,7 +63,9 @@ def synth(
     out: Annotated[Path, typer.Option("--out", help="Dataset folder (resumed if it exists).")],
     count: Annotated[int, typer.Option("--count", help="Number of shapes.")],
     seed: Annotated[int, typer.Option("--seed", help="The same seed gives the same bytes.")] = 0,
-    style: Annotated[str, typer.Option("--style", help="qem, planar, isotropic or quad.")] = "qem",
+    style: Annotated[
+        str, typer.Option("--style", help="qem, planar, isotropic, quad or farthest.")
+    ] = "qem",
     vertices: Annotated[
         str, typer.Option("--vertices", help="Vertex count range MIN:MAX.")
     ] = "128:512",

@@ -14,6 +14,11 @@
 - ``quad``: quad-dominant. The isotropic mesh's triangles are paired into convex,
   nearly planar quads (:func:`pair_triangles`); this is triangle pairing, not a
   field-aligned remesh like Instant Meshes (see docs/DATA.md).
+- ``farthest``: the vertices the serving pipeline would choose (feature-weighted
+  farthest points of a uniform sample of the surface, as ``start=points`` does), joined
+  as the surface joins them: the restricted Delaunay triangulation on a dense copy of
+  the solid (:mod:`spacemesh.data.voronoi`). Trains the connectivity network on the
+  vertex sets it meets at inference; a result whose genus is not the solid's is refused.
 
 Every style takes the solid, the target vertex count and the shape's random
 generator, and returns a :class:`~spacemesh.mesh.PolygonMesh`. Styles do not
@@ -27,8 +32,13 @@ from collections.abc import Callable
 import numpy as np
 
 from spacemesh.data.shapes import solid_to_mesh
+from spacemesh.data.voronoi import restricted_delaunay
+from spacemesh.geometry import farthest_point_sampling, feature_weights
 from spacemesh.geometry.policy import FLAT_FLIP_DEGREES
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import sample_surface
+from spacemesh.runtime.options import POINTS_START
+from spacemesh.topology import check_topology
 from spacemesh.typed import IntArray
 
 #: Oversampling of the dense mesh that QEM starts from (vertices per target vertex).
@@ -431,12 +441,53 @@ def planar(solid, target_vertices: int, rng: np.random.Generator) -> PolygonMesh
     return planar_decimate(solid_to_mesh(solid), angle)
 
 
+#: Dense vertices per target vertex under the ``farthest`` style's Voronoi diagram.
+VORONOI_DENSITY = 40.0
+#: Points the ``farthest`` style draws its vertices from (the encoder's 2,048).
+FARTHEST_POINTS = 2048
+
+
+def farthest(solid, target_vertices: int, rng: np.random.Generator) -> PolygonMesh:
+    """The pipeline's farthest-point vertices, joined by the restricted Delaunay
+    triangulation on the solid's surface.
+
+    Parameters
+    ----------
+    solid : manifold3d.Manifold
+    target_vertices : int
+    rng : numpy.random.Generator
+        Draws the surface sample and the first farthest point.
+
+    Returns
+    -------
+    PolygonMesh
+        A triangle mesh with the solid's genus.
+
+    Raises
+    ------
+    ValueError
+        The Voronoi regions did not make a surface of the solid's genus (regions that
+        are not disks on a thin part): the generator draws another shape.
+    """
+    length = _edge_length_for(solid.surface_area(), VORONOI_DENSITY * target_vertices)
+    dense = solid_to_mesh(solid.refine_to_length(length))
+    points, _ = sample_surface(dense, FARTHEST_POINTS, rng)
+    pick = farthest_point_sampling(points, target_vertices, seed=int(rng.integers(2**31)),
+                                   weights=feature_weights(points, POINTS_START["feature_boost"]))
+    mesh = restricted_delaunay(dense, points[pick])
+    topology = check_topology(mesh)
+    if not topology.is_closed_oriented_manifold or topology.genus != solid.genus():
+        raise ValueError("the restricted Delaunay mesh is not a surface of the solid's genus")
+    return mesh
+
+
 #: Style name -> function(solid, target_vertices, rng) -> PolygonMesh.
 STYLES: dict[str, Callable[..., PolygonMesh]] = {
     "qem": qem,
     "planar": planar,
     "isotropic": isotropic,
     "quad": quad,
+    "farthest": farthest,
 }
 
 
