@@ -15,8 +15,9 @@ Each client loops until the time is up over a fixed mix, drawn with its own seed
 - valid: generate over REST (a PLY upload, a JSON body), gRPC ``Generate`` and
   ``GenerateStream``, repair over REST and gRPC;
 - invalid: a file that is not a point cloud, a truncated PLY, a bad option, a bad
-  format, too few points, NaN, a deeply nested JSON body, an ``.npz`` that inflates to
-  60 M points, a bad repair region, an empty gRPC request, a bad gRPC option.
+  format, a seed that is not an integer (``1e3``), an unknown option, too few points,
+  NaN, a deeply nested JSON body, an ``.npz`` that inflates to 60 M points, a bad repair
+  region, an empty gRPC request, a bad gRPC option.
 
 Every answer is checked against what the request deserves (200, or the problem kind it
 must get). It prints the latency percentiles (p50, p95, p99) of the valid and the
@@ -151,9 +152,14 @@ class Soak:
                 "/generate", files={"file": ("cloud.ply", truncated)})),
             "rest bad option": (False, "invalid-option", 1, lambda: self.rest(
                 "/generate", params={"steps": 0}, files={"file": ("cloud.ply", inputs.ply)})),
-            "rest bad format": (False, "invalid-parameter", 1, lambda: self.rest(
+            "rest bad format": (False, "invalid-option", 1, lambda: self.rest(
                 "/generate", params={"format": "docx"},
                 files={"file": ("cloud.ply", inputs.ply)})),
+            "rest float seed": (False, "invalid-option", 1, lambda: self.rest(
+                "/generate", params={"seed": "1e3"},
+                files={"file": ("cloud.ply", inputs.ply)})),
+            "rest unknown option": (False, "invalid-option", 1, lambda: self.rest(
+                "/generate", json={"points": p.tolist(), "colour": "red"})),
             "rest too few points": (False, "too-few-points", 1, lambda: self.rest(
                 "/generate", json={"points": p[:5].tolist()})),
             "rest nan": (False, "non-finite", 1, lambda: self.rest(

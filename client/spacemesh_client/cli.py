@@ -25,7 +25,7 @@ import json
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -39,7 +39,12 @@ from spacemesh_client.errors import (
     SpaceMeshError,
 )
 from spacemesh_client.mesh import Mesh
-from spacemesh_client.options import GENERATE_OPTIONS, OPTION_NAMES, REPAIR_OPTION_NAMES
+from spacemesh_client.options import (
+    GENERATE_OPTIONS,
+    OPTION_NAMES,
+    REPAIR_OPTION_NAMES,
+    Option,
+)
 from spacemesh_client.progress import ProgressBar
 from spacemesh_client.retry import RetryPolicy
 from spacemesh_client.security import API_KEY_ENV
@@ -286,8 +291,24 @@ def _add_option_flags(parser: argparse.ArgumentParser, names: Sequence[str]) -> 
             group.add_argument(option.flag, dest=option.name, action="store_const",
                                const=True, default=None, help=option.help)
         else:
-            group.add_argument(option.flag, dest=option.name, type=option.kind,
-                               help=option.help)
+            group.add_argument(option.flag, dest=option.name, type=_parser_of(option),
+                               metavar=_METAVARS.get(option.kind), help=option.help)
+
+
+#: The value shown in ``--help`` for an option flag of each type (str: its name).
+_METAVARS = {int: "INTEGER", float: "NUMBER"}
+
+
+def _parser_of(option: Option) -> Callable[[str], Any]:
+    """argparse's ``type`` of an option flag: :meth:`Option.parse`, its error as the
+    one-line message (``argument --seed: seed must be an integer ...``)."""
+    def parse(text: str) -> Any:
+        try:
+            return option.parse(text)
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(str(error)) from None
+
+    return parse
 
 
 def build_parser() -> argparse.ArgumentParser:

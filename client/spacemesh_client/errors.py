@@ -117,14 +117,15 @@ class MalformedInput(InvalidRequest):
 
 
 class InvalidParameter(InvalidRequest):
-    """A request parameter is invalid (400): ``format``, ``weld``..."""
+    """A request parameter that is not an option is invalid (400)."""
 
     slug = "invalid-parameter"
 
 
 class InvalidOption(InvalidRequest):
-    """A generate option is invalid (422): ``start``, ``samples``, ``target_vertices``...;
-    ``extra["option"]`` names it."""
+    """An option is invalid (422): of the wrong type (``seed=1e3``), out of range, or not
+    an option of the route; ``extra["option"]`` names it (``extra["unknown"]`` lists the
+    names the route does not take)."""
 
     slug = "invalid-option"
 

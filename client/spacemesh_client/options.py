@@ -6,13 +6,27 @@ equal, and that :meth:`Client.generate` takes exactly these keywords). From this
 come the REST query parameters (:func:`query_params`), the gRPC fields (the same names),
 the ``spacemesh-client generate`` flags, and the reading of the resolved options a
 response reports (``X-SpaceMesh-<Name>`` headers, ``MeshReply`` fields).
+
+:meth:`Option.parse` reads a flag's text by the service's one rule
+(``spacemesh.runtime.options.parse_value``; tests/client checks that both accept and
+refuse the same texts): an integer option takes only digits with an optional sign
+(``--seed 1e3`` and ``--samples 2.0`` are refused, not converted), a number option a
+decimal number with an optional exponent (not ``nan`` or ``inf``).
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
+
+#: The text of an integer option: decimal digits with an optional sign.
+INTEGER_TEXT = re.compile(r"[+-]?[0-9]+")
+#: The text of a number option: decimal digits with an optional sign, fraction and exponent.
+NUMBER_TEXT = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+#: What each text pattern's option type is called in an error.
+_EXPECTED = {int: "an integer (digits only, no fraction or exponent)", float: "a number"}
 
 
 @dataclass(frozen=True)
@@ -42,6 +56,32 @@ class Option:
     def header(self) -> str:
         """The name of the response header that reports it (lower case)."""
         return "x-spacemesh-" + self.name.replace("_", "-")
+
+    def parse(self, text: str) -> Any:
+        """A flag's text as :attr:`kind`, by the service's rule.
+
+        Parameters
+        ----------
+        text : str
+            Surrounding whitespace is ignored.
+
+        Returns
+        -------
+        Any
+            ``int``, ``float`` or ``str`` (a bool option is a flag without a value).
+
+        Raises
+        ------
+        ValueError
+            Text that is not of the option's type: "NAME must be an integer ...".
+        """
+        stripped = text.strip()
+        pattern = {int: INTEGER_TEXT, float: NUMBER_TEXT}.get(self.kind)
+        if pattern is None:
+            return stripped
+        if pattern.fullmatch(stripped) is None:
+            raise ValueError(f"{self.name} must be {_EXPECTED[self.kind]}, not {text!r}")
+        return self.kind(stripped)
 
     def from_text(self, text: str) -> Any:
         """A reported value (a header) as :attr:`kind`; None when it cannot be read."""

@@ -50,11 +50,7 @@ from spacemesh_service.openapi import (
     ServerMetadata,
     add_schemas,
 )
-from spacemesh_service.options import (
-    GENERATE_ROUTE_OPTIONS,
-    REPAIR_ROUTE_OPTIONS,
-    RequestOption,
-)
+from spacemesh_service.options import GENERATE_ROUTE_OPTIONS, REPAIR_ROUTE_OPTIONS
 from spacemesh_service.problems import Problem, problem_response
 from spacemesh_service.security import Guard, RestGuard, document_protection, without_paths
 from spacemesh_service.settings import Settings
@@ -213,6 +209,11 @@ async def unless_disconnected(request: Request, work: Awaitable[T]) -> T:
 
 
 # ---------------------------------------------------------------------- bodies
+#: The multipart fields of each route that are not options: the point cloud file; the
+#: mesh file and the region.
+GENERATE_BODY_FIELDS = ("file",)
+REPAIR_BODY_FIELDS = ("file", "region")
+
 def _limited(request: Request, limit: int) -> Request:
     """The same request, its body reads raising 413 beyond ``limit`` bytes."""
     length = request.headers.get("content-length")
@@ -235,15 +236,32 @@ def _limited(request: Request, limit: int) -> Request:
     return Request(request.scope, limited_receive)
 
 
-def query_options(request: Request, table: tuple[RequestOption, ...]) -> dict[str, Any]:
-    """The options of ``table`` found in the query string (values as sent)."""
-    return {o.name: request.query_params[o.name] for o in table
-            if o.name in request.query_params}
+def query_options(request: Request) -> dict[str, Any]:
+    """Every query parameter, by name (values as sent): all of them are options, and
+    :func:`~spacemesh_service.options.resolve_request` refuses the names the route does
+    not take."""
+    return dict(request.query_params)
 
 
-def _form_options(form: Any, table: tuple[RequestOption, ...]) -> dict[str, Any]:
-    """The options of ``table`` found in a multipart form (text fields)."""
-    return {o.name: form.get(o.name) for o in table if isinstance(form.get(o.name), str)}
+def _form_options(form: Any, body_fields: tuple[str, ...]) -> dict[str, Any]:
+    """The fields of a multipart form other than the route's ``body_fields`` (the file,
+    the region): its options, by name (values as sent; the route refuses the names it
+    does not take).
+
+    Raises
+    ------
+    Problem
+        422 ``invalid-option``: an option sent as a file part rather than a text field.
+    """
+    options = {}
+    for name, value in form.multi_items():
+        if name in body_fields:
+            continue
+        if not isinstance(value, str):
+            raise Problem(P.INVALID_OPTION, f"{name} must be a text field, not a file",
+                          option=name)
+        options[name] = value
+    return options
 
 
 async def _read_request(request: Request, limit: int) -> tuple[ParseFn, dict[str, Any]]:
@@ -259,7 +277,7 @@ async def _read_request(request: Request, limit: int) -> tuple[ParseFn, dict[str
                 raise Problem(P.MALFORMED_INPUT, "the multipart body has no file field 'file'")
             data = await upload.read()
             filename = upload.filename
-            options = _form_options(form, GENERATE_ROUTE_OPTIONS)
+            options = _form_options(form, GENERATE_BODY_FIELDS)
         finally:
             await form.close()
         return (lambda limits: (*read_upload(data, filename, limits), {})), options
@@ -299,7 +317,7 @@ async def _read_repair_form(request: Request, limit: int
                           'region as JSON, e.g. {"faces": [0, 1]})')
         region = await field.read() if isinstance(field, UploadFile) else field
         mesh = MeshUpload(await upload.read(), upload.filename)
-        options = _form_options(form, REPAIR_ROUTE_OPTIONS)
+        options = _form_options(form, REPAIR_BODY_FIELDS)
     finally:
         await form.close()
     return mesh, region, options
@@ -365,12 +383,14 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
         """Point cloud in, oriented manifold polygon mesh out.
 
         The body is a multipart upload (field `file`) or JSON `{"points": ...}`. Options
-        in the body take precedence over the query string. A generate option out of
-        range answers 422 `invalid-option` naming it (`option`).
+        in the body take precedence over the query string. Every option error answers 422
+        `invalid-option` naming the option (`option`): a value of the wrong type
+        (integer options take only integers: `seed=1e3` is refused), out of range, or a
+        name this route does not take (`unknown` lists them).
         """
         with engine.admit():
             parse, form_options = await _read_request(request, settings.max_upload_bytes)
-            options = {**query_options(request, GENERATE_ROUTE_OPTIONS), **form_options}
+            options = {**query_options(request), **form_options}
             reply = await unless_disconnected(request, engine.generate(parse, options))
         headers = reply.headers()
         headers["Content-Disposition"] = f'inline; filename="{_generated_name(reply)}"'
@@ -390,7 +410,8 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
         `{"sphere": {"center": [x, y, z], "radius": r}}` or
         `{"box": {"min": [x, y, z], "max": [x, y, z]}}` (mesh coordinates, indices into
         the file's faces and vertices). Options `format`, `seed`, `steps`, `sampler` as
-        for `/generate`, and `weld`, in the query or the form (the form wins). With
+        for `/generate`, and `weld`, `max_growth`, in the query or the form (the form
+        wins); any other name, generate-only options included, is 422 `invalid-option`. With
         `weld=true`, vertices at exactly equal positions are merged first (vertex indices
         of the region stay the file's); the output is the welded mesh repaired and
         `X-SpaceMesh-Welded-Vertices` says how many vertices were merged away. A region
@@ -400,7 +421,7 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
         with engine.admit():
             upload, region, form_options = await _read_repair_form(
                 request, settings.max_upload_bytes)
-            options = {**query_options(request, REPAIR_ROUTE_OPTIONS), **form_options}
+            options = {**query_options(request), **form_options}
             reply = await unless_disconnected(request, engine.repair(upload, region, options))
         headers = reply.headers()
         headers["Content-Disposition"] = f'inline; filename="{_repaired_name(reply)}"'
@@ -421,7 +442,7 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
         """
         async def work(progress: Any, stage: Any) -> Reply:
             parse, form_options = await _read_request(request, settings.max_upload_bytes)
-            options = {**query_options(request, GENERATE_ROUTE_OPTIONS), **form_options}
+            options = {**query_options(request), **form_options}
             return await engine.generate(parse, options, progress=progress, stage=stage)
 
         return await stream_response(request, engine, work, _generated_name)
@@ -436,7 +457,7 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
         async def work(progress: Any, stage: Any) -> Reply:
             upload, region, form_options = await _read_repair_form(
                 request, settings.max_upload_bytes)
-            options = {**query_options(request, REPAIR_ROUTE_OPTIONS), **form_options}
+            options = {**query_options(request), **form_options}
             return await engine.repair(upload, region, options, progress=progress,
                                        stage=stage)
 

@@ -372,10 +372,11 @@ class Engine:
         parse : callable
             Reads the request body (in a worker thread); may raise :class:`Problem`.
         options : dict
-            Values of :data:`~spacemesh_service.options.GENERATE_ROUTE_OPTIONS` from the
-            query string, form or gRPC message (None: not given); options in a JSON body
-            (returned by ``parse``) take precedence. Resolved once
-            (:func:`~spacemesh_service.options.resolve_request`).
+            Option values by name from the query string, form or gRPC message (None: not
+            given); options in a JSON body (returned by ``parse``) take precedence.
+            Resolved once (:func:`~spacemesh_service.options.resolve_request`): a name
+            not in :data:`~spacemesh_service.options.GENERATE_ROUTE_OPTIONS` or a value
+            not of its type is a 422 ``invalid-option``.
         progress : callable, optional
             ``progress(done, total)`` after each sampler step (on the event loop).
         stage : callable, optional
@@ -504,8 +505,10 @@ class Engine:
         region : str, bytes or dict
             The region's JSON text (REST) or JSON form (gRPC).
         options : dict
-            Values of :data:`~spacemesh_service.options.REPAIR_ROUTE_OPTIONS`: ``format``,
-            ``seed``, ``steps``, ``sampler``, ``weld``, ``max_growth`` (None: not given).
+            Option values by name: those of
+            :data:`~spacemesh_service.options.REPAIR_ROUTE_OPTIONS`, ``format``,
+            ``seed``, ``steps``, ``sampler``, ``weld``, ``max_growth`` (None: not given;
+            any other name is a 422 ``invalid-option``).
             With ``weld``
             the mesh's vertices at equal positions are merged before the cut (the
             region's vertex indices are the file's), and the output is the welded mesh

@@ -7,7 +7,8 @@ same inputs. Every rejection is a :class:`~spacemesh_service.problems.Problem`:
 - too many points: 413; too few, NaN/Inf, or degenerate geometry (all points identical,
   collinear or coplanar, from the singular values of the centred points): 422, by
   :func:`spacemesh.runtime.cloud.validate_cloud`, which ``spacemesh generate`` calls too;
-- request options are read and checked by :mod:`spacemesh_service.options`.
+- request options are read and checked by :mod:`spacemesh_service.options` (a JSON
+  field that is not an option of ``/generate``: 422 ``invalid-option``).
 
 Every reader is bounded before it allocates: the counts and decoded sizes a file or
 JSON body declares are checked against :func:`read_limits` (this server's
@@ -50,7 +51,7 @@ from spacemesh.repair.region import Region, RegionError, parse_region
 from spacemesh.runtime.cloud import CloudError
 from spacemesh.runtime.cloud import validate_cloud as check_cloud
 from spacemesh_service import problems as P
-from spacemesh_service.options import GENERATE_ROUTE_OPTIONS
+from spacemesh_service.options import GENERATE_ROUTE_OPTIONS, refuse_unknown
 from spacemesh_service.problems import Problem
 from spacemesh_service.settings import Settings
 
@@ -58,6 +59,8 @@ from spacemesh_service.settings import Settings
 INPUT_FORMATS: tuple[str, ...] = SUPPORTED_POINTS_READ
 #: Mesh upload formats of a repair (also reported by the model metadata).
 MESH_FORMATS: tuple[str, ...] = SUPPORTED_MESH_READ
+#: The fields of a JSON body that are not options.
+JSON_BODY_FIELDS = ("points", "normals")
 
 T = TypeVar("T")
 
@@ -340,8 +343,9 @@ def read_json(body: bytes, limits: ReadLimits | None = None
     points : (P, 3) float64
     normals : (P, 3) float64 or None
     options : dict
-        The options of :data:`~spacemesh_service.options.GENERATE_ROUTE_OPTIONS` the
-        body has.
+        Every other field of the body, by name (values as sent): options, whose names
+        and values :func:`~spacemesh_service.options.resolve_request` checks (a name
+        ``/generate`` does not take is a 422 ``invalid-option``).
     """
     try:
         data = load_json(body, "the JSON body", limits and limits.for_points())
@@ -351,13 +355,10 @@ def read_json(body: bytes, limits: ReadLimits | None = None
         raise Problem(P.MALFORMED_INPUT, str(error)) from None
     if not isinstance(data, dict) or "points" not in data:
         raise Problem(P.MALFORMED_INPUT, "the JSON body must be an object with 'points'")
-    names = {o.name for o in GENERATE_ROUTE_OPTIONS}
-    unknown = set(data) - {"points", "normals"} - names
-    if unknown:
-        raise Problem(P.INVALID_PARAMETER, f"unknown JSON fields: {', '.join(sorted(unknown))}")
+    options = {k: v for k, v in data.items() if k not in JSON_BODY_FIELDS}
+    refuse_unknown(options, GENERATE_ROUTE_OPTIONS)  # before the points are converted
     points = _number_array(data["points"], "points")
     normals = None if data.get("normals") is None else _number_array(data["normals"], "normals")
-    options = {k: data[k] for k in names if k in data}
     return points, normals, options
 
 

@@ -12,7 +12,7 @@ import json
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, Field, create_model
+from pydantic import BaseModel, ConfigDict, Field, create_model
 
 from spacemesh.examples import icosphere
 from spacemesh.geometry.report import FitReport
@@ -33,14 +33,17 @@ Point cloud in, oriented manifold polygon mesh out (SpaceMesh).
 * `POST /generate`: upload a point cloud (multipart field `file`: PLY, XYZ/PTS/TXT/CSV,
   NPY/NPZ, or the vertices of an OBJ/OFF/STL/GLB) or send JSON `{"points": [[x, y, z], ...]}`.
   Options `format`, `seed`, `steps`, `sampler`, `start`, `start_time`,
-  `target_vertices`, `samples`, `raw` as query parameters or form/JSON fields; every
-  response reports how well the mesh fits the points (`X-SpaceMesh-Fit-*`).
+  `target_vertices`, `tolerance`, `samples`, `raw` as query parameters or form/JSON
+  fields; every response reports how well the mesh fits the points (`X-SpaceMesh-Fit-*`).
 * `POST /repair`: upload a mesh (multipart field `file`: OBJ, OFF, PLY, STL, GLB, glTF) and
   a region as JSON (field `region`: `{"faces": [...]}`, `{"vertices": [...]}`,
   `{"sphere": {"center": [x, y, z], "radius": r}}`, `{"box": {"min": [...], "max": [...]}}`,
   or `{"auto": "holes" | "defects" | "all"}`: every hole and/or defect found, each with the
   faces around it); the region is generated again, every other face comes back unchanged.
 * Health and metadata in the KServe v2 shape under `/v2`; Prometheus metrics at `/metrics`.
+* Options parse one way everywhere: integer options take only integers (`1e3`, `1.0`
+  are refused, not converted). Every option error (an unknown name, one the route does
+  not take, a wrong type, a value out of range) is 422 `invalid-option` naming it.
 * Every error is RFC 9457 `application/problem+json` with a stable `type`.
 """
 
@@ -78,6 +81,8 @@ def _option_fields(table: tuple[RequestOption, ...]) -> dict[str, Any]:
 
 
 class _PointsBody(BaseModel):
+    model_config = ConfigDict(extra="forbid")  # a field that is not an option: 422
+
     points: list[list[float]] = Field(
         description="Point positions, one [x, y, z] per point, any frame and scale.",
         examples=[_TETRA])
@@ -219,10 +224,8 @@ GENERATE_RESPONSES: dict[int | str, dict[str, Any]] = {
                               "schema": {"type": "string"}},
         },
     },
-    400: problem_response("Unreadable input or bad format", {
+    400: problem_response("Unreadable input", {
         "malformed": (P.MALFORMED_INPUT, "PLY: the header ends before 'end_header'"),
-        "format": (P.INVALID_PARAMETER, "format must be one of glb, gltf, obj, ply, off, "
-                                        "json, not 'stl'"),
     }),
     413: problem_response("Too many points or bytes", {
         "points": (P.TOO_MANY_POINTS, "250000 points; this server takes at most 200000"),
@@ -231,9 +234,17 @@ GENERATE_RESPONSES: dict[int | str, dict[str, Any]] = {
     415: problem_response("Unsupported format", {
         "format": (P.UNSUPPORTED_FORMAT, "cannot read '.docx' files; supported: ..."),
     }),
-    422: problem_response("A generate option out of range, or unusable geometry", {
+    422: problem_response("An option that is unknown, of the wrong type or out of range, "
+                          "or unusable geometry", {
         "option": (P.INVALID_OPTION, "target_vertices must be in 4..10000, not 20000"),
+        "integer": (P.INVALID_OPTION, "seed must be an integer (digits only, no fraction or "
+                                      "exponent), not '1e3'"),
         "start_time": (P.INVALID_OPTION, "start_time applies to start=points only"),
+        "format": (P.INVALID_OPTION, "format must be one of glb, gltf, obj, ply, off, json, "
+                                     "not 'stl'"),
+        "unknown": (P.INVALID_OPTION, "unknown option 'colour': this route takes format, "
+                                      "seed, steps, sampler, start, start_time, "
+                                      "target_vertices, tolerance, samples, raw"),
         "few": (P.TOO_FEW_POINTS, "3 points; this server needs at least 16"),
         "nan": (P.NON_FINITE, "point 12 has a NaN or infinite coordinate"),
         "flat": (P.DEGENERATE_GEOMETRY, "the points are coplanar; a surface needs a 3D "
@@ -276,13 +287,12 @@ _REPAIR_200 = {
 
 REPAIR_RESPONSES: dict[int | str, dict[str, Any]] = {
     200: _REPAIR_200,
-    400: problem_response("Unreadable mesh or region, missing field, or bad option", {
+    400: problem_response("Unreadable mesh or region, or a missing field", {
         "malformed": (P.MALFORMED_INPUT, "OFF: face 12 refers to vertex 900 but the file "
                                          "has 100 vertices"),
         "region": (P.MALFORMED_INPUT, "the region is not valid JSON (Expecting value: line "
                                       "1 column 1 (char 0))"),
         "missing": (P.MALFORMED_INPUT, "the multipart body has no field 'region'"),
-        "weld": (P.INVALID_PARAMETER, "weld must be true or false, not 'maybe'"),
     }, instance="/repair"),
     413: problem_response("Body too large", {
         "bytes": (P.PAYLOAD_TOO_LARGE, "the body exceeds 33554432 bytes"),
@@ -292,8 +302,12 @@ REPAIR_RESPONSES: dict[int | str, dict[str, Any]] = {
                                          "..."),
     }, instance="/repair"),
     422: problem_response("A region the server cannot use (the kind is the type), or an "
-                          "option out of range", {
+                          "option that is unknown, of the wrong type or out of range", {
         "option": (P.INVALID_OPTION, "steps must be in 1..1024, not 0"),
+        "weld": (P.INVALID_OPTION, "weld must be true or false, not 'maybe'"),
+        "generate-only": (P.INVALID_OPTION, "unknown option target_vertices (an option of "
+                                            "/generate only): this route takes format, seed, "
+                                            "steps, sampler, weld, max_growth"),
         "invalid": (P.INVALID_REGION, "the sphere's radius must be a positive finite number"),
         "empty": (P.EMPTY_REGION, "the region selects no face of the mesh"),
         "whole": (P.WHOLE_MESH_REGION, "the region covers the whole mesh; repair needs faces "
@@ -353,7 +367,7 @@ GENERATE_REQUEST_BODY: dict[str, Any] = {
     "content": {
         "multipart/form-data": {
             "schema": {
-                "type": "object", "required": ["file"],
+                "type": "object", "required": ["file"], "additionalProperties": False,
                 "properties": {
                     "file": {"type": "string", "format": "binary",
                              "description": "The point cloud file."},
@@ -390,7 +404,7 @@ REPAIR_REQUEST_BODY: dict[str, Any] = {
     "content": {
         "multipart/form-data": {
             "schema": {
-                "type": "object", "required": ["file", "region"],
+                "type": "object", "required": ["file", "region"], "additionalProperties": False,
                 "properties": {
                     "file": {"type": "string", "format": "binary",
                              "description": "The mesh file (OBJ, OFF, PLY, STL, GLB, glTF)."},

@@ -14,10 +14,14 @@ from which come
   (:func:`reported_options`, :func:`spacemesh_service.outputs.value_headers`).
 
 :func:`resolve_request` turns the values a request sent into a :class:`RequestOptions`:
-the service's policy (a random seed when none is given, ``settings.default_steps``), then
-:meth:`GenerateOptions.resolve` once, then ``settings.max_steps``. A bad generate option
-is a 422 ``invalid-option`` naming it; a bad ``format`` or ``weld`` a 400
-``invalid-parameter``. Generate-only options (``start``, ``start_time``,
+every name must be an option of the route, every value is parsed by the model's one rule
+(:func:`spacemesh.runtime.options.parse_value`: integers only from integer text, so
+``seed=1e3`` or ``samples=2.0`` is refused, never converted), then the service's policy
+(a random seed when none is given, ``settings.default_steps``), then
+:meth:`GenerateOptions.resolve` once, then ``settings.max_steps``. Every option error,
+``format``, ``weld`` and ``max_growth`` included, is a 422 ``invalid-option`` naming the
+option (``option``); a name the route does not take is one too (``option``, and
+``unknown``: every such name). Generate-only options (``start``, ``start_time``,
 ``target_vertices``, ``tolerance``, ``samples``, ``raw``) are not options of ``/repair``.
 """
 
@@ -25,9 +29,7 @@ from __future__ import annotations
 
 import re
 import secrets
-import types
-import typing
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -39,9 +41,11 @@ from spacemesh.runtime.options import (
     MIN_TARGET_VERTICES,
     MIN_TOLERANCE,
     OPTION_FIELDS,
+    OPTION_KINDS,
     START_MODES,
     GenerateOptions,
     OptionError,
+    parse_value,
 )
 from spacemesh.runtime.pipeline import ModelSpec
 from spacemesh.runtime.schedule import METHODS
@@ -52,9 +56,6 @@ from spacemesh_service.settings import Settings
 
 #: Seeds picked by the server when a request gives none lie in ``[0, 2**31)``.
 RANDOM_SEED_BITS = 31
-#: Spellings of a boolean option (case-insensitive; those FastAPI reads in a query).
-TRUE_WORDS = ("true", "1", "yes", "on", "t", "y")
-FALSE_WORDS = ("false", "0", "no", "off", "f", "n")
 #: Generate options that ``/repair`` does not take.
 GENERATE_ONLY = ("start", "start_time", "target_vertices", "tolerance", "samples", "raw")
 
@@ -99,7 +100,8 @@ class RequestOption:
         return _CHOICES.get(self.name, ())
 
     def parse(self, value: Any) -> Any:
-        """A value as sent (query or form text, JSON value, gRPC field) as :attr:`kind`.
+        """A value as sent (query or form text, JSON value, gRPC field) as :attr:`kind`,
+        by the model's one rule (:func:`spacemesh.runtime.options.parse_value`).
 
         Only the type is converted here; ranges and choices are checked by
         :func:`resolve_request`.
@@ -119,26 +121,7 @@ class RequestOption:
         OptionError
             A value that is not of the option's type.
         """
-        if value is None or value == "":
-            return None
-        if self.kind is bool:
-            return _boolean(self.name, value)
-        if self.kind is float:
-            if isinstance(value, bool):
-                raise OptionError(self.name, f"{self.name} must be a number, not {value!r}")
-            try:
-                return float(value)
-            except (TypeError, ValueError):
-                raise OptionError(self.name, f"{self.name} must be a number, not "
-                                             f"{value!r}") from None
-        if self.kind is int and isinstance(value, str):
-            try:  # exact for any size (GenerateOptions.resolve refuses the rest)
-                return int(value.strip())
-            except ValueError:
-                return value
-        if self.kind is str:
-            return str(value)
-        return value
+        return parse_value(self.name, self.kind, value)
 
     def schema(self) -> dict[str, Any]:
         """Its JSON schema (OpenAPI)."""
@@ -156,18 +139,6 @@ class RequestOption:
         """Its OpenAPI query parameter."""
         return {"name": self.name, "in": "query", "required": False,
                 "description": self.description, "schema": self.schema()}
-
-
-def _boolean(name: str, value: Any) -> bool:
-    """A bool, or one of :data:`TRUE_WORDS` / :data:`FALSE_WORDS`."""
-    if isinstance(value, bool):
-        return value
-    word = str(value).strip().lower()
-    if word in FALSE_WORDS:
-        return False
-    if word in TRUE_WORDS:
-        return True
-    raise OptionError(name, f"{name} must be true or false, not {value!r}")
 
 
 def attribute_docs(cls: type) -> dict[str, str]:
@@ -196,15 +167,7 @@ def attribute_docs(cls: type) -> dict[str, str]:
             for name, words in docs.items()}
 
 
-def _kind(annotation: Any) -> type:
-    """``int | None`` -> ``int``."""
-    if isinstance(annotation, types.UnionType) or typing.get_origin(annotation) is typing.Union:
-        return next(a for a in typing.get_args(annotation) if a is not type(None))
-    return annotation
-
-
 def _generate_options() -> tuple[RequestOption, ...]:
-    hints = typing.get_type_hints(GenerateOptions)
     docs = attribute_docs(GenerateOptions)
     table = []
     for field in fields(GenerateOptions):
@@ -216,7 +179,7 @@ def _generate_options() -> tuple[RequestOption, ...]:
             text += " " + _NOTES[field.name]
         elif field.default is None:
             text += " Default: the model's."
-        table.append(RequestOption(field.name, _kind(hints[field.name]), text.strip()))
+        table.append(RequestOption(field.name, OPTION_KINDS[field.name], text.strip()))
     return tuple(table)
 
 
@@ -273,12 +236,39 @@ class RequestOptions:
 
 
 def option_problem(error: OptionError) -> Problem:
-    """The problem of a bad option: 422 ``invalid-option`` for a generate option (its
-    ``option`` member names it), 400 ``invalid-parameter`` for ``format`` and ``weld``
-    (``parameter``)."""
-    if error.option in OPTION_FIELDS:
-        return Problem(P.INVALID_OPTION, str(error), option=error.option)
-    return Problem(P.INVALID_PARAMETER, str(error), parameter=error.option)
+    """The problem of a bad option: 422 ``invalid-option``, its ``option`` member naming
+    it (every option of every route: the generate options, ``format``, ``weld``,
+    ``max_growth``)."""
+    return Problem(P.INVALID_OPTION, str(error), option=error.option)
+
+
+def refuse_unknown(names: Iterable[str], table: tuple[RequestOption, ...]) -> None:
+    """Refuse the names a request sent that are not options of its route.
+
+    Parameters
+    ----------
+    names : iterable of str
+        The option names sent (query parameters, form fields other than the route's
+        body fields, JSON keys other than ``points`` and ``normals``).
+    table : tuple of RequestOption
+        The route's options.
+
+    Raises
+    ------
+    Problem
+        422 ``invalid-option`` naming them: ``option`` (the first, in sorted order) and
+        ``unknown`` (all of them); a generate-only option sent to ``/repair`` is said to
+        be one.
+    """
+    taken = [o.name for o in table]
+    unknown = sorted(set(names) - set(taken))
+    if not unknown:
+        return
+    named = ", ".join(f"{n} (an option of /generate only)" if n in GENERATE_ONLY else repr(n)
+                      for n in unknown)
+    plural = "s" if len(unknown) > 1 else ""
+    raise Problem(P.INVALID_OPTION, f"unknown option{plural} {named}: this route takes "
+                  f"{', '.join(taken)}", option=unknown[0], unknown=unknown)
 
 
 def _output_format(value: Any) -> str:
@@ -296,8 +286,8 @@ def resolve_request(values: Mapping[str, Any], table: tuple[RequestOption, ...],
     Parameters
     ----------
     values : mapping
-        Option values as sent, by name (missing, None or ``""``: not given); names not
-        in ``table`` are ignored.
+        Option values as sent, by name (missing, None or ``""``: not given); a name not
+        in ``table`` is refused (:func:`refuse_unknown`).
     table : tuple of RequestOption
         The route's options (:data:`GENERATE_ROUTE_OPTIONS` or
         :data:`REPAIR_ROUTE_OPTIONS`).
@@ -312,8 +302,10 @@ def resolve_request(values: Mapping[str, Any], table: tuple[RequestOption, ...],
     Raises
     ------
     Problem
+        :func:`refuse_unknown` of names the route does not take, else
         :func:`option_problem` of the first bad option.
     """
+    refuse_unknown(values, table)
     try:
         given = {o.name: o.parse(values.get(o.name)) for o in table}
         fmt = _output_format(given.pop("format", None))

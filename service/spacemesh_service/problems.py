@@ -60,7 +60,7 @@ MALFORMED_INPUT = _kind("malformed-input", "The input could not be read", 400,
                         _C.INVALID_ARGUMENT)
 INVALID_PARAMETER = _kind("invalid-parameter", "A request parameter is invalid", 400,
                           _C.INVALID_ARGUMENT)
-INVALID_OPTION = _kind("invalid-option", "A generate option is invalid", 422,
+INVALID_OPTION = _kind("invalid-option", "An option is invalid", 422,
                        _C.INVALID_ARGUMENT)
 NOT_FOUND = _kind("not-found", "No such resource", 404, _C.NOT_FOUND)
 MODEL_NOT_FOUND = _kind("model-not-found", "No such model or version", 404, _C.NOT_FOUND)

@@ -43,6 +43,43 @@ def test_the_sdk_mirrors_the_option_names():
         assert kind.__name__ in str(hints[name]), name
 
 
+#: Flag texts both command lines and the service must read alike.
+FLAG_TEXTS = ["7", " +7 ", "-3", "0", "1e3", "1.0", "2.0", "500.0", "0x10", "1_000",
+              "\u0661\u0662", "seven", "0.5", ".5", "5.", "5e-3", "-1E2", "nan", "inf",
+              "1_0", "half", "ddim", " points "]
+
+
+@pytest.mark.parametrize("text", FLAG_TEXTS, ids=repr)
+def test_the_sdk_parses_flags_by_the_services_rule(text):
+    """``spacemesh-client`` (which may not import the model) reads a flag's text as
+    ``spacemesh.runtime.options.parse_value`` does: the same values, the same refusals."""
+    from spacemesh.runtime.options import OptionError, parse_value
+
+    for option in GENERATE_OPTIONS:
+        if option.kind is bool:
+            continue  # a flag without a value
+        try:
+            expected = parse_value(option.name, option.kind, text)
+        except OptionError as error:
+            with pytest.raises(ValueError) as info:
+                option.parse(text)
+            assert str(info.value).split(", not ")[0] == str(error).split(", not ")[0]
+        else:
+            parsed = option.parse(text)
+            assert parsed == expected and type(parsed) is type(expected), option.name
+
+
+def test_a_flag_of_the_wrong_type_is_one_line(capsys):
+    for flags in (["--seed", "1e3"], ["--samples", "2.0"], ["--target-vertices", "500.0"],
+                  ["--tolerance", "nan"]):
+        with pytest.raises(SystemExit) as info:
+            build_parser().parse_args(["generate", "c.ply", "-o", "m.obj", *flags])
+        assert info.value.code == 2
+        lines = capsys.readouterr().err.strip().splitlines()
+        name = flags[0][2:].replace("-", "_")
+        assert len(lines) == 1 and f"argument {flags[0]}: {name} must be" in lines[0], lines
+
+
 def test_both_command_lines_have_a_flag_per_option():
     import typer
 

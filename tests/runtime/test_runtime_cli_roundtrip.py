@@ -111,6 +111,34 @@ def test_generate_option_errors_are_one_line(toy_model, tmp_path, flags, message
     assert not out.exists()
 
 
+@pytest.mark.parametrize(("args", "message"), [
+    (["generate", "--seed", "1e3"], "--seed: seed must be an integer (digits only, no "
+                                    "fraction or exponent), not '1e3'"),
+    (["generate", "--seed", "1.0"], "--seed: seed must be an integer"),
+    (["generate", "--samples", "2.0"], "--samples: samples must be an integer"),
+    (["generate", "--target-vertices", "500.0"], "--target-vertices: target_vertices must "
+                                                 "be an integer"),
+    (["generate", "--steps", "4.0"], "--steps: steps must be an integer"),
+    (["generate", "--tolerance", "nan"], "--tolerance: tolerance must be a number"),
+    (["repair", "--faces", "1", "--seed", "1e3"], "--seed: seed must be an integer"),
+    (["repair", "--faces", "1", "--steps", "2.0"], "--steps: steps must be an integer"),
+    (["repair", "--faces", "1", "--max-growth", "2"], "--max-growth: max_growth must be in "
+                                                      "0..1, not 2.0"),
+])
+def test_option_types_are_the_services_and_one_line(tmp_path, args, message):
+    """Both commands read option flags as text and parse them by the service's rule
+    (``spacemesh.runtime.options.parse_value``), before any file or model is read: an
+    integral float or an exponent is refused, never converted (not click's usage box)."""
+    command, *flags = args
+    done = subprocess.run([*CLI, command, str(tmp_path / "missing.ply"), "-o",
+                           str(tmp_path / "m.obj"), *flags],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("spacemesh: error: "), done.stderr
+    assert message in lines[0]
+
+
 def _flat_cloud() -> np.ndarray:
     xy = np.random.default_rng(3).normal(size=(200, 2))
     return np.column_stack([xy, np.zeros(200)])

@@ -193,7 +193,9 @@ def malformed_input(env: Env) -> Answers:
 
 
 def invalid_parameter(env: Env) -> Answers:
-    return both_points(env, env.case.points, format="stl-ish")
+    rest = env.http.post("/ui/preview", files={"file": ("c.xyz", b"0 0 0\n1 0 0\n0 1 0\n")},
+                         data={"kind": "x"})
+    return RestAnswer.of(rest), None
 
 
 def invalid_option(env: Env) -> Answers:
@@ -456,6 +458,9 @@ TRIGGERS: dict[str, Callable[[Env], Answers]] = {
 }
 #: Kinds only REST can answer, and why gRPC cannot.
 REST_ONLY: dict[str, str] = {
+    "invalid-parameter": "every parameter of a gRPC request is an option (invalid-option) or "
+                         "a typed field; the parameters that are not options (the page's "
+                         "/ui/preview kind) are REST's",
     "not-found": "a URL path; grpc itself answers an unknown method UNIMPLEMENTED",
     "model-not-found": "the KServe model metadata routes are REST only",
     "method-not-allowed": "an HTTP method; a gRPC method has none",

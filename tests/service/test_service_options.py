@@ -100,7 +100,12 @@ def test_generate_only_options_are_not_options_of_repair(http):
     response = http.post("/repair", params={"steps": 4, "seed": 1, "start": "bogus",
                                             "samples": 0, "raw": "maybe"},
                          files=files, data=region)
-    assert response.status_code == 200, response.text  # ignored, as any unknown parameter
+    assert response.status_code == 422, response.text  # refused, as any unknown option
+    body = response.json()
+    assert body["type"] == "https://spacemesh.dev/problems/invalid-option"
+    assert body["option"] == "raw" and body["unknown"] == ["raw", "samples", "start"]
+    response = http.post("/repair", params={"steps": 4, "seed": 1}, files=files, data=region)
+    assert response.status_code == 200, response.text
     for name in ("start", "start_time", "target_vertices", "tolerance", "samples", "raw"):
         assert name not in pb.RepairRequest.DESCRIPTOR.fields_by_name
         assert f"x-spacemesh-{name.replace('_', '-')}" not in response.headers

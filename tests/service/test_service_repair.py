@@ -280,7 +280,8 @@ def test_malformed_requests_are_400(http, stub):
                           "invalid-option")["option"] == "steps"
     assert assert_problem(post_repair(http, mesh, region, sampler="euler"), 422,
                           "invalid-option")["option"] == "sampler"
-    assert_problem(post_repair(http, mesh, region, fmt="stl"), 400, "invalid-parameter")
+    assert assert_problem(post_repair(http, mesh, region, fmt="stl"), 422,
+                          "invalid-option")["option"] == "format"
     nan = b"v 0 0 0\nv 1 0 0\nv nan 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n"
     assert_problem(post_repair(http, mesh, region, data=nan), 422, "non-finite")
     junk = post_repair(http, mesh, region, data=bytes(range(256)) * 8, filename="m.docx")
@@ -414,12 +415,12 @@ def test_weld_maps_vertex_regions_from_the_files_indices(http):
     assert f"the mesh has {FLAT.n_vertices} vertices" in body["detail"]  # the file's count
 
 
-def test_invalid_weld_values_are_400(http):
+def test_invalid_weld_values_are_422(http):
     for where in ("query", "form"):
         if where == "query":
             response = post_flat(http, BALL, weld="maybe")
         else:
             response = http.post("/repair", files={"file": ("flat.glb", FLAT_GLB)},
                                  data={"region": json.dumps(BALL), "weld": "maybe"})
-        body = assert_problem(response, 400, "invalid-parameter")
-        assert "weld" in body["detail"], where
+        body = assert_problem(response, 422, "invalid-option")
+        assert body["option"] == "weld" and "weld" in body["detail"], where

@@ -118,7 +118,8 @@ def test_growth_bound_and_max_growth(http, stub):
     repair = json.loads(response.headers["x-spacemesh-repair"])
     assert repair["grown_faces"] == 3 and repair["region_share"] == pytest.approx(5 / 80)
     bad = post(http, mesh, region, max_growth=1.5).json()
-    assert bad["status"] == 400 and bad["parameter"] == "max_growth"
+    assert bad["status"] == 422 and bad["option"] == "max_growth"
+    assert bad["type"] == PROBLEM + "invalid-option"
     with pytest.raises(grpc.RpcError) as info:
         stub.Repair(pb.RepairRequest(mesh=mesh_file(mesh, "obj"), filename="m.obj",
                                      faces=region["faces"], max_growth=0.05,

@@ -160,10 +160,10 @@ def test_malformed_input_is_400(http):
     assert "nested too deeply" in body["detail"]
 
 
-def test_invalid_format_is_400_and_invalid_options_422(http, case):
+def test_invalid_format_and_invalid_options_are_422(http, case):
     points = case.points.tolist()
     response = http.post("/generate", params={"format": "stl"}, json={"points": points})
-    assert assert_problem(response, 400, "invalid-parameter")["parameter"] == "format"
+    assert assert_problem(response, 422, "invalid-option")["option"] == "format"
     for params in ({"steps": 0}, {"steps": 100000}, {"seed": -3}, {"seed": "abc"},
                    {"sampler": "euler"}):
         response = http.post("/generate", params=params, json={"points": points})

@@ -127,11 +127,41 @@ def test_options():
     assert resolve({}).sent.steps is None and resolve({}).resolved.steps == 8
     assert resolve({"seed": str(2**62 + 1)}).resolved.seed == 2**62 + 1  # exact
     assert resolve({}, default_steps=12).resolved.steps == 12
-    assert kind_of(lambda: resolve({"format": "stl"})) == "invalid-parameter"
+    assert kind_of(lambda: resolve({"format": "stl"})) == "invalid-option"
     for bad in ({"seed": -1}, {"seed": "x"}, {"steps": 0}, {"steps": 65}, {"steps": 2.5},
                 {"seed": True}, {"sampler": "euler"}):
         assert kind_of(lambda b=bad: resolve(b)) == "invalid-option", bad
     assert set(OUTPUT_FORMATS) == {"glb", "gltf", "obj", "ply", "off", "json"}
+
+
+def test_what_reaches_the_generator_is_typed():
+    """``seed=1e3`` once passed the check while the text itself reached the pipeline (a
+    TypeError there: a 500); every option is now parsed once, by one rule."""
+    opts = resolve({"seed": "7", "samples": "2", "start": "points", "target_vertices": "60",
+                    "start_time": "0.5", "raw": "false"})
+    for options in (opts.sent, opts.resolved):
+        assert (type(options.seed), type(options.samples), type(options.target_vertices),
+                type(options.start_time), type(options.raw)) == (int, int, int, float, bool)
+    for values, name in (({"seed": "1e3"}, "seed"), ({"seed": "1.0"}, "seed"),
+                         ({"seed": 1.0}, "seed"), ({"samples": "2.0"}, "samples"),
+                         ({"start": "points", "target_vertices": "500.0"}, "target_vertices"),
+                         ({"start": "points", "target_vertices": 500.0}, "target_vertices"),
+                         ({"steps": "4.0"}, "steps")):
+        with pytest.raises(Problem) as info:
+            resolve(values)
+        assert info.value.kind is P.INVALID_OPTION and info.value.extra == {"option": name}
+        assert "must be an integer" in info.value.detail
+
+
+def test_names_a_route_does_not_take_are_refused():
+    with pytest.raises(Problem) as info:
+        resolve({"seed": 1, "colour": "red", "alpha": 2})
+    assert info.value.kind is P.INVALID_OPTION and info.value.kind.status == 422
+    assert info.value.extra == {"option": "alpha", "unknown": ["alpha", "colour"]}
+    assert "'alpha', 'colour'" in info.value.detail and "seed" in info.value.detail
+    with pytest.raises(Problem) as info:
+        resolve({"tolerance": "0.01"}, REPAIR_ROUTE_OPTIONS)
+    assert info.value.extra == {"option": "tolerance", "unknown": ["tolerance"]}
 
 
 def test_settings_max_steps_is_checked_with_the_options():
@@ -176,7 +206,11 @@ def test_new_generate_options_resolve():
 def test_repair_takes_no_generate_only_option():
     names = {o.name for o in REPAIR_ROUTE_OPTIONS}
     assert names == {"format", "seed", "steps", "sampler", "weld", "max_growth"}
-    assert resolve({"start": "bogus", "samples": 0}, REPAIR_ROUTE_OPTIONS).resolved.samples == 1
+    with pytest.raises(Problem) as info:
+        resolve({"start": "bogus", "samples": 0}, REPAIR_ROUTE_OPTIONS)
+    assert info.value.kind is P.INVALID_OPTION
+    assert info.value.extra == {"option": "samples", "unknown": ["samples", "start"]}
+    assert "samples (an option of /generate only)" in info.value.detail
 
 
 def test_the_option_table_is_generate_options():
@@ -222,7 +256,7 @@ def test_weld_option():
     for value in (False, None, "", "false", "0", "no", "OFF", 0):
         assert weld(value) is False, value
     for bad in ("maybe", "2", 2, "tru"):
-        assert kind_of(lambda b=bad: weld(b)) == "invalid-parameter", bad
+        assert kind_of(lambda b=bad: weld(b)) == "invalid-option", bad
 
 
 def test_uploads_and_json():
@@ -239,7 +273,7 @@ def test_uploads_and_json():
     for body in (b"{", b"[1, 2]", b'{"points": [[0, 0]]}', b'{"points": [["a", 0, 0]]}',
                  b'{"points": [[0, 0, 0], [1, 2]]}', b'{"points": [[null, 0, 0]]}'):
         assert kind_of(lambda b=body: read_json(b)) == "malformed-input", body
-    assert kind_of(lambda: read_json(b'{"points": [], "colour": 1}')) == "invalid-parameter"
+    assert kind_of(lambda: read_json(b'{"points": [], "colour": 1}')) == "invalid-option"
 
 
 def test_cloud_validation():

@@ -6,11 +6,14 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable
 from functools import wraps
-from typing import Annotated, NoReturn, ParamSpec, TypeVar
+from typing import TYPE_CHECKING, Annotated, Any, NoReturn, ParamSpec, TypeVar
 
 import typer
 
 from spacemesh.threads import default_threads, limit_threads
+
+if TYPE_CHECKING:
+    from spacemesh.runtime.options import GenerateOptions
 
 app = typer.Typer(
     name="spacemesh",
@@ -43,6 +46,46 @@ def fail(message: str, code: int = 2) -> NoReturn:
     """Print ``spacemesh: error: MESSAGE`` on stderr and exit with ``code``."""
     print(f"spacemesh: error: {message}", file=sys.stderr)
     raise typer.Exit(code)
+
+
+def option_flag(name: str) -> str:
+    """The flag of an option: ``start_time`` -> ``--start-time``."""
+    return "--" + name.replace("_", "-")
+
+
+def generate_options(**values: Any) -> GenerateOptions:
+    """Generate options from flag values (text as typed, or None when not given), parsed
+    by the service's rule (:meth:`GenerateOptions.parse`); a value of the wrong type is
+    one line naming its flag, exit code 2 (``--seed: seed must be an integer ...``).
+
+    Parameters
+    ----------
+    **values : str, bool or None
+        By option name (:data:`~spacemesh.runtime.options.OPTION_FIELDS`).
+
+    Returns
+    -------
+    GenerateOptions
+        Typed, not yet resolved against a model.
+    """
+    from spacemesh.runtime.options import GenerateOptions, OptionError
+
+    try:
+        return GenerateOptions.parse(values)
+    except OptionError as error:
+        fail(f"{option_flag(error.option)}: {error}")
+
+
+def option_value(name: str, kind: type, text: str | None) -> Any:
+    """One option's flag value parsed by the service's rule
+    (:func:`~spacemesh.runtime.options.parse_value`); one line and exit 2 when it is not
+    of ``kind``. None when not given."""
+    from spacemesh.runtime.options import OptionError, parse_value
+
+    try:
+        return parse_value(name, kind, text)
+    except OptionError as error:
+        fail(f"{option_flag(name)}: {error}")
 
 
 def require_extra(extra: str, purpose: str, *modules: str) -> None:

@@ -1,8 +1,10 @@
 """``spacemesh generate``: a point cloud in, a manifold polygon mesh out (onnxruntime only).
 
 The generate options are :class:`spacemesh.runtime.options.GenerateOptions`, one flag
-each (``--start-time`` for ``start_time``); the generator resolves them once, and an
-option out of range is one line on stderr and exit code 2. The point cloud is checked
+each (``--start-time`` for ``start_time``), read as text and parsed by the service's rule
+(:meth:`GenerateOptions.parse`: ``--seed 1e3`` is refused, not converted); the generator
+resolves them once, and an option of the wrong type or out of range is one line on stderr
+and exit code 2. The point cloud is checked
 as the service checks it (:func:`spacemesh.runtime.cloud.validate_cloud`, with the
 service's default limits): too few or too many points, NaN or infinite values, or
 identical, collinear or coplanar points are one line on stderr and exit code 2. The
@@ -18,7 +20,14 @@ from typing import Annotated
 
 import typer
 
-from spacemesh.cli.common import Threads, app, fail, use_threads
+from spacemesh.cli.common import (
+    Threads,
+    app,
+    fail,
+    generate_options,
+    option_flag,
+    use_threads,
+)
 
 MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".off")
 
@@ -38,9 +47,13 @@ def generate(
         typer.Option("--model", help="Model repository (default: the shipped model or "
                                      "$SPACEMESH_MODEL)."),
     ] = None,
-    seed: Annotated[int, typer.Option("--seed", help="The same seed gives the same mesh.")] = 0,
+    seed: Annotated[
+        str | None, typer.Option("--seed", metavar="INTEGER",
+                                 help="The same seed gives the same mesh (default 0).")
+    ] = None,
     steps: Annotated[
-        int | None, typer.Option("--steps", min=1, help="Sampler steps (default: the model's).")
+        str | None, typer.Option("--steps", metavar="INTEGER",
+                                 help="Sampler steps (default: the model's).")
     ] = None,
     sampler: Annotated[
         str | None, typer.Option("--sampler", help="ddim or ddpm (default: the model's).")
@@ -51,24 +64,25 @@ def generate(
                                  "model's).")
     ] = None,
     start_time: Annotated[
-        float | None, typer.Option("--start-time", help="With --start points: the fraction "
-                                   "of the diffusion to denoise from, 0..1 (0: the chosen "
-                                   "points as they are).")
+        str | None, typer.Option("--start-time", metavar="NUMBER", help="With --start "
+                                 "points: the fraction of the diffusion to denoise from, "
+                                 "0..1 (0: the chosen points as they are).")
     ] = None,
     target_vertices: Annotated[
-        int | None, typer.Option("--target-vertices", help="Vertices of the mesh (within "
-                                 "10%), 4..10,000; needs --start points.")
+        str | None, typer.Option("--target-vertices", metavar="INTEGER", help="Vertices of "
+                                 "the mesh (within 10%), 4..10,000; needs --start points.")
     ] = None,
     tolerance: Annotated[
-        float | None, typer.Option("--tolerance", help="The smallest mesh whose mean distance "
-                                   "from the points is at most this fraction of their "
-                                   "bounding-box diagonal, 1e-4..0.5 (not with "
-                                   "--target-vertices).")
+        str | None, typer.Option("--tolerance", metavar="NUMBER", help="The smallest mesh "
+                                 "whose mean distance from the points is at most this "
+                                 "fraction of their bounding-box diagonal, 1e-4..0.5 (not "
+                                 "with --target-vertices).")
     ] = None,
     samples: Annotated[
-        int, typer.Option("--samples", help="Try this many seeds (1..16) from --seed on and "
-                          "keep the mesh that fits the points best.")
-    ] = 1,
+        str | None, typer.Option("--samples", metavar="INTEGER", help="Try this many seeds "
+                                 "(1..16) from --seed on and keep the mesh that fits the "
+                                 "points best (default 1).")
+    ] = None,
     raw: Annotated[
         bool, typer.Option("--raw", help="The networks' mesh without the geometry stage.")
     ] = False,
@@ -86,8 +100,11 @@ def generate(
     from spacemesh.io.surface import load_cloud_input
     from spacemesh.runtime import MeshGenerator, ModelRepositoryError
     from spacemesh.runtime.cloud import CloudError, validate_cloud
-    from spacemesh.runtime.options import GenerateOptions, OptionError
+    from spacemesh.runtime.options import OptionError
 
+    options = generate_options(seed=seed, steps=steps, sampler=sampler, start=start,
+                               start_time=start_time, target_vertices=target_vertices,
+                               tolerance=tolerance, samples=samples, raw=raw)
     if output.suffix.lower() not in MESH_SUFFIXES:
         fail(f"{output}: the output must end in one of {', '.join(MESH_SUFFIXES)}")
     if not output.parent.exists():
@@ -115,13 +132,10 @@ def generate(
         bar.n = done
         bar.refresh()
 
-    options = GenerateOptions(seed=seed, steps=steps, sampler=sampler, start=start,
-                              start_time=start_time, target_vertices=target_vertices,
-                              tolerance=tolerance, samples=samples, raw=raw)
     try:
         result = generator.generate(points, normals, options, progress=report)
     except OptionError as error:
-        fail(f"--{error.option.replace('_', '-')}: {error}")
+        fail(f"{option_flag(error.option)}: {error}")
     except ValueError as error:
         fail(str(error))
     finally:

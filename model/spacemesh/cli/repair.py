@@ -1,4 +1,11 @@
-"""``spacemesh repair``: re-generate a marked region of a mesh (onnxruntime only)."""
+"""``spacemesh repair``: re-generate a marked region of a mesh (onnxruntime only).
+
+``--seed``, ``--steps``, ``--sampler`` and ``--max-growth`` are read as text and parsed
+and checked as the service checks ``/repair``'s options
+(:meth:`~spacemesh.runtime.options.GenerateOptions.parse`, then
+:meth:`~spacemesh.runtime.options.GenerateOptions.resolve`): a value of the wrong type or
+out of range is one line and exit code 2.
+"""
 
 from __future__ import annotations
 
@@ -9,7 +16,15 @@ from typing import Annotated, Any
 
 import typer
 
-from spacemesh.cli.common import Threads, app, fail, use_threads
+from spacemesh.cli.common import (
+    Threads,
+    app,
+    fail,
+    generate_options,
+    option_flag,
+    option_value,
+    use_threads,
+)
 
 MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".off")
 #: The repair the command runs: None for :func:`spacemesh.repair.repair_mesh` (the tests
@@ -104,8 +119,8 @@ def repair(
         "--defects", help="Rebuild every non-manifold edge or vertex and degenerate face "
         "with its neighbourhood.")] = False,
     auto: Annotated[bool, typer.Option("--auto", help="--holes and --defects.")] = False,
-    max_growth: Annotated[float | None, typer.Option(
-        "--max-growth", min=0.0, max=1.0, help="Largest share of the faces a region may grow "
+    max_growth: Annotated[str | None, typer.Option(
+        "--max-growth", metavar="NUMBER", help="Largest share of the faces a region may grow "
         "to (default 0.25).")] = None,
     weld: Annotated[bool, typer.Option(
         "--weld", help="Merge vertices at exactly equal positions first (meshes split at UV "
@@ -113,9 +128,11 @@ def repair(
     model: Annotated[Path | None, typer.Option(
         "--model", help="Model repository (default: the shipped model or $SPACEMESH_MODEL).")
     ] = None,
-    seed: Annotated[int, typer.Option("--seed", help="The same seed gives the same mesh.")] = 0,
-    steps: Annotated[int | None, typer.Option(
-        "--steps", min=1, help="Sampler steps (default: the model's).")] = None,
+    seed: Annotated[str | None, typer.Option(
+        "--seed", metavar="INTEGER", help="The same seed gives the same mesh (default 0).")
+    ] = None,
+    steps: Annotated[str | None, typer.Option(
+        "--steps", metavar="INTEGER", help="Sampler steps (default: the model's).")] = None,
     sampler: Annotated[str | None, typer.Option(
         "--sampler", help="ddim or ddpm (default: the model's).")] = None,
     threads: Threads = 0,
@@ -130,7 +147,12 @@ def repair(
     from spacemesh.io.errors import MeshFormatError
     from spacemesh.repair import RegionError, plan_repair, repair_mesh, verify_repair
     from spacemesh.runtime import MeshGenerator, ModelRepositoryError
+    from spacemesh.runtime.options import OptionError
 
+    options = generate_options(seed=seed, steps=steps, sampler=sampler)
+    growth = option_value("max_growth", float, max_growth)
+    if growth is not None and not 0.0 <= growth <= 1.0:  # NaN fails too
+        fail(f"--max-growth: max_growth must be in 0..1, not {growth}")
     if output.suffix.lower() not in MESH_SUFFIXES:
         fail(f"{output}: the output must end in one of {', '.join(MESH_SUFFIXES)}")
     if not output.parent.exists():
@@ -148,8 +170,12 @@ def repair(
     except ModelRepositoryError as error:
         fail(str(error))
     try:
+        chosen = options.resolve(generator.spec)  # ranges, as the service checks them
+    except OptionError as error:
+        fail(f"{option_flag(error.option)}: {error}")
+    try:
         plan = plan_repair(mesh, region, generator.spec.max_vertices, weld=weld,
-                           max_growth=max_growth)
+                           max_growth=growth)
     except RegionError as error:
         fail(f"{error.kind}: {error}")
     bar = tqdm(desc="inpainting", unit="step", disable=not progress or as_json, leave=False)
@@ -161,8 +187,8 @@ def repair(
 
     try:
         run: Callable[..., Any] = repair_mesh if REPAIR is None else REPAIR
-        result = run(mesh, region, generator, seed=seed, steps=steps, method=sampler,
-                     progress=report, plan=plan, weld=weld)
+        result = run(mesh, region, generator, seed=chosen.seed, steps=chosen.steps,
+                     method=chosen.sampler, progress=report, plan=plan, weld=weld)
     except ValueError as error:
         fail(str(error))
     finally:
