@@ -11,7 +11,7 @@ from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import signed_volume
 from spacemesh.runtime import GenerateRequest, MeshGenerator
 from spacemesh.runtime.finishing import flip_faces
-from spacemesh.runtime.options import PIECE_RETRY_SEEDS, GenerateOptions, OptionError
+from spacemesh.runtime.options import GenerateOptions, OptionError
 from spacemesh.runtime.pipeline import drop_duplicates, normalize_points
 from spacemesh.topology import check_topology
 
@@ -40,10 +40,7 @@ def test_results_are_valid_outward_meshes_with_timings(generator, cloud):
     assert set(result.timings) == {"encoder", "sampler", "connectivity", "extraction",
                                    "geometry", "report", "total"}
     assert result.steps == generator.spec.steps and result.method == generator.spec.method
-    assert result.fit is not None and result.sample_scores[0][0] == 3
-    # more seeds only when seed 3's mesh did not have the points' pieces
-    assert (result.seed, result.fit.score) in result.sample_scores
-    assert len(result.sample_scores) in (1, 1 + PIECE_RETRY_SEEDS)
+    assert result.fit is not None and result.sample_scores == [(3, result.fit.score)]
 
 
 def test_output_is_in_the_input_frame(generator, cloud):
@@ -75,9 +72,7 @@ def test_progress_is_reported_for_every_step(generator, cloud):
     seen = []
     generator.generate(cloud, seed=0, steps=4, start="noise",
                        progress=lambda d, t: seen.append((d, t)))
-    # one pass of the four steps, and another per seed group of a pieces retry
-    assert seen[:4] == [(1, 4), (2, 4), (3, 4), (4, 4)]
-    assert seen[4:] in ([], seen[:4])
+    assert seen == [(1, 4), (2, 4), (3, 4), (4, 4)]
     seen.clear()  # from the points at half the diffusion: the lower half of the steps
     generator.generate(cloud, seed=0, steps=4, start="points", start_time=0.5,
                        progress=lambda d, t: seen.append((d, t)))
@@ -101,7 +96,7 @@ def test_bad_requests_are_refused(generator, cloud):
            ("target_vertices", {"target_vertices": 20000}),
            ("target_vertices", {"start": "noise", "target_vertices": 100}),
            ("samples", {"samples": 0}), ("samples", {"samples": 17}),
-           ("seed", {"seed": -1}), ("raw", {"raw": "yes"}), ("steps", {"steps": 2.5})]
+           ("seed", {"seed": -1}), ("raw", {"raw": "maybe"}), ("steps", {"steps": 2.5})]
     for option, fields in bad:
         with pytest.raises(OptionError) as caught:
             generator.generate(cloud, **fields)
@@ -172,8 +167,9 @@ def test_the_seed_whose_pieces_agree_with_the_points_wins_over_a_closer_fit():
 
     from spacemesh.runtime.pipeline import _best_fit
 
-    def tried(seed, pieces, score):
-        return SimpleNamespace(seed=seed, fit=SimpleNamespace(pieces=pieces, score=score))
+    def tried(seed, pieces, score, crossing=0.0):
+        return SimpleNamespace(seed=seed, fit=SimpleNamespace(
+            pieces=pieces, score=score, self_intersections=crossing))
 
     options = GenerateOptions(seed=5, samples=3)
     results = [tried(5, 2, 0.010), tried(6, 1, 0.012), tried(7, 1, 0.011)]
@@ -182,3 +178,35 @@ def test_the_seed_whose_pieces_agree_with_the_points_wins_over_a_closer_fit():
     assert winner.sample_scores == [(5, 0.010), (6, 0.012), (7, 0.011)]
     # none agrees: the closest fit
     assert _best_fit(results, options, expected_pieces=3).seed == 5
+    # then faces that do not cross win over a closer fit
+    crossing = [tried(5, 1, 0.010, 0.02), tried(6, 1, 0.012), tried(7, 2, 0.009)]
+    assert _best_fit(crossing, options, expected_pieces=1).seed == 6
+
+
+def test_a_model_with_retry_seeds_tries_more_when_no_mesh_is_acceptable(generator, cloud):
+    from dataclasses import replace
+
+    from spacemesh.runtime.pieces import point_pieces
+
+    retrying = MeshGenerator(generator.backend, replace(generator.spec, retry_seeds=3))
+    stages = []
+    result = retrying.generate(cloud, seed=3, stage=lambda name, d, t: stages.append(name))
+    plain = generator.generate(cloud, seed=3)
+    acceptable = (plain.fit.pieces == point_pieces(retrying.prepare_input(
+        GenerateRequest(cloud, None)).cloud[:, :3]) and plain.fit.self_intersections == 0)
+    if acceptable:  # seed 3 was enough: nothing more ran
+        assert result.sample_scores == plain.sample_scores and "pieces" not in stages
+    else:  # seeds 4, 5, 6 ran too, and the winner is one of the four
+        assert [seed for seed, _ in result.sample_scores] == [3, 4, 5, 6]
+        assert "pieces" in stages and result.seed in (3, 4, 5, 6)
+        assert result.options.seed == result.seed
+    assert retrying.generate(cloud, seed=3).mesh.face_key_set() == result.mesh.face_key_set()
+
+
+def test_retry_seeds_in_a_manifest_are_checked():
+    from spacemesh.runtime.pipeline import check_retry_seeds
+
+    assert check_retry_seeds(4) == 4
+    for bad in (-1, 9, 2.0, True, "4"):
+        with pytest.raises(ValueError, match="retry_seeds"):
+            check_retry_seeds(bad)

@@ -37,7 +37,7 @@ from spacemesh.geometry import farthest_point_sampling, feature_weights
 from spacemesh.geometry.policy import FLAT_FLIP_DEGREES
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import sample_surface
-from spacemesh.runtime.options import POINTS_START
+from spacemesh.runtime.options import FEATURE_BOOST
 from spacemesh.topology import check_topology
 from spacemesh.typed import IntArray
 
@@ -473,7 +473,7 @@ def farthest(solid, target_vertices: int, rng: np.random.Generator) -> PolygonMe
     dense = solid_to_mesh(solid.refine_to_length(length))
     points, _ = sample_surface(dense, FARTHEST_POINTS, rng)
     pick = farthest_point_sampling(points, target_vertices, seed=int(rng.integers(2**31)),
-                                   weights=feature_weights(points, POINTS_START["feature_boost"]))
+                                   weights=feature_weights(points, FEATURE_BOOST))
     mesh = restricted_delaunay(dense, points[pick])
     topology = check_topology(mesh)
     if not topology.is_closed_oriented_manifold or topology.genus != solid.genus():

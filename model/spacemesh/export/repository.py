@@ -70,7 +70,7 @@ from spacemesh.runtime.backend import (
     volume_names,
 )
 from spacemesh.runtime.golden import SECTION as SECTION_GOLDEN
-from spacemesh.runtime.options import POINTS_START
+from spacemesh.runtime.options import POINTS_START, RELEASE_RETRY_SEEDS
 from spacemesh.runtime.repository import (
     FORMAT,
     FORMAT_VERSION,
@@ -639,7 +639,7 @@ def repackage_repository(
                                         "of this release"}
     manifest.update(name=name, version=version, decode=decode_section(manifest["data"]),
                     geometry=geometry_section())
-    manifest["sampler"].update(POINTS_START)
+    manifest["sampler"].update(POINTS_START, retry_seeds=RELEASE_RETRY_SEEDS)
     write_manifest(directory, manifest)
     if SECTION_GOLDEN not in manifest:  # exported before the section existed
         manifest = record_golden(directory)

@@ -53,17 +53,24 @@ MAX_TARGET_VERTICES = 10_000
 #: Smallest and largest ``tolerance`` (fractions of the input's bounding-box diagonal).
 MIN_TOLERANCE = 1e-4
 MAX_TOLERANCE = 0.5
+#: The release's ``feature_boost``: farthest points on sharp features count twice as far.
+FEATURE_BOOST = 1.0
 #: The vertex start a release records in ``manifest["sampler"]``: farthest-point
 #: samples of the input, with points on sharp features counted twice as far
 #: (``feature_boost``), not denoised (the shipped denoiser moves good vertices away
 #: from the surface: docs/RESULTS.md has the start-time sweep), 200 of them unless the
 #: request sets a target.
-POINTS_START = {"start": "points", "start_time": 0.0, "vertices": 200, "feature_boost": 1.0}
-#: Seeds tried beyond a request's own when none of its meshes has as many pieces as the
-#: points (:mod:`spacemesh.runtime.pieces`).
-PIECE_RETRY_SEEDS = 4
+POINTS_START = {"start": "points", "start_time": 0.0, "vertices": 200,
+                "feature_boost": FEATURE_BOOST}
+#: Most seeds a model's ``sampler.retry_seeds`` may add to a request's own when none of
+#: its meshes has as many pieces as the points and uncrossed faces
+#: (:class:`spacemesh.runtime.pipeline.ModelSpec`; larger values are refused on load).
+MAX_RETRY_SEEDS = 8
+#: The ``sampler.retry_seeds`` a release records when it is repackaged with this code
+#: (``spacemesh export MODEL_VERSION_DIR``; a freshly trained run records none).
+RELEASE_RETRY_SEEDS = 4
 #: Largest seed (int64 in the gRPC contract; seeds + samples + retries stay below it).
-MAX_SEED = 2**63 - 1 - MAX_SAMPLES - PIECE_RETRY_SEEDS
+MAX_SEED = 2**63 - 1 - MAX_SAMPLES - MAX_RETRY_SEEDS
 #: The text of an integer option: decimal digits with an optional sign.
 INTEGER_TEXT = re.compile(r"[+-]?[0-9]+")
 #: The text of a number option: decimal digits with an optional sign, fraction and exponent.

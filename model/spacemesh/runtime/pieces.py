@@ -4,9 +4,8 @@
 the connected groups of points, two points joined when they lie within
 :data:`POINT_PIECE_SPACINGS` median spacings of each other, counting only groups of at
 least :data:`MIN_PIECE_SHARE` of the points (fewer are outliers). The pipeline prefers a
-seed whose mesh has that many pieces, and tries
-:data:`spacemesh.runtime.options.PIECE_RETRY_SEEDS` more seeds when none of the
-request's has (:class:`spacemesh.runtime.MeshGenerator`). On the 27 dev
+seed whose mesh has that many pieces, and tries the model's ``sampler.retry_seeds``
+more seeds when none of the request's has (:class:`spacemesh.runtime.MeshGenerator`). On the 27 dev
 meshes every cloud (2,048 points) is one group at 4 spacings (several hundred at 2),
 and the estimate equals the object's pieces on 26 (the 27th is three parts that touch).
 

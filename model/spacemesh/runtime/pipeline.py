@@ -45,7 +45,7 @@ from spacemesh.runtime.large import (
     needs_split,
     network_vertices,
 )
-from spacemesh.runtime.options import PIECE_RETRY_SEEDS, GenerateOptions
+from spacemesh.runtime.options import MAX_RETRY_SEEDS, GenerateOptions
 from spacemesh.runtime.pieces import point_pieces
 from spacemesh.runtime.sampler import ProgressFn, StageFn, sample, split_tokens
 from spacemesh.runtime.schedule import NoiseSchedule
@@ -121,6 +121,12 @@ class ModelSpec:
         How ``start=points`` makes more vertices than ``max_vertices``: all of them as
         tokens of the connectivity network (up to a cap), or ``max_vertices`` tokens and
         edge splits (:mod:`spacemesh.runtime.large`; ``manifest["sampler"]["large_meshes"]``).
+    retry_seeds : int
+        Seeds tried beyond a request's own when none of its meshes has as many pieces as
+        the points and faces that do not cross (``manifest["sampler"]["retry_seeds"]``, at
+        most :data:`~spacemesh.runtime.options.MAX_RETRY_SEEDS`; 0, the default, tries
+        none). The decode's topology and crossings depend on the seed; see
+        docs/GEOMETRY.md.
     """
 
     n_points: int
@@ -138,6 +144,7 @@ class ModelSpec:
     geometry: GeometryOptions = field(default_factory=GeometryOptions)
     local_points: int = 0
     large_meshes: str = DEFAULT_LARGE_MESHES
+    retry_seeds: int = 0
 
     @classmethod
     def from_config(cls, config: dict[str, Any], betas: Sequence[float] | None = None,
@@ -196,6 +203,7 @@ class ModelSpec:
             geometry=GeometryOptions.from_section(manifest.get("geometry", {})),
             large_meshes=check_large_meshes(
                 str(sampler.get("large_meshes", DEFAULT_LARGE_MESHES))),
+            retry_seeds=check_retry_seeds(sampler.get("retry_seeds", 0)),
         )
 
 
@@ -313,6 +321,15 @@ class PreparedInput:
         pick = np.sort(np.random.default_rng(POINT_SUBSET_SEED).choice(
             len(self.unit), MAX_FIT_POINTS, replace=False))
         return self.unit[pick], None if self.normals is None else self.normals[pick]
+
+
+def check_retry_seeds(value: Any) -> int:
+    """A manifest's ``sampler.retry_seeds``, checked (0 to :data:`MAX_RETRY_SEEDS`)."""
+    if isinstance(value, bool) or not isinstance(value, int) or not (
+            0 <= value <= MAX_RETRY_SEEDS):
+        raise ValueError(f"sampler.retry_seeds must be an integer from 0 to "
+                         f"{MAX_RETRY_SEEDS}, not {value!r}")
+    return value
 
 
 def normalize_points(points: FloatArray) -> tuple[FloatArray, FloatArray, float]:
@@ -554,21 +571,24 @@ class MeshGenerator:
         """:meth:`generate_batch` on prepared inputs with resolved options (no
         ``tolerance``): the best fit of each request's seeds, in request order.
 
-        A mesh with as many pieces as the points (:func:`point_pieces`) is preferred
-        to any without; when none of a request's seeds has them,
-        :data:`PIECE_RETRY_SEEDS` more seeds run (stage ``pieces``) before choosing.
+        With a model whose :attr:`ModelSpec.retry_seeds` is set, a mesh with as many
+        pieces as the points (:func:`point_pieces`) is preferred to any without, then
+        one whose faces do not cross; when none of a request's seeds has both, that many
+        more seeds run (stage ``pieces``) before choosing (:func:`_best_fit`).
         """
         results = []
         for (prepared, options), tried in zip(items, self._seed_results(items, progress,
                                                                          stage), strict=True):
             expected = point_pieces(prepared.cloud[:, :3])
-            if not options.raw and not any(_pieces_agree(r, expected) for r in tried):
+            if (self.spec.retry_seeds and not options.raw
+                    and not any(_acceptable(r, expected) for r in tried)):
                 if stage is not None:
                     stage("pieces", 1, 1)
                 more = replace(options, seed=options.seed + options.samples,
-                               samples=PIECE_RETRY_SEEDS)
+                               samples=self.spec.retry_seeds)
                 tried += self._seed_results([(prepared, more)], progress, stage)[0]
-            results.append(_best_fit(tried, options, expected))
+            results.append(_best_fit(tried, options, expected,
+                                     check=self.spec.retry_seeds > 0))
         return results
 
     def _seed_results(
@@ -790,18 +810,32 @@ def _pieces_agree(result: GenerateResult, expected: int) -> bool:
     return result.fit is not None and result.fit.pieces == expected
 
 
+def _crosses(result: GenerateResult) -> bool:
+    """Whether ``result``'s mesh has faces that intersect others (its fit report)."""
+    return result.fit is None or not result.fit.self_intersections == 0
+
+
+def _acceptable(result: GenerateResult, expected: int) -> bool:
+    """As many pieces as the points and no crossing faces: no other seed is needed."""
+    return _pieces_agree(result, expected) and not _crosses(result)
+
+
 def _best_fit(tried: list[GenerateResult], options: GenerateOptions,
-              expected_pieces: int) -> GenerateResult:
-    """The result of the seed that fits best: one whose pieces agree with the points'
-    ``expected_pieces`` first, then the lowest fit score, then the lower seed; with
-    every seed's score and the request's resolved options at the winner's seed."""
+              expected_pieces: int, *, check: bool = True) -> GenerateResult:
+    """The result of the seed that fits best: with ``check``, one whose pieces agree
+    with the points' ``expected_pieces`` first, then one without crossing faces; then
+    the lowest fit score, then the lower seed. With every seed's score, the points'
+    pieces and the request's resolved options at the winner's seed."""
     def score(result: GenerateResult) -> float:
         value = result.fit.score if result.fit is not None else float("nan")
         return value if np.isfinite(value) else float("inf")
 
     scores = [(r.seed, score(r)) for r in tried]
-    best = min(range(len(tried)), key=lambda i: (not _pieces_agree(tried[i], expected_pieces),
-                                                 scores[i][1], scores[i][0]))
+    def rank(i: int) -> tuple[bool, bool, float, int]:
+        return (check and not _pieces_agree(tried[i], expected_pieces),
+                check and _crosses(tried[i]), scores[i][1], scores[i][0])
+
+    best = min(range(len(tried)), key=rank)
     winner = tried[best]
     winner.options = replace(options, seed=winner.seed)
     winner.sample_scores = scores
