@@ -180,7 +180,10 @@ def _fit_line(mesh: Mesh) -> str:
                  f"{'met' if fit.get('tolerance_met') else 'not met'}")
     if "pieces" in fit:  # the fit report's topology (servers from 2026-12 on)
         pieces, loops = int(fit["pieces"]), int(fit.get("boundary_loops", 0))
-        line += f"; {pieces} piece{'' if pieces == 1 else 's'}, genus {int(fit['genus'])}"
+        points = (f" (the points: {int(fit['points_pieces'])})"
+                  if fit.get("points_pieces") is not None else "")
+        line += (f"; {pieces} piece{'' if pieces == 1 else 's'}{points}, "
+                 f"genus {int(fit['genus'])}")
         line += f", {loops} boundary loop{'' if loops == 1 else 's'}" if loops else ""
     return line
 

@@ -180,4 +180,6 @@ def test_the_cli_sends_the_options_and_prints_the_fit(url, case, tmp_path):
     assert done.returncode == 0, done.stderr
     assert "; fit: points->mesh " in done.stdout and "best of 2 seeds" in done.stdout
     pieces, genus = summary["fit"]["pieces"], summary["fit"]["genus"]
-    assert f"; {pieces} piece{'' if pieces == 1 else 's'}, genus {genus}" in done.stdout
+    points_pieces = summary["fit"]["points_pieces"]
+    assert (f"; {pieces} piece{'' if pieces == 1 else 's'} (the points: {points_pieces}), "
+            f"genus {genus}") in done.stdout

@@ -79,7 +79,8 @@ def test_generate_options_and_fit_report(toy_model, tmp_path):
                            capture_output=True, text=True, timeout=120)
     assert plain.returncode == 0, plain.stderr[-3000:]
     piece = "piece" if fit["pieces"] == 1 else "pieces"
-    assert f"; {fit['pieces']} {piece}, genus {fit['genus']}" in plain.stdout
+    assert (f"; {fit['pieces']} {piece} (the points: {fit['points_pieces']}), "
+            f"genus {fit['genus']}") in plain.stdout
 
 
 @pytest.mark.parametrize(("flags", "message"), [

@@ -163,21 +163,32 @@ def test_points_start_budget_raw_and_samples(generator, cloud):
 
 
 def test_the_seed_whose_pieces_agree_with_the_points_wins_over_a_closer_fit():
+    from dataclasses import replace
     from types import SimpleNamespace
 
+    from spacemesh.examples import icosphere
+    from spacemesh.geometry import fit_report
     from spacemesh.runtime.pipeline import _best_fit
 
+    sphere = icosphere(1)
+    base = fit_report(sphere, sphere.vertices)
+
     def tried(seed, pieces, score, crossing=0.0):
-        return SimpleNamespace(seed=seed, fit=SimpleNamespace(
-            pieces=pieces, score=score, self_intersections=crossing))
+        fit = replace(base, pieces=pieces, self_intersections=crossing,
+                      points_to_mesh_mean_rel=score, mesh_to_points_mean_rel=0.0)
+        return SimpleNamespace(seed=seed, fit=fit)
 
     options = GenerateOptions(seed=5, samples=3)
     results = [tried(5, 2, 0.010), tried(6, 1, 0.012), tried(7, 1, 0.011)]
     winner = _best_fit(results, options, expected_pieces=1)
-    assert winner.seed == 7 and winner.options.seed == 7 and winner.points_pieces == 1
+    assert winner.seed == 7 and winner.options.seed == 7
+    assert winner.fit.points_pieces == 1 and winner.fit.pieces_agree
+    assert "points_pieces" in winner.fit.to_dict() and "points_pieces" not in base.to_dict()
     assert winner.sample_scores == [(5, 0.010), (6, 0.012), (7, 0.011)]
     # none agrees: the closest fit
     assert _best_fit(results, options, expected_pieces=3).seed == 5
+    # without the check (a model without retry_seeds): the closest fit alone
+    assert _best_fit(results, options, expected_pieces=1, check=False).seed == 5
     # then faces that do not cross win over a closer fit
     crossing = [tried(5, 1, 0.010, 0.02), tried(6, 1, 0.012), tried(7, 2, 0.009)]
     assert _best_fit(crossing, options, expected_pieces=1).seed == 6

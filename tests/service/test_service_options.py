@@ -212,3 +212,8 @@ def test_every_generated_mesh_reports_its_fit(http, stub, case):
     assert response.headers["x-spacemesh-fit-genus"] == str(fit["genus"])
     assert (reply.stats.fit.pieces, reply.stats.fit.genus, reply.stats.fit.boundary_loops) == (
         fit["pieces"], fit["genus"], fit["boundary_loops"])
+    # and the points' own piece count, which the mesh's pieces agree with or not
+    assert fit["points_pieces"] >= 1
+    assert response.headers["x-spacemesh-fit-points-pieces"] == str(fit["points_pieces"])
+    assert reply.stats.fit.HasField("points_pieces")
+    assert reply.stats.fit.points_pieces == fit["points_pieces"]

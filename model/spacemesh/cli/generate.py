@@ -171,10 +171,13 @@ def _tolerance_text(fit: dict) -> str:
 
 
 def _topology_text(fit: dict) -> str:
-    """``; 1 piece, genus 1`` (and the boundary loops of an open mesh) from a fit report."""
+    """``; 1 piece (the points: 1), genus 1`` (and the boundary loops of an open mesh)
+    from a fit report."""
     if "pieces" not in fit:
         return ""
     pieces = int(fit["pieces"])
-    text = f"; {pieces} piece{'' if pieces == 1 else 's'}, genus {int(fit['genus'])}"
+    points = (f" (the points: {int(fit['points_pieces'])})"
+              if fit.get("points_pieces") is not None else "")
+    text = f"; {pieces} piece{'' if pieces == 1 else 's'}{points}, genus {int(fit['genus'])}"
     loops = int(fit.get("boundary_loops", 0))
     return text + (f", {loops} boundary loop{'' if loops == 1 else 's'}" if loops else "")

@@ -18,7 +18,10 @@ lines and ``samples=K`` (which keeps the seed with the lowest :attr:`FitReport.s
   (:mod:`spacemesh.geometry.intersections`);
 * ``tolerance`` and ``tolerance_met``: with a ``tolerance`` request only, the tolerance
   asked for and whether ``points_to_mesh_mean_rel`` reached it
-  (:mod:`spacemesh.runtime.tolerance`).
+  (:mod:`spacemesh.runtime.tolerance`);
+* ``points_pieces``: from a generate, the pieces of the surface the points sample, the
+  points' own estimate (:func:`spacemesh.runtime.pieces.point_pieces`); the mesh's
+  ``pieces`` agree with the points when the two are equal (:attr:`FitReport.pieces_agree`).
 """
 
 from __future__ import annotations
@@ -47,6 +50,10 @@ COVERAGE_FRACTION = 0.01
 REPORT_SEED = 0
 
 
+#: Fields of :class:`FitReport` that only some responses have (left out when None).
+_OPTIONAL = ("tolerance", "tolerance_met", "points_pieces")
+
+
 @dataclass(frozen=True)
 class FitReport:
     """Distances between a mesh and its input points (see the module docstring).
@@ -72,6 +79,13 @@ class FitReport:
     boundary_loops: int
     tolerance: float | None = None
     tolerance_met: bool | None = None
+    points_pieces: int | None = None
+
+    @property
+    def pieces_agree(self) -> bool | None:
+        """Whether the mesh has as many pieces as the points (None without the points'
+        estimate)."""
+        return None if self.points_pieces is None else self.pieces == self.points_pieces
 
     @property
     def score(self) -> float:
@@ -80,9 +94,9 @@ class FitReport:
         return self.points_to_mesh_mean_rel + self.mesh_to_points_mean_rel
 
     def to_dict(self) -> dict[str, float | int]:
-        """Every field by name (``tolerance`` and ``tolerance_met`` only when set)."""
-        return {k: v for k, v in asdict(self).items()
-                if v is not None or k not in ("tolerance", "tolerance_met")}
+        """Every field by name (``tolerance``, ``tolerance_met`` and ``points_pieces``
+        only when set)."""
+        return {k: v for k, v in asdict(self).items() if v is not None or k not in _OPTIONAL}
 
 
 def face_components(mesh: PolygonMesh) -> int:

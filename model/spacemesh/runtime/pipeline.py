@@ -253,8 +253,6 @@ class GenerateResult:
     tolerance_tries : list of (int, float)
         With ``tolerance``: every vertex count the search tried and its
         ``points_to_mesh_mean_rel``, in order (:mod:`spacemesh.runtime.tolerance`).
-    points_pieces : int, optional
-        The pieces of the points' own surface (:func:`spacemesh.runtime.pieces.point_pieces`).
     """
 
     mesh: PolygonMesh
@@ -266,7 +264,6 @@ class GenerateResult:
     fit: FitReport | None = None
     sample_scores: list[tuple[int, float]] = field(default_factory=list)
     tolerance_tries: list[tuple[int, float]] = field(default_factory=list)
-    points_pieces: int | None = None
 
     @property
     def seed(self) -> int:
@@ -839,5 +836,6 @@ def _best_fit(tried: list[GenerateResult], options: GenerateOptions,
     winner = tried[best]
     winner.options = replace(options, seed=winner.seed)
     winner.sample_scores = scores
-    winner.points_pieces = expected_pieces
+    if winner.fit is not None:
+        winner.fit = replace(winner.fit, points_pieces=expected_pieces)
     return winner
