@@ -105,3 +105,25 @@ def test_a_tolerance_request_prepares_its_points_once_for_all_tries(toy_generato
     assert len(result.tolerance_tries) >= 2  # the search ran more than one generate
     assert Counting.prepared == 1
     assert result.fit.tolerance == 0.02 and result.options.target_vertices is None
+
+
+def test_a_tolerance_search_checks_topology_on_the_count_it_found(toy_generator):
+    from dataclasses import replace
+
+    import numpy as np
+
+    from spacemesh.runtime import GenerateRequest, MeshGenerator
+
+    stages = []
+    retrying = MeshGenerator(toy_generator.backend, replace(toy_generator.spec, retry_seeds=2))
+    points = np.random.default_rng(4).normal(size=(400, 3))
+    points /= np.linalg.norm(points, axis=1, keepdims=True)
+    options = GenerateOptions(seed=1, steps=2, tolerance=0.02)
+    [result] = retrying.generate_batch([GenerateRequest(points, None, options)],
+                                       stage=lambda name, d, t: stages.append(name))
+    assert result.fit.points_pieces >= 1 and result.fit.tolerance == 0.02
+    # retries ran at most once, after the search's tries (which ran without them)
+    assert stages.count("pieces") <= 1
+    if "pieces" in stages:
+        assert stages.index("pieces") > max(i for i, s in enumerate(stages) if s == "tolerance")
+    assert result.fit.tolerance_met == (result.fit.points_to_mesh_mean_rel <= 0.02)

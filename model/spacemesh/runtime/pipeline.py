@@ -563,7 +563,7 @@ class MeshGenerator:
 
     def _generate_prepared(
         self, items: Sequence[tuple[PreparedInput, GenerateOptions]],
-        progress: ProgressFn | None, stage: StageFn | None,
+        progress: ProgressFn | None, stage: StageFn | None, *, retry: bool = True,
     ) -> list[GenerateResult]:
         """:meth:`generate_batch` on prepared inputs with resolved options (no
         ``tolerance``): the best fit of each request's seeds, in request order.
@@ -571,22 +571,30 @@ class MeshGenerator:
         With a model whose :attr:`ModelSpec.retry_seeds` is set, a mesh with as many
         pieces as the points (:func:`point_pieces`) is preferred to any without, then
         one whose faces do not cross; when none of a request's seeds has both, that many
-        more seeds run (stage ``pieces``) before choosing (:func:`_best_fit`).
+        more seeds run (stage ``pieces``; not with ``retry`` False) before choosing
+        (:func:`_best_fit`).
         """
         results = []
         for (prepared, options), tried in zip(items, self._seed_results(items, progress,
                                                                          stage), strict=True):
             expected = point_pieces(prepared.cloud[:, :3])
-            if (self.spec.retry_seeds and not options.raw
+            if (retry and self.spec.retry_seeds and not options.raw
                     and not any(_acceptable(r, expected) for r in tried)):
-                if stage is not None:
-                    stage("pieces", 1, 1)
-                more = replace(options, seed=options.seed + options.samples,
-                               samples=self.spec.retry_seeds)
-                tried += self._seed_results([(prepared, more)], progress, stage)[0]
+                tried += self._retry_seeds(prepared, options, progress, stage)
             results.append(_best_fit(tried, options, expected,
                                      check=self.spec.retry_seeds > 0))
         return results
+
+    def _retry_seeds(self, prepared: PreparedInput, options: GenerateOptions,
+                     progress: ProgressFn | None, stage: StageFn | None
+                     ) -> list[GenerateResult]:
+        """The results of the model's ``retry_seeds`` seeds after a request's own
+        (stage ``pieces``)."""
+        if stage is not None:
+            stage("pieces", 1, 1)
+        more = replace(options, seed=options.seed + options.samples,
+                       samples=self.spec.retry_seeds)
+        return self._seed_results([(prepared, more)], progress, stage)[0]
 
     def _seed_results(
         self, items: Sequence[tuple[PreparedInput, GenerateOptions]],
@@ -621,13 +629,16 @@ class MeshGenerator:
                           progress: ProgressFn | None, stage: StageFn | None
                           ) -> GenerateResult:
         """The smallest mesh within ``options.tolerance`` (resolved options), every try
-        on the same prepared points."""
+        on the same prepared points. The tries run without the model's retry seeds (the
+        search's time); the count found gets them when its mesh fails the topology
+        check, and a retry's mesh is taken only if it keeps the tolerance met."""
         assert options.tolerance is not None
         tolerance = float(options.tolerance)
 
         def run(count: int) -> GenerateResult:
             attempt = attempt_options(options, count).resolve(self.spec)  # checks the count
-            return self._generate_prepared([(prepared, attempt)], progress, stage)[0]
+            return self._generate_prepared([(prepared, attempt)], progress, stage,
+                                           retry=False)[0]
 
         def on_try(done: int, total: int) -> None:
             if stage is not None:
@@ -635,6 +646,12 @@ class MeshGenerator:
 
         found, _, tried = search_vertex_count(run, aim(tolerance), self.vertex_count(options),
                                               on_try=on_try)
+        expected = point_pieces(prepared.cloud[:, :3])
+        if self.spec.retry_seeds and not _acceptable(found, expected):
+            keep_met = distance_of(found) <= tolerance
+            extra = [r for r in self._retry_seeds(prepared, found.options, progress, stage)
+                     if distance_of(r) <= tolerance or not keep_met]
+            found = _best_fit([found, *extra], found.options, expected)
         met = distance_of(found) <= tolerance
         found.options = replace(found.options, tolerance=tolerance, target_vertices=None)
         if found.fit is not None:
