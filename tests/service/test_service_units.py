@@ -329,8 +329,8 @@ def test_the_fit_report_becomes_headers_json_and_grpc_by_its_field_names():
 
     mesh = cube_quads()
     plain = fit_report(mesh, mesh.vertices)
-    fit = replace(plain, tolerance=0.01, tolerance_met=True).to_dict()
-    assert set(fit) - set(plain.to_dict()) == {"tolerance", "tolerance_met"}
+    fit = replace(plain, tolerance=0.01, tolerance_met=True, points_pieces=1).to_dict()
+    assert set(fit) - set(plain.to_dict()) == {"tolerance", "tolerance_met", "points_pieces"}
     encoded = encode_mesh(mesh, "json", {"seed": 1}, fit)
     assert json.loads(encoded.body)["stats"]["fit"] == fit
     headers = stats_headers(encoded.stats)
@@ -341,10 +341,12 @@ def test_the_fit_report_becomes_headers_json_and_grpc_by_its_field_names():
     assert headers["X-SpaceMesh-Fit-Self-Intersections"] == str(fit["self_intersections"])
     assert headers["X-SpaceMesh-Fit-Components"] == "1"
     assert headers["X-SpaceMesh-Fit-Tolerance-Met"] == "true"
+    assert headers["X-SpaceMesh-Fit-Points-Pieces"] == "1"
     message = stats_to_pb(encoded.stats)
     assert {f.name: getattr(message.fit, f.name) for f in message.fit.DESCRIPTOR.fields} == fit
     without = stats_to_pb(replace(encoded.stats, fit=plain.to_dict())).fit
     assert not without.HasField("tolerance") and not without.HasField("tolerance_met")
+    assert not without.HasField("points_pieces")
     assert not stats_to_pb(replace(encoded.stats, fit=None)).HasField("fit")
     nan = {**fit, "points_to_mesh_mean": float("nan")}
     assert json.loads(encode_mesh(mesh, "json", {}, nan).body)["stats"]["fit"][
