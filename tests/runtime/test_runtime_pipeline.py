@@ -212,6 +212,12 @@ def test_a_model_with_retry_seeds_tries_more_when_no_mesh_is_acceptable(generato
         assert "pieces" in stages and result.seed in (3, 4, 5, 6)
         assert result.options.seed == result.seed
     assert retrying.generate(cloud, seed=3).mesh.face_key_set() == result.mesh.face_key_set()
+    # a winner that still crossed was untangled: clean, or at least less crossed
+    if "untangle_rounds" in result.geometry_stats:
+        stats = result.geometry_stats
+        assert "untangle" in stages and stats["crossing_after"] < stats["crossing_before"]
+        assert result.fit.self_intersections == stats["crossing_after"]
+        assert check_topology(result.mesh).is_closed_oriented_manifold
 
 
 def test_retry_seeds_in_a_manifest_are_checked():

@@ -36,6 +36,7 @@ from spacemesh.geometry import (
     fit_report,
 )
 from spacemesh.geometry.policy import decode_changes
+from spacemesh.geometry.untangle import untangle
 from spacemesh.mesh import PolygonMesh
 from spacemesh.runtime.backend import Backend, ConnectivityOutputs, denoiser_fn
 from spacemesh.runtime.finishing import finish_geometry, outward
@@ -581,9 +582,30 @@ class MeshGenerator:
             if (retry and self.spec.retry_seeds and not options.raw
                     and not any(_acceptable(r, expected) for r in tried)):
                 tried += self._retry_seeds(prepared, options, progress, stage)
-            results.append(_best_fit(tried, options, expected,
-                                     check=self.spec.retry_seeds > 0))
+            chosen = _best_fit(tried, options, expected, check=self.spec.retry_seeds > 0)
+            results.append(self._untangled(chosen, prepared, stage))
         return results
+
+    def _untangled(self, result: GenerateResult, prepared: PreparedInput,
+                   stage: StageFn | None) -> GenerateResult:
+        """With the model's topology check on (:attr:`ModelSpec.retry_seeds`), the
+        chosen mesh's crossing faces smoothed apart (:func:`untangle`, stage
+        ``untangle``) and its fit report made again; ``raw`` results are left alone."""
+        if (not self.spec.retry_seeds or result.options.raw or result.fit is None
+                or not _crosses(result)):
+            return result
+        if stage is not None:
+            stage("untangle", 1, 1)
+        mesh, stats = untangle(result.mesh)
+        if stats["crossing_after"] >= stats["crossing_before"]:
+            return result
+        result.mesh = mesh
+        result.geometry_stats = {**result.geometry_stats, **stats}
+        result.fit = replace(fit_report(mesh, prepared.points),
+                             points_pieces=result.fit.points_pieces,
+                             tolerance=result.fit.tolerance,
+                             tolerance_met=result.fit.tolerance_met)
+        return result
 
     def _retry_seeds(self, prepared: PreparedInput, options: GenerateOptions,
                      progress: ProgressFn | None, stage: StageFn | None
@@ -652,6 +674,7 @@ class MeshGenerator:
             extra = [r for r in self._retry_seeds(prepared, found.options, progress, stage)
                      if distance_of(r) <= tolerance or not keep_met]
             found = _best_fit([found, *extra], found.options, expected)
+        found = self._untangled(found, prepared, stage)
         met = distance_of(found) <= tolerance
         found.options = replace(found.options, tolerance=tolerance, target_vertices=None)
         if found.fit is not None:

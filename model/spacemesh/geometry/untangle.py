@@ -1,0 +1,79 @@
+"""Untangling: faces that cross other faces are smoothed apart, locally.
+
+The decode can return faces that pass through others (a fold where the connectivity
+network joined vertices across a thin part), and the geometry stage's guard only keeps
+it from adding crossings (:mod:`spacemesh.geometry.stage`). :func:`untangle` removes
+them: each round moves the vertices of crossing faces part of the way to the centroid of
+their neighbours (after :data:`RING_AFTER` rounds their one-ring moves too), until no
+face crosses another (:func:`spacemesh.geometry.intersections.self_intersecting_faces`,
+the exact test). Connectivity never changes, so the mesh stays a closed oriented
+manifold; vertices away from the crossings never move. The result is kept only when it
+has fewer crossing faces than the input.
+
+On the 27 dev meshes, the 4 outputs that still crossed after the seed choice
+(docs/GEOMETRY.md) came out clean in 1 to 7 rounds, at a CD cost of 3% to 40% on those
+four (gear 3.91 -> 4.70e-3, scorpion 2.90 -> 4.06e-3).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+
+from spacemesh.geometry.intersections import self_intersecting_faces
+from spacemesh.mesh import PolygonMesh
+
+#: Most smoothing rounds.
+MAX_ROUNDS = 30
+#: Share of the way to the neighbours' centroid a vertex moves per round.
+STEP = 0.5
+#: Rounds after which the one-ring of the crossing faces' vertices moves too.
+RING_AFTER = 5
+
+
+def untangle(mesh: PolygonMesh, *, max_rounds: int = MAX_ROUNDS
+             ) -> tuple[PolygonMesh, dict[str, int | float]]:
+    """``mesh`` with crossing faces smoothed apart (see the module docstring).
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+    max_rounds : int
+
+    Returns
+    -------
+    mesh : PolygonMesh
+        The same connectivity; vertices moved only where faces crossed.
+    stats : dict
+        ``untangle_rounds`` (0 when nothing crossed), ``crossing_before`` and
+        ``crossing_after`` (shares of faces).
+    """
+    hit = self_intersecting_faces(mesh)  # (F,) bool
+    before = float(hit.mean()) if mesh.n_faces else 0.0
+    if not hit.any():
+        return mesh, {"untangle_rounds": 0, "crossing_before": 0.0, "crossing_after": 0.0}
+    n = mesh.n_vertices
+    edges = mesh.halfedges  # (H, 2)
+    adjacency = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])),
+                           shape=(n, n)).tocsr()
+    adjacency = ((adjacency + adjacency.T) > 0).astype(np.float64)  # (V, V) symmetric
+    degree = np.maximum(np.asarray(adjacency.sum(axis=1)).ravel(), 1.0)  # (V,)
+    face_of_corner = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)  # (S,)
+    positions = mesh.vertices.astype(np.float64).copy()  # (V, 3)
+    best, best_share, rounds = mesh, before, 0
+    for rounds in range(1, max_rounds + 1):
+        crossing = np.zeros(n, dtype=bool)
+        crossing[mesh.face_indices[hit[face_of_corner]]] = True
+        if rounds > RING_AFTER:
+            crossing |= (adjacency @ crossing.astype(np.float64)) > 0
+        centroid = (adjacency @ positions) / degree[:, None]  # (V, 3)
+        positions[crossing] += STEP * (centroid[crossing] - positions[crossing])
+        moved = mesh.with_vertices(positions.copy())
+        hit = self_intersecting_faces(moved)
+        share = float(hit.mean())
+        if share < best_share:
+            best, best_share = moved, share
+        if not hit.any():
+            break
+    return best, {"untangle_rounds": rounds, "crossing_before": before,
+                  "crossing_after": best_share}
