@@ -22,6 +22,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -301,6 +302,9 @@ class PreparedInput:
         The upload's normals.
     weights : (P,) float64, optional
         Farthest-point weights (``start=points`` only).
+    pieces : int
+        The pieces the points form (:func:`point_pieces` of the encoder's cloud), made
+        once on first use and shared by the request's seeds and tolerance tries.
     """
 
     cloud: np.ndarray
@@ -310,6 +314,11 @@ class PreparedInput:
     unit: FloatArray
     normals: FloatArray | None
     weights: FloatArray | None
+
+    @cached_property
+    def pieces(self) -> int:
+        """The pieces the points form (made once; see the attributes)."""
+        return point_pieces(self.cloud[:, :3])
 
     def fit_points(self) -> tuple[FloatArray, FloatArray | None]:
         """The normalised points (and normals) the geometry stage fits to, at most
@@ -578,7 +587,7 @@ class MeshGenerator:
         results = []
         for (prepared, options), tried in zip(items, self._seed_results(items, progress,
                                                                          stage), strict=True):
-            expected = point_pieces(prepared.cloud[:, :3])
+            expected = prepared.pieces
             if (retry and self.spec.retry_seeds and not options.raw
                     and not any(_acceptable(r, expected) for r in tried)):
                 tried += self._retry_seeds(prepared, options, progress, stage)
@@ -668,7 +677,7 @@ class MeshGenerator:
 
         found, _, tried = search_vertex_count(run, aim(tolerance), self.vertex_count(options),
                                               on_try=on_try)
-        expected = point_pieces(prepared.cloud[:, :3])
+        expected = prepared.pieces
         if self.spec.retry_seeds and not _acceptable(found, expected):
             keep_met = distance_of(found) <= tolerance
             extra = [r for r in self._retry_seeds(prepared, found.options, progress, stage)
@@ -849,7 +858,7 @@ def _pieces_agree(result: GenerateResult, expected: int) -> bool:
 
 def _crosses(result: GenerateResult) -> bool:
     """Whether ``result``'s mesh has faces that intersect others (its fit report)."""
-    return result.fit is None or not result.fit.self_intersections == 0
+    return result.fit is None or result.fit.self_intersections != 0
 
 
 def _acceptable(result: GenerateResult, expected: int) -> bool:
