@@ -13,7 +13,7 @@ into the repository; the script skips cleanly (exit 0) when the folder is absent
 Usage::
 
     python experiments/eval_real_meshes.py --split test [--model MODEL_REPO]
-        [--out docs/results/real] [--modes default,raw,samples4,gt] [--noise 0.01] [--partial]
+        [--out docs/results/real] [--modes default,raw,samples4,gt] [--noise 0.01] [--outliers 0.05] [--partial]
 """
 
 from __future__ import annotations
@@ -42,6 +42,8 @@ def main() -> int:
     parser.add_argument("--modes", default="default")
     parser.add_argument("--noise", type=float, default=0.0)
     parser.add_argument("--partial", action="store_true")
+    parser.add_argument("--outliers", type=float, default=0.0,
+                        help="uniform outliers added, as a fraction of the points")
     parser.add_argument("--limit", type=int, default=None)
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0)
@@ -81,6 +83,7 @@ def main() -> int:
         modes=parse_modes(args.modes),
         noise=args.noise,
         partial=args.partial,
+        outliers=args.outliers,
     )
     result.config.update(
         model_path=str(generator.repository.path),

@@ -156,3 +156,17 @@ def test_true_normals_reach_the_true_baselines_and_the_normals_mode():
         <= 0.1 * rows["inward", "ours"]["n_vertices"] + 2
     # IN: the share of inaccurate normals, about all of them on an inside-out surface
     assert rows["inward", "psr_star"]["in"] < 0.1 < 0.9 < rows["inward", "psr_true"]["in"]
+
+
+def test_corrupt_points_appends_uniform_outliers_in_the_bounding_box():
+    from spacemesh.evaluate.runner import corrupt_points
+
+    points, _ = sample_surface(icosphere(2), 1000, np.random.default_rng(3))
+    noisy = corrupt_points(points, outliers=0.05, seed=[0, 1])
+    assert noisy.shape == (1050, 3)
+    np.testing.assert_array_equal(noisy[:1000], points)  # the surface points are kept
+    extra = noisy[1000:]
+    assert (extra >= points.min(axis=0)).all() and (extra <= points.max(axis=0)).all()
+    # off the sphere: most outliers are far from the unit surface
+    assert np.mean(np.abs(np.linalg.norm(extra, axis=1) - 1.0) > 0.1) > 0.5
+    np.testing.assert_array_equal(corrupt_points(points, outliers=0.05, seed=[0, 1]), noisy)

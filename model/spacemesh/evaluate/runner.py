@@ -281,10 +281,11 @@ def parse_modes(text: str) -> list[str]:
 
 
 def corrupt_points(points: FloatArray, *, noise: float = 0.0, partial: bool = False,
-                   seed: int | list[int] = 0) -> FloatArray:
+                   seed: int | list[int] = 0, outliers: float = 0.0) -> FloatArray:
     """Conditioning points as a scan would give them: with ``partial`` only one side
-    (the points at or above the median x), and Gaussian noise of ``noise`` times the
-    bounding-box diagonal.
+    (the points at or above the median x), Gaussian noise of ``noise`` times the
+    bounding-box diagonal, and ``outliers`` times as many points again spread uniformly
+    over the bounding box (appended after the surface points).
 
     Parameters
     ----------
@@ -292,13 +293,16 @@ def corrupt_points(points: FloatArray, *, noise: float = 0.0, partial: bool = Fa
     noise : float
     partial : bool
     seed : int or list of int
+    outliers : float
+        Outliers added, as a fraction of the (kept) points.
 
     Returns
     -------
-    (P', 3) float64
+    (P' + round(outliers * P'), 3) float64
     """
     points = np.asarray(points, dtype=np.float64)[scan_kept(points, partial)]
-    return _noisy(points, noise, seed) if noise > 0 else points
+    points = _noisy(points, noise, seed) if noise > 0 else points
+    return _with_outliers(points, outliers, seed) if outliers > 0 else points
 
 
 def scan_kept(points: FloatArray, partial: bool) -> np.ndarray:
@@ -315,6 +319,15 @@ def _noisy(points: FloatArray, noise: float, seed: int | list[int]) -> FloatArra
     rng = np.random.default_rng(seed)
     diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
     return points + rng.normal(scale=noise * diagonal, size=points.shape)
+
+
+def _with_outliers(points: FloatArray, share: float, seed: int | list[int]) -> FloatArray:
+    """``points`` and ``round(share * P)`` more drawn uniformly in their bounding box."""
+    seeds = [seed] if isinstance(seed, int) else list(seed)
+    rng = np.random.default_rng([*seeds, 1])  # not the noise's stream
+    low, high = points.min(axis=0), points.max(axis=0)
+    extra = rng.uniform(low, high, size=(round(share * len(points)), 3))  # (O, 3)
+    return np.concatenate([points, extra])
 
 
 def _row(
@@ -370,6 +383,7 @@ def run_evaluation(
     modes: Sequence[str] = ("default",),
     noise: float = 0.0,
     partial: bool = False,
+    outliers: float = 0.0,
 ) -> EvalResult:
     """Run ours and the baselines on every shape and score them (see the module doc).
 
@@ -401,6 +415,9 @@ def run_evaluation(
         Gaussian noise on the conditioning points, as a fraction of their diagonal.
     partial : bool
         Keep only the points of one side (:func:`corrupt_points`).
+    outliers : float
+        Uniform outliers added, as a fraction of the points (:func:`corrupt_points`);
+        the ``normals`` mode then has no true normals to give.
 
     Returns
     -------
@@ -432,6 +449,7 @@ def run_evaluation(
             "modes": list(modes),
             "noise": noise,
             "partial": partial,
+            "outliers": outliers,
         },
     )
     keep = gallery_indices(len(shapes), gallery)
@@ -441,8 +459,9 @@ def run_evaluation(
         gt = apply_normalisation(shape.mesh, centre, scale)
         points: FloatArray = (np.asarray(shape.points, np.float64) - centre) / scale  # (P, 3)
         kept = scan_kept(points, partial)
-        points = corrupt_points(points, noise=noise, partial=partial, seed=[seed, index])
-        true_normals = (None if shape.normals is None
+        points = corrupt_points(points, noise=noise, partial=partial, seed=[seed, index],
+                                outliers=outliers)
+        true_normals = (None if shape.normals is None or outliers > 0
                         else np.asarray(shape.normals, np.float64)[kept])  # (P', 3)
         reference = Reference.from_mesh(gt, seed=[seed, index, 0], options=options)
         normals = estimate_normals(points)  # (P, 3), what every method may use
