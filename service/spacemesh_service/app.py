@@ -34,7 +34,7 @@ from spacemesh_service import problems as P
 from spacemesh_service.access_log import RestAccessLog
 from spacemesh_service.connections import BodyTimeout
 from spacemesh_service.engine import Engine, MeshUpload, ParseFn, Reply
-from spacemesh_service.inputs import read_json, read_upload
+from spacemesh_service.inputs import UploadRules, read_cloud_upload, read_json
 from spacemesh_service.metrics import CONTENT_TYPE as METRICS_CONTENT_TYPE
 from spacemesh_service.openapi import (
     DESCRIPTION,
@@ -236,6 +236,15 @@ def _limited(request: Request, limit: int) -> Request:
     return Request(request.scope, limited_receive)
 
 
+#: Bytes a repair's multipart body may hold besides its mesh file (the region, options).
+_FORM_SLACK = 1 << 20
+
+
+def _mesh_body_limit(settings: Settings) -> int:
+    """The largest repair body: a mesh file of ``max_text_bytes`` and its form."""
+    return min(settings.max_upload_bytes, settings.max_text_bytes + _FORM_SLACK)
+
+
 def query_options(request: Request) -> dict[str, Any]:
     """Every query parameter, by name (values as sent): all of them are options, and
     :func:`~spacemesh_service.options.resolve_request` refuses the names the route does
@@ -264,29 +273,49 @@ def _form_options(form: Any, body_fields: tuple[str, ...]) -> dict[str, Any]:
     return options
 
 
-async def _read_request(request: Request, limit: int) -> tuple[ParseFn, dict[str, Any]]:
-    """A parser of the request's point cloud, and the options found in a form."""
+async def _read_request(request: Request, settings: Settings
+                        ) -> tuple[ParseFn, dict[str, Any]]:
+    """A parser of the request's point cloud, and the options found in a form.
+
+    A multipart body is at most ``max_upload_bytes``; its file, which Starlette spools to
+    a temporary file as it arrives, is read into memory only by the parser, in a parse
+    slot (:class:`~spacemesh_service.inputs.ParseSlots`), so the uploads waiting for a
+    slot are held on disk, not in memory. A JSON body is at most ``max_text_bytes``.
+    """
     content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    body_request = _limited(request, limit)
     if content_type == "multipart/form-data":
+        body_request = _limited(request, settings.max_upload_bytes)
         form = await body_request.form(max_files=1,
                                        max_fields=len(GENERATE_ROUTE_OPTIONS) + 4)
         try:
             upload = form.get("file")
             if not isinstance(upload, UploadFile):
                 raise Problem(P.MALFORMED_INPUT, "the multipart body has no file field 'file'")
-            data = await upload.read()
-            filename = upload.filename
+            spooled, filename = upload.file, upload.filename
             options = _form_options(form, GENERATE_BODY_FIELDS)
-        finally:
+        except BaseException:
             await form.close()
-        return (lambda limits: (*read_upload(data, filename, limits), {})), options
-    if content_type == "application/json" or content_type.endswith("+json"):
-        body = await body_request.body()
+            raise
 
-        def parse(limits: ReadLimits) -> tuple[Any, Any, str, dict[str, Any]]:
+        def parse_file(limits: ReadLimits, rules: UploadRules
+                       ) -> tuple[Any, Any, str, dict[str, Any], int | None]:
+            try:  # the spooled file is read here, in the parse slot, and closed after
+                spooled.seek(0)
+                data = spooled.read()
+            finally:
+                spooled.close()
+            points, normals, source, count = read_cloud_upload(data, filename, limits, rules)
+            return points, normals, source, {}, count
+
+        return parse_file, options
+    if content_type == "application/json" or content_type.endswith("+json"):
+        limit = min(settings.max_upload_bytes, settings.max_text_bytes)
+        body = await _limited(request, limit).body()
+
+        def parse(limits: ReadLimits, _: UploadRules
+                  ) -> tuple[Any, Any, str, dict[str, Any], int | None]:
             points, normals, options = read_json(body, limits)
-            return points, normals, "json", options
+            return points, normals, "json", options, None
 
         return parse, {}
     shown = content_type or "no Content-Type"
@@ -389,7 +418,7 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
         name this route does not take (`unknown` lists them).
         """
         with engine.admit():
-            parse, form_options = await _read_request(request, settings.max_upload_bytes)
+            parse, form_options = await _read_request(request, settings)
             options = {**query_options(request), **form_options}
             reply = await unless_disconnected(request, engine.generate(parse, options))
         headers = reply.headers()
@@ -420,7 +449,7 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
         """
         with engine.admit():
             upload, region, form_options = await _read_repair_form(
-                request, settings.max_upload_bytes)
+                request, _mesh_body_limit(settings))
             options = {**query_options(request), **form_options}
             reply = await unless_disconnected(request, engine.repair(upload, region, options))
         headers = reply.headers()
@@ -441,7 +470,7 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
         before that is a plain problem+json response.
         """
         async def work(progress: Any, stage: Any) -> Reply:
-            parse, form_options = await _read_request(request, settings.max_upload_bytes)
+            parse, form_options = await _read_request(request, settings)
             options = {**query_options(request), **form_options}
             return await engine.generate(parse, options, progress=progress, stage=stage)
 
@@ -456,7 +485,7 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
         """`POST /repair` with its progress as Server-Sent Events, as `/generate/stream`."""
         async def work(progress: Any, stage: Any) -> Reply:
             upload, region, form_options = await _read_repair_form(
-                request, settings.max_upload_bytes)
+                request, _mesh_body_limit(settings))
             options = {**query_options(request), **form_options}
             return await engine.repair(upload, region, options, progress=progress,
                                        stage=stage)

@@ -47,6 +47,7 @@ from spacemesh_service.inputs import (
     INPUT_FORMATS,
     MESH_FORMATS,
     ParseSlots,
+    UploadRules,
     read_limits,
     read_mesh_upload,
     read_region,
@@ -77,9 +78,13 @@ from spacemesh_service.settings import Settings
 
 log = logging.getLogger("spacemesh.service")
 
-#: ``parse(limits) -> (points, normals, source, body_options)``, run in a worker thread
-#: under :attr:`Engine.parsing`, ``limits`` being :func:`~spacemesh_service.inputs.read_limits`.
-ParseFn = Callable[[ReadLimits], tuple[np.ndarray, "np.ndarray | None", str, dict[str, Any]]]
+#: ``parse(limits, rules) -> (points, normals, source, body_options, points_read)``, run in
+#: a worker thread under :attr:`Engine.parsing`, ``limits`` being
+#: :func:`~spacemesh_service.inputs.read_limits` and ``rules`` the
+#: :class:`~spacemesh_service.inputs.UploadRules` of the settings; ``points_read`` is the
+#: upload's point count when ``points`` are a reduction of it, else None.
+ParseFn = Callable[[ReadLimits, UploadRules],
+                   tuple[np.ndarray, "np.ndarray | None", str, dict[str, Any], "int | None"]]
 
 
 @dataclass(frozen=True)
@@ -104,6 +109,10 @@ class Reply:
     input_kind : str, optional
         How a generation's input file was read: ``mesh`` (its surface sampled) or
         ``points`` (``X-SpaceMesh-Input``); None for a repair.
+    reduction : dict, optional
+        ``{"read": N, "used": M}`` when the upload's N points were reduced to the M the
+        pipeline worked on (``X-SpaceMesh-Points-Read`` and ``X-SpaceMesh-Points-Used``,
+        ``points_reduced`` in a JSON body); None otherwise.
     """
 
     mesh: EncodedMesh
@@ -115,6 +124,7 @@ class Reply:
     sample_scores: list[tuple[int, float]] = field(default_factory=list)
     repair: dict[str, Any] | None = None
     input_kind: str | None = None
+    reduction: dict[str, int] | None = None
 
     @property
     def seed(self) -> int:
@@ -141,6 +151,9 @@ class Reply:
             headers["X-SpaceMesh-Sample-Scores"] = sample_scores_header(self.sample_scores)
         if self.input_kind is not None:
             headers["X-SpaceMesh-Input"] = self.input_kind
+        if self.reduction is not None:
+            headers["X-SpaceMesh-Points-Read"] = str(self.reduction["read"])
+            headers["X-SpaceMesh-Points-Used"] = str(self.reduction["used"])
         headers.update({
             "X-SpaceMesh-Model": f"{self.model_name}/{self.model_version}",
             "X-SpaceMesh-Batch-Size": str(self.batch_size),
@@ -354,12 +367,14 @@ class Engine:
 
     def _decode(self, parse: ParseFn, options: dict[str, Any]
                 ) -> tuple[Any, RequestOptions]:
-        points, normals, source, body_options = parse(self.read_limits)
+        points, normals, source, body_options, points_read = parse(
+            self.read_limits, UploadRules.from_settings(self.settings))
         merged = {**{k: v for k, v in options.items() if v is not None}, **body_options}
         opts = resolve_request(merged, GENERATE_ROUTE_OPTIONS, self._generator.spec,
                                self.settings)
         cloud = validate_cloud(points, normals, self.settings, source=source,
-                               needs_normals=self._generator.spec.normals)
+                               needs_normals=self._generator.spec.normals,
+                               points_read=points_read)
         return cloud, opts
 
     async def generate(self, parse: ParseFn, options: dict[str, Any], *,
@@ -431,6 +446,8 @@ class Engine:
         info = {**options, "model": {"name": self.model_name, "version": self.model_version},
                 "sample_scores": [{"seed": seed, "score": finite_or_none(score)}
                                   for seed, score in scores]}
+        if cloud.reduction is not None:
+            info["points_reduced"] = cloud.reduction
         fit = result.fit.to_dict() if result.fit is not None else None
         timings = {"decode_input": decode_s, "queue": outcome.queue_seconds}
         timings.update({k: v for k, v in result.timings.items() if k != "total"})
@@ -447,7 +464,8 @@ class Engine:
         timings["total"] = time.perf_counter() - started
         self.metrics.observe_stage("encode_output", timings["encode_output"])
         return Reply(encoded, options, self.model_name, self.model_version, timings,
-                     outcome.batch_size, sample_scores=scores, input_kind=cloud.input_kind)
+                     outcome.batch_size, sample_scores=scores, input_kind=cloud.input_kind,
+                     reduction=cloud.reduction)
 
     async def _queued(self, work: Any, spent: float) -> Any:
         """Await the batcher (``submit`` or ``submit_call``) within what is left of the
@@ -481,7 +499,8 @@ class Engine:
         opts = resolve_request(options, REPAIR_ROUTE_OPTIONS, self._generator.spec,
                                self.settings)
         shape = read_region(region, self.read_limits)
-        mesh, _ = read_mesh_upload(upload.data, upload.filename, self.read_limits)
+        mesh, _ = read_mesh_upload(upload.data, upload.filename, self.read_limits,
+                                   UploadRules.from_settings(self.settings))
         try:
             plan = plan_repair(mesh, shape, self._generator.spec.max_vertices,
                                weld=opts.weld, max_growth=opts.max_growth)

@@ -23,11 +23,12 @@ import grpc
 from grpc_health.v1 import health_pb2, health_pb2_grpc
 from grpc_health.v1.health import aio as health_aio
 
+from spacemesh.io.limits import ReadLimits
 from spacemesh_service import problems as P
 from spacemesh_service.connections import Tls, grpc_credentials, grpc_options
 from spacemesh_service.engine import Engine, MeshUpload, ParseFn, Reply
 from spacemesh_service.grpc_guard import GrpcGuard, abort_with
-from spacemesh_service.inputs import points_from_flat, read_upload
+from spacemesh_service.inputs import UploadRules, points_from_flat, read_cloud_upload
 from spacemesh_service.options import GENERATE_ROUTE_OPTIONS, REPAIR_ROUTE_OPTIONS, grpc_values
 from spacemesh_service.outputs import MeshStats
 from spacemesh_service.pb import spacemesh_pb2 as pb
@@ -82,6 +83,18 @@ def reply_to_pb(reply: Reply) -> pb.MeshReply:
     return message
 
 
+def reduction_metadata(reply: Reply, context: grpc.aio.ServicerContext) -> None:
+    """Add ``x-spacemesh-points-read`` and ``x-spacemesh-points-used`` to the call's
+    trailing metadata when the upload's points were reduced (REST: the
+    ``X-SpaceMesh-Points-*`` headers)."""
+    if reply.reduction is None:
+        return
+    kept = tuple(context.trailing_metadata() or ())
+    context.set_trailing_metadata((*kept,
+                                   ("x-spacemesh-points-read", str(reply.reduction["read"])),
+                                   ("x-spacemesh-points-used", str(reply.reduction["used"]))))
+
+
 def request_parser(request: pb.GenerateRequest, max_bytes: int) -> ParseFn:
     """The engine's parse function for a GenerateRequest (file bytes or numbers)."""
     which = request.WhichOneof("input")
@@ -90,10 +103,15 @@ def request_parser(request: pb.GenerateRequest, max_bytes: int) -> ParseFn:
         if len(data) > max_bytes:
             raise Problem(P.PAYLOAD_TOO_LARGE, f"the file has {len(data)} bytes; this server "
                           f"takes at most {max_bytes}", limit=max_bytes)
-        return lambda limits: (*read_upload(data, filename, limits), {})
+        def parse_file(limits: ReadLimits, rules: UploadRules
+                       ) -> tuple[Any, Any, str, dict[str, Any], int | None]:
+            points, normals, source, count = read_cloud_upload(data, filename, limits, rules)
+            return points, normals, source, {}, count
+
+        return parse_file
     if which == "points":
         xyz, normals = request.points.xyz, request.points.normals
-        return lambda limits: (*points_from_flat(xyz, normals, limits), "points", {})
+        return lambda limits, _: (*points_from_flat(xyz, normals, limits), "points", {}, None)
     raise Problem(P.MALFORMED_INPUT, "the request has no input: set 'file' or 'points'")
 
 
@@ -171,6 +189,7 @@ class SpaceMeshServicer(pb_grpc.SpaceMeshServicer):
             parse = request_parser(request, self.engine.settings.max_upload_bytes)
             reply = await self.engine.generate(parse, grpc_values(request,
                                                                   GENERATE_ROUTE_OPTIONS))
+            reduction_metadata(reply, context)
             return reply_to_pb(reply)
 
     async def GenerateStream(self, request: pb.GenerateRequest,
@@ -191,6 +210,7 @@ class SpaceMeshServicer(pb_grpc.SpaceMeshServicer):
                         step=event["done"], total=event["total"], stage=event["stage"],
                         fraction=event["fraction"]))
                 reply = task.result()  # raises the request's Problem
+                reduction_metadata(reply, context)
                 yield pb.GenerateEvent(mesh=reply_to_pb(reply))
             finally:
                 if task is not None and not task.done():

@@ -42,9 +42,10 @@ from spacemesh.io.errors import (
     NonFiniteError,
     TooLargeError,
     UnsupportedFormatError,
+    is_blank,
 )
 from spacemesh.io.limits import ReadLimits, load_json
-from spacemesh.io.points import SUPPORTED_POINTS_READ
+from spacemesh.io.points import SUPPORTED_POINTS_READ, is_binary_cloud
 from spacemesh.io.surface import input_kind, load_cloud_input
 from spacemesh.mesh import PolygonMesh
 from spacemesh.repair.region import Region, RegionError, parse_region
@@ -80,7 +81,39 @@ def read_limits(settings: Settings) -> ReadLimits:
         document): ``max_upload_bytes``.
     """
     return ReadLimits(max_points=settings.max_points, max_vertices=settings.max_mesh_vertices,
-                      max_faces=settings.max_mesh_faces, max_bytes=settings.max_upload_bytes)
+                      max_faces=settings.max_mesh_faces, max_bytes=settings.max_upload_bytes,
+                      max_text_points=settings.max_text_points)
+
+
+@dataclass(frozen=True)
+class UploadRules:
+    """How an upload is read besides its :class:`ReadLimits`.
+
+    Attributes
+    ----------
+    max_text_bytes : int, optional
+        Largest file other than a binary PLY, NPY or NPZ cloud (413 above); None: no
+        limit beyond the body's.
+    working_points : int, optional
+        A cloud of more points is reduced to this many
+        (:func:`spacemesh.io.points.read_points`); None: all kept.
+    """
+
+    max_text_bytes: int | None = None
+    working_points: int | None = None
+
+    @classmethod
+    def from_settings(cls, settings: Settings) -> UploadRules:
+        """This server's ``max_text_bytes`` and ``working_points``."""
+        return cls(settings.max_text_bytes, settings.working_points)
+
+    def check_text_bytes(self, size: int, what: str) -> None:
+        """413 ``payload-too-large`` when ``size`` bytes of ``what`` exceed
+        ``max_text_bytes``."""
+        if self.max_text_bytes is not None and size > self.max_text_bytes:
+            raise Problem(P.PAYLOAD_TOO_LARGE, f"{what} has {size} bytes; this server takes "
+                          f"at most {self.max_text_bytes} but for binary PLY, NPY and NPZ "
+                          "point clouds", limit=self.max_text_bytes)
 
 
 class ParseSlots:
@@ -158,11 +191,23 @@ class PointCloud:
     source : str
         ``json``, ``points`` (gRPC numbers) or the file format read (``obj-surface``:
         points sampled on a mesh's faces).
+    points_read : int, optional
+        Points in the upload when it was reduced to ``points``; None when they are all
+        of them.
     """
 
     points: np.ndarray
     normals: np.ndarray | None
     source: str
+    points_read: int | None = None
+
+    @property
+    def reduction(self) -> dict[str, int] | None:
+        """``{"read": N, "used": M}`` when the upload's N points were reduced to M
+        (``X-SpaceMesh-Points-Read`` and ``-Used``), else None."""
+        if self.points_read is None:
+            return None
+        return {"read": int(self.points_read), "used": len(self.points)}
 
     @property
     def input_kind(self) -> str:
@@ -181,6 +226,28 @@ def _file_type(filename: str | None, formats: tuple[str, ...] = INPUT_FORMATS) -
 
 def read_upload(data: bytes, filename: str | None, limits: ReadLimits | None = None
                 ) -> tuple[np.ndarray, np.ndarray | None, str]:
+    """Points (and normals) of an uploaded file, all of them
+    (:func:`read_cloud_upload` without a reduction).
+
+    Parameters
+    ----------
+    data : bytes
+    filename : str, optional
+    limits : ReadLimits, optional
+
+    Returns
+    -------
+    points : (P, 3) float64
+    normals : (P, 3) float64 or None
+    source : str
+    """
+    points, normals, source, _ = read_cloud_upload(data, filename, limits)
+    return points, normals, source
+
+
+def read_cloud_upload(data: bytes, filename: str | None, limits: ReadLimits | None = None,
+                      rules: UploadRules | None = None
+                      ) -> tuple[np.ndarray, np.ndarray | None, str, int | None]:
     """Points (and normals) of an uploaded file.
 
     The extension picks the format when it is one we read; otherwise the content is
@@ -195,6 +262,8 @@ def read_upload(data: bytes, filename: str | None, limits: ReadLimits | None = N
     filename : str, optional
     limits : ReadLimits, optional
         Checked while reading (:func:`read_limits`); 413 beyond.
+    rules : UploadRules, optional
+        The size of anything but a binary cloud, and the points a cloud is reduced to.
 
     Returns
     -------
@@ -202,11 +271,14 @@ def read_upload(data: bytes, filename: str | None, limits: ReadLimits | None = N
     normals : (P, 3) float64 or None
     source : str
         The format read.
+    points_read : int or None
+        The upload's points when it was reduced to ``points``, else None.
     """
     from spacemesh.io import sniff_file_type
 
+    rules = rules or UploadRules()
     file_type = _file_type(filename)
-    if not data.strip():
+    if is_blank(data):
         raise Problem(P.MALFORMED_INPUT, "the uploaded file is empty")
     source = file_type or sniff_file_type(data)
     if source not in INPUT_FORMATS:
@@ -215,8 +287,11 @@ def read_upload(data: bytes, filename: str | None, limits: ReadLimits | None = N
         raise Problem(P.UNSUPPORTED_FORMAT,
                       f"cannot read {what}; supported: {', '.join(INPUT_FORMATS)}",
                       supported=list(INPUT_FORMATS))
+    if not is_binary_cloud(data, source):
+        rules.check_text_bytes(len(data), f"the {source.upper()} file")
     try:
-        cloud = load_cloud_input(data, file_type=source, limits=limits)
+        cloud = load_cloud_input(data, file_type=source, limits=limits,
+                                 keep=rules.working_points)
     except TooLargeError as error:
         raise P.too_large_problem(error) from None
     except UnsupportedFormatError as error:
@@ -225,11 +300,11 @@ def read_upload(data: bytes, filename: str | None, limits: ReadLimits | None = N
         raise Problem(P.NON_FINITE, str(error)) from None
     except MeshFormatError as error:
         raise Problem(P.MALFORMED_INPUT, str(error)) from None
-    return cloud.points, cloud.normals, cloud.source
+    return cloud.points, cloud.normals, cloud.source, cloud.count
 
 
-def read_mesh_upload(data: bytes, filename: str | None, limits: ReadLimits | None = None
-                     ) -> tuple[PolygonMesh, str]:
+def read_mesh_upload(data: bytes, filename: str | None, limits: ReadLimits | None = None,
+                     rules: UploadRules | None = None) -> tuple[PolygonMesh, str]:
     """The polygon mesh of an uploaded file (a repair request).
 
     The extension picks the format when it is one we read (OBJ, OFF, PLY, STL, GLB,
@@ -242,6 +317,8 @@ def read_mesh_upload(data: bytes, filename: str | None, limits: ReadLimits | Non
     filename : str, optional
     limits : ReadLimits, optional
         Checked while reading (:func:`read_limits`); 413 beyond.
+    rules : UploadRules, optional
+        Its ``max_text_bytes`` limits the file's size (a mesh, whatever its format).
 
     Returns
     -------
@@ -251,8 +328,9 @@ def read_mesh_upload(data: bytes, filename: str | None, limits: ReadLimits | Non
     """
     from spacemesh.io import load_mesh, sniff_file_type
 
-    if not data.strip():
+    if is_blank(data):
         raise Problem(P.MALFORMED_INPUT, "the uploaded mesh file is empty")
+    (rules or UploadRules()).check_text_bytes(len(data), "the mesh file")
     source = _file_type(filename, MESH_FORMATS) or sniff_file_type(data)
     if source not in MESH_FORMATS:
         named = PurePath(filename).suffix if filename else ""
@@ -348,7 +426,7 @@ def read_json(body: bytes, limits: ReadLimits | None = None
         ``/generate`` does not take is a 422 ``invalid-option``).
     """
     try:
-        data = load_json(body, "the JSON body", limits and limits.for_points())
+        data = load_json(body, "the JSON body", limits and limits.for_text().for_points())
     except TooLargeError as error:
         raise P.too_large_problem(error) from None
     except MeshFormatError as error:
@@ -368,7 +446,7 @@ def points_from_flat(xyz: Any, normals: Any, limits: ReadLimits | None = None
     their count checked against ``limits`` before they are copied."""
     if limits is not None:
         try:
-            limits.check_points("points", max(len(xyz), len(normals)) // 3)
+            limits.for_text().check_points("points", max(len(xyz), len(normals)) // 3)
         except TooLargeError as error:
             raise P.too_large_problem(error) from None
     p = np.asarray(xyz, dtype=np.float64)
@@ -383,7 +461,7 @@ def points_from_flat(xyz: Any, normals: Any, limits: ReadLimits | None = None
 # ---------------------------------------------------------------------- validation
 def validate_cloud(
     points: np.ndarray, normals: np.ndarray | None, settings: Settings, *,
-    source: str, needs_normals: bool = False,
+    source: str, needs_normals: bool = False, points_read: int | None = None,
 ) -> PointCloud:
     """Apply the limits and geometry checks to parsed points.
 
@@ -398,6 +476,8 @@ def validate_cloud(
     source : str
     needs_normals : bool
         The model's encoder reads normals.
+    points_read : int, optional
+        The upload's points when ``points`` are a reduction of them.
 
     Returns
     -------
@@ -414,4 +494,4 @@ def validate_cloud(
                                       needs_normals=needs_normals)
     except CloudError as error:
         raise P.cloud_problem(error) from None
-    return PointCloud(points, normals, source)
+    return PointCloud(points, normals, source, points_read)

@@ -15,6 +15,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator
 
+from spacemesh.io.reduce import DEFAULT_MAX_BINARY_POINTS, DEFAULT_WORKING_POINTS
 from spacemesh.runtime.cloud import DEFAULT_MAX_POINTS, DEFAULT_MIN_POINTS
 from spacemesh_service.networks import parse_networks
 
@@ -49,12 +50,24 @@ class Settings(BaseModel):
     queue_size: int = Field(32, ge=1, description="Requests that may wait; beyond: 503.")
     request_timeout_s: float = Field(
         30.0, gt=0, description="Per-request limit (queue + inference) before a 504.")
-    max_points: int = Field(DEFAULT_MAX_POINTS, ge=1,
-                            description="Most points per request (413 above).")
+    max_points: int = Field(
+        DEFAULT_MAX_BINARY_POINTS, ge=1, description="Most points of a request (413 above): "
+        "binary PLY, NPY and NPZ clouds, read as views over their bytes.")
+    max_text_points: int = Field(
+        DEFAULT_MAX_POINTS, ge=1, description="Most points of a cloud parsed from text "
+        "(XYZ/PTS/TXT/CSV, ASCII PLY, OBJ, a JSON body, gRPC numbers) or read from a mesh "
+        "format's vertices (413 above; max_points applies too).")
+    working_points: int = Field(
+        DEFAULT_WORKING_POINTS, ge=16, description="A cloud of more points is reduced to "
+        "this many (a seeded uniform random subset) before generation.")
     min_points: int = Field(DEFAULT_MIN_POINTS, ge=1,
                             description="Fewest points per request (422 below).")
     max_upload_bytes: int = Field(
-        32 * 1024 * 1024, ge=1, description="Largest request body (413 above).")
+        512 * 1024 * 1024, ge=1, description="Largest request body and gRPC message (413 "
+        "above): room for 10 million points with normals in float64.")
+    max_text_bytes: int = Field(
+        32 * 1024 * 1024, ge=1, description="Largest upload other than a binary PLY, NPY "
+        "or NPZ point cloud: text clouds, JSON bodies and mesh files (413 above).")
     max_mesh_vertices: int = Field(
         1_000_000, ge=1, description="Most vertices of an uploaded mesh (repair), checked "
         "while it is read (413 above).")
@@ -192,7 +205,10 @@ class Settings(BaseModel):
         return {
             "min_points": self.min_points,
             "max_points": self.max_points,
+            "max_text_points": self.max_text_points,
+            "working_points": self.working_points,
             "max_upload_bytes": self.max_upload_bytes,
+            "max_text_bytes": self.max_text_bytes,
             "max_mesh_vertices": self.max_mesh_vertices,
             "max_mesh_faces": self.max_mesh_faces,
             "max_steps": self.max_steps,

@@ -37,7 +37,13 @@ from starlette.datastructures import UploadFile
 
 from spacemesh_service import problems as P
 from spacemesh_service.engine import Engine
-from spacemesh_service.inputs import INPUT_FORMATS, MESH_FORMATS, read_mesh_upload, read_upload
+from spacemesh_service.inputs import (
+    INPUT_FORMATS,
+    MESH_FORMATS,
+    UploadRules,
+    read_cloud_upload,
+    read_mesh_upload,
+)
 from spacemesh_service.openapi import UI_PREVIEW_RESPONSES
 from spacemesh_service.options import GENERATE_ROUTE_OPTIONS, REPAIR_ROUTE_OPTIONS
 from spacemesh_service.outputs import OUTPUT_FORMATS
@@ -78,15 +84,18 @@ def _flat(values: np.ndarray) -> list[float]:
     return np.asarray(values, dtype=np.float64).reshape(-1).tolist()
 
 
-def preview(data: bytes, filename: str | None, kind: str, limits: Any) -> dict[str, Any]:
-    """What ``/ui/preview`` answers for one file (run in a worker thread)."""
+def preview(data: bytes, filename: str | None, kind: str, limits: Any,
+            rules: UploadRules | None = None) -> dict[str, Any]:
+    """What ``/ui/preview`` answers for one file (run in a worker thread); ``count`` is
+    the file's points, those shown a subset of the ones ``/generate`` would use."""
     if kind == "mesh":
-        mesh, source = read_mesh_upload(data, filename, limits)
+        mesh, source = read_mesh_upload(data, filename, limits, rules)
         return {"kind": "mesh", "source": source, "vertices": _flat(mesh.vertices),
                 "faces": [list(map(int, face)) for face in mesh.faces]}
-    points, _, source = read_upload(data, filename, limits)
+    points, _, source, count = read_cloud_upload(data, filename, limits, rules)
     step = max(1, -(-len(points) // PREVIEW_POINTS))
-    return {"kind": "points", "source": source, "count": len(points),
+    return {"kind": "points", "source": source,
+            "count": len(points) if count is None else count,
             "points": _flat(points[::step])}
 
 
@@ -129,7 +138,8 @@ def install_ui(app: FastAPI, engine: Engine, limited: Callable[[Request, int], R
             data, filename = await upload.read(), upload.filename
         finally:
             await form.close()
-        body = await engine.parsing.run(preview, data, filename, kind, engine.read_limits)
+        body = await engine.parsing.run(preview, data, filename, kind, engine.read_limits,
+                                        UploadRules.from_settings(settings))
         return JSONResponse(body)
 
     app.mount("/static", StaticFiles(directory=STATIC), name="static")

@@ -7,9 +7,14 @@ message meant for the person who supplied the file, e.g.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from spacemesh.typed import FloatArray, IntArray
+
+#: Bytes that are all ASCII whitespace (what ``bytes.strip`` removes).
+_BLANK = re.compile(rb"[ \t\n\r\x0b\x0c]*")
 
 
 class MeshFormatError(ValueError):
@@ -67,9 +72,17 @@ def decode_text(data: bytes, fmt: str) -> str:
         return data.decode("latin-1")
 
 
+def is_blank(data: bytes | str) -> bool:
+    """Whether ``data`` holds nothing but whitespace (as ``not data.strip()``, without
+    copying a large file: the scan stops at its first other character)."""
+    if isinstance(data, str):
+        return not data.strip()
+    return _BLANK.fullmatch(data) is not None
+
+
 def require_nonempty(data: bytes, fmt: str) -> None:
     """Raise when the file holds nothing but whitespace."""
-    if not data.strip():
+    if is_blank(data):
         raise MeshFormatError(f"{fmt}: the file is empty")
 
 
@@ -140,5 +153,6 @@ __all__ = [
     "check_face_indices",
     "check_vertices",
     "decode_text",
+    "is_blank",
     "require_nonempty",
 ]

@@ -61,17 +61,27 @@ class ReadLimits:
     max_bytes : int, optional
         Decoded bytes: a zip member's uncompressed size, a base64 glTF buffer, a JSON
         document.
+    max_text_points : int, optional
+        Rows of a point cloud parsed from text or read from a mesh format (anything but
+        binary PLY, NPY and NPZ, whose rows are views over the file's bytes): the
+        smaller of this and ``max_points`` applies to them (:meth:`for_text`).
     """
 
     max_points: int | None = None
     max_vertices: int | None = None
     max_faces: int | None = None
     max_bytes: int | None = None
+    max_text_points: int | None = None
 
     def for_points(self) -> ReadLimits:
         """The limits for a mesh file read as a point cloud: its vertices are points."""
         vertices = _smallest(self.max_vertices, self.max_points)
         return replace(self, max_vertices=vertices)
+
+    def for_text(self) -> ReadLimits:
+        """The limits for a point cloud parsed from text or a mesh format: ``max_points``
+        lowered to ``max_text_points``."""
+        return replace(self, max_points=_smallest(self.max_points, self.max_text_points))
 
     @property
     def max_corners(self) -> int | None:

@@ -401,25 +401,7 @@ def parse_ply(data: bytes, limits: ReadLimits | None = None) -> PlyData:
     PlyData
         Faces are empty when the file has no ``face`` element.
     """
-    require_nonempty(data, "PLY")
-    limits = limits or UNLIMITED
-    encoding, elements, start = _parse_header(data)
-    _check_counts(elements, encoding, len(data) - start, limits)
-    found: dict[str, dict] = {}
-    if encoding == "ascii":
-        tokens = _Tokens(str(memoryview(data)[start:], "latin-1"))
-        at = 0
-        for element in elements:
-            values, at = _read_ascii(tokens, at, element, limits)
-            found.setdefault(element.name, values)
-    else:
-        pos = start
-        for element in elements:
-            values, pos = _read_binary(data, pos, element)
-            found.setdefault(element.name, values)
-            if element.name == "face" and "face" in found and found["face"] is values:
-                _check_face_corners(values, limits)
-
+    found = _read_elements(data, limits or UNLIMITED)
     vertex = found.get("vertex")
     if vertex is None:
         raise MeshFormatError("PLY: the file has no 'vertex' element")
@@ -447,6 +429,120 @@ def parse_ply(data: bytes, limits: ReadLimits | None = None) -> PlyData:
         offsets = np.concatenate([[0], np.cumsum(lengths, dtype=np.int64)]).astype(np.int64)
         check_face_indices(indices, offsets, len(vertices), "PLY")
     return PlyData(vertices, normals, indices, offsets)
+
+
+def _read_elements(data: bytes, limits: ReadLimits, until: str | None = None
+                   ) -> dict[str, dict]:
+    """Every element's values by name (the first of each name), read in file order and
+    stopping after the element named ``until`` when given. Binary scalar columns are
+    views over ``data``; ASCII ones float64."""
+    require_nonempty(data, "PLY")
+    encoding, elements, start = _parse_header(data)
+    _check_counts(elements, encoding, len(data) - start, limits)
+    found: dict[str, dict] = {}
+    if encoding == "ascii":
+        tokens = _Tokens(str(memoryview(data)[start:], "latin-1"))
+        at = 0
+        for element in elements:
+            values, at = _read_ascii(tokens, at, element, limits)
+            found.setdefault(element.name, values)
+            if element.name == until:
+                break
+    else:
+        pos = start
+        for element in elements:
+            values, pos = _read_binary(data, pos, element)
+            found.setdefault(element.name, values)
+            if element.name == "face" and "face" in found and found["face"] is values:
+                _check_face_corners(values, limits)
+            if element.name == until:
+                break
+    return found
+
+
+@dataclass(frozen=True)
+class PlyHeader:
+    """What a PLY header declares.
+
+    Attributes
+    ----------
+    encoding : str
+        ``ascii``, ``binary_little_endian`` or ``binary_big_endian``.
+    counts : dict of str to int
+        Rows of each element by name (the first of each name).
+    """
+
+    encoding: str
+    counts: dict[str, int]
+
+    @property
+    def binary(self) -> bool:
+        """The data is binary (read as views over the bytes, without parsing text)."""
+        return self.encoding != "ascii"
+
+    @property
+    def has_faces(self) -> bool:
+        """The file declares at least one face."""
+        return self.counts.get("face", 0) > 0
+
+
+def read_ply_header(data: bytes) -> PlyHeader:
+    """Read only a PLY file's header (nothing of its data).
+
+    Parameters
+    ----------
+    data : bytes
+
+    Returns
+    -------
+    PlyHeader
+
+    Raises
+    ------
+    MeshFormatError
+        Not a PLY header.
+    """
+    encoding, elements, _ = _parse_header(data)
+    counts: dict[str, int] = {}
+    for element in elements:
+        counts.setdefault(element.name, element.count)
+    return PlyHeader(encoding, counts)
+
+
+def read_ply_vertex_columns(data: bytes, limits: ReadLimits | None = None
+                            ) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...] | None]:
+    """The vertex element's ``x y z`` (and ``nx ny nz``) columns, nothing converted.
+
+    The header's counts are checked as :func:`parse_ply` checks them; the elements after
+    the vertex element are not read. A binary file's columns are views over ``data``
+    in the file's types (no row is copied); an ASCII file's are float64.
+
+    Parameters
+    ----------
+    data : bytes
+    limits : ReadLimits, optional
+
+    Returns
+    -------
+    xyz : tuple of three (V,) arrays
+    normals : tuple of three (V,) arrays, or None
+        When the vertex element has ``nx ny nz``.
+
+    Raises
+    ------
+    MeshFormatError
+        No vertex element, or one without ``x y z``.
+    """
+    vertex = _read_elements(data, limits or UNLIMITED, until="vertex").get("vertex")
+    if vertex is None:
+        raise MeshFormatError("PLY: the file has no 'vertex' element")
+    if not all(axis in vertex and not isinstance(vertex[axis], tuple) for axis in "xyz"):
+        raise MeshFormatError("PLY: the vertex element has no x, y, z properties")
+    xyz = tuple(vertex[a] for a in "xyz")
+    names = ("nx", "ny", "nz")
+    if all(a in vertex and not isinstance(vertex[a], tuple) for a in names):
+        return xyz, tuple(vertex[a] for a in names)
+    return xyz, None
 
 
 def _check_face_corners(values: dict, limits: ReadLimits) -> None:
@@ -529,4 +625,5 @@ def export_ply(mesh: PolygonMesh, *, encoding: str = "binary_little_endian") -> 
     return (header + "\n").encode("ascii") + vertex_bytes + out.tobytes()
 
 
-__all__ = ["PlyData", "export_ply", "load_ply", "parse_ply"]
+__all__ = ["PlyData", "PlyHeader", "export_ply", "load_ply", "parse_ply", "read_ply_header",
+           "read_ply_vertex_columns"]

@@ -45,12 +45,22 @@ class CloudInput:
         How the file was read.
     file_type : str
         The format read (``obj``, ``ply``, ``xyz``...).
+    count : int, optional
+        Points in the file when the cloud was reduced to ``points``
+        (:func:`spacemesh.io.points.read_points`); None when ``points`` are all of them
+        (or a mesh's samples).
     """
 
     points: FloatArray
     normals: FloatArray | None
     kind: InputKind
     file_type: str
+    count: int | None = None
+
+    @property
+    def points_read(self) -> int:
+        """Points in the file (samples of a mesh): ``count``, else ``len(points)``."""
+        return len(self.points) if self.count is None else self.count
 
     @property
     def source(self) -> str:
@@ -81,6 +91,7 @@ def load_cloud_input(
     *,
     n_points: int = DEFAULT_SURFACE_POINTS,
     seed: int = 0,
+    keep: int | None = None,
 ) -> CloudInput:
     """Read a generation's input: a mesh's surface sampled, or a point cloud.
 
@@ -96,6 +107,9 @@ def load_cloud_input(
         Points sampled on a mesh's surface.
     seed : int
         Seed of the sampling (the same file gives the same points).
+    keep : int, optional
+        A point cloud of more points is reduced to this many
+        (:func:`spacemesh.io.points.read_points`, its own fixed seed); None: all kept.
 
     Returns
     -------
@@ -107,7 +121,7 @@ def load_cloud_input(
         As :func:`spacemesh.io.load_mesh` and :func:`spacemesh.io.points.load_points`.
     """
     from spacemesh.io import load_mesh, read_source, resolve_file_type
-    from spacemesh.io.points import SUPPORTED_POINTS_READ, load_points
+    from spacemesh.io.points import SUPPORTED_POINTS_READ, read_points
     from spacemesh.primitives import sample_surface
 
     if isinstance(path_or_bytes, (bytes, bytearray, memoryview)) or hasattr(
@@ -118,15 +132,30 @@ def load_cloud_input(
         data, extension, _ = read_source(path_or_bytes)
         source = path_or_bytes  # a glTF path keeps its folder (external buffers)
     fmt = resolve_file_type(file_type, extension, data, SUPPORTED_POINTS_READ, "point cloud")
-    if fmt in SURFACE_FORMATS:
+    # a PLY whose header declares no faces is a cloud: read once, as a cloud
+    faceless_ply = fmt == "ply" and not _ply_has_faces(data)
+    if fmt in SURFACE_FORMATS and not faceless_ply:
         mesh = load_mesh(source, file_type=fmt, limits=limits)
         if mesh.n_faces and _has_area(mesh):
             samples, sample_normals = sample_surface(mesh, int(n_points),
                                                      np.random.default_rng(seed))
             return CloudInput(samples.astype(np.float64), sample_normals.astype(np.float64),
                               "mesh", fmt)
-    points, normals = load_points(data, file_type=fmt, limits=limits)
-    return CloudInput(points, normals, "points", fmt)
+    read = read_points(data, file_type=fmt, limits=limits, keep=keep)
+    return CloudInput(read.points, read.normals, "points", fmt,
+                      read.count if read.reduced else None)
+
+
+def _ply_has_faces(data: bytes) -> bool:
+    """Whether a PLY header declares faces (True when it cannot be read: the mesh
+    reader then says why)."""
+    from spacemesh.io.errors import MeshFormatError
+    from spacemesh.io.ply import read_ply_header
+
+    try:
+        return read_ply_header(data).has_faces
+    except MeshFormatError:
+        return True
 
 
 __all__ = ["DEFAULT_SURFACE_POINTS", "SURFACE_FORMATS", "CloudInput", "input_kind",

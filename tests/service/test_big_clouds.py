@@ -1,0 +1,107 @@
+"""Clouds of more points than the pipeline works on, on a real server with the default
+limits: binary clouds are reduced (and say so), text clouds and oversize binary clouds are
+refused with 413, and ``spacemesh generate`` reduces them too."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from service_testing import as_npy, as_npz, as_ply, as_text, make_cloud
+
+from spacemesh.io.reduce import reduce_cloud
+from spacemesh.mesh import PolygonMesh
+from spacemesh.topology import check_topology
+
+pytestmark = pytest.mark.slow
+
+#: Above the text limit and the working size (both 200,000 by default).
+BIG = 300_000
+
+
+@pytest.fixture(scope="module")
+def big_case(generator):
+    """A 300,000-point cloud (float32-exact) and a seed whose mesh has faces."""
+    from spacemesh_service.settings import Settings
+
+    points = make_cloud(BIG, seed=7)
+    working, _ = reduce_cloud(points, None, Settings.model_fields["working_points"].default)
+    seed = next((s for s in range(6) if generator.generate(working, seed=s).mesh.n_faces),
+                None)
+    if seed is None:
+        pytest.fail("the tiny model made no surface from the reduced 300k cloud", pytrace=False)
+    return points, seed
+
+
+@pytest.fixture(scope="module")
+def default_http(start_server, generator):
+    """A server with the default point and byte limits."""
+    import httpx
+
+    from spacemesh_service.settings import Settings
+
+    defaults = {name: Settings.model_fields[name].default for name in
+                ("max_points", "max_text_points", "working_points", "max_upload_bytes",
+                 "max_text_bytes")}
+    server = start_server(generator, **defaults)
+    with httpx.Client(base_url=server.url, timeout=120) as client:
+        yield client
+
+
+def test_binary_clouds_above_the_text_limit_are_reduced(default_http, big_case):
+    points, seed = big_case
+    bodies = {}
+    for name, encode in [("c.ply", as_ply), ("c.npy", as_npy), ("c.npz", as_npz)]:
+        response = default_http.post("/generate", params={"seed": seed, "format": "json"},
+                                     files={"file": (name, encode(points))})
+        assert response.status_code == 200, (name, response.text)
+        assert response.headers["x-spacemesh-points-read"] == str(BIG)
+        assert response.headers["x-spacemesh-points-used"] == "200000"
+        body = response.json()
+        assert body["points_reduced"] == {"read": BIG, "used": 200_000}
+        mesh = PolygonMesh.from_faces(body["vertices"], body["faces"])
+        assert mesh.n_faces and check_topology(mesh).is_closed_oriented_manifold
+        bodies[name] = response.content
+    assert len(set(bodies.values())) == 1  # the same points whatever the binary format
+
+
+def test_text_clouds_above_the_text_limit_are_413(default_http):
+    text = as_text(make_cloud(200_001, seed=1))
+    response = default_http.post("/generate", files={"file": ("c.xyz", text)})
+    assert response.status_code == 413 and response.headers["content-type"].startswith(
+        "application/problem+json")
+    body = response.json()
+    assert body["type"].endswith("/too-many-points") and body["limit"] == 200_000
+    assert "200000" in body["detail"]
+
+
+def test_binary_clouds_above_the_point_limit_are_413(default_http):
+    from spacemesh_service.settings import Settings
+
+    limit = Settings.model_fields["max_points"].default
+    header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {limit + 1}\n"
+              "property float x\nproperty float y\nproperty float z\nend_header\n").encode()
+    response = default_http.post("/generate", files={"file": ("c.ply", header + b"\0" * 64)})
+    assert response.status_code == 413, response.text
+    body = response.json()
+    assert body["type"].endswith("/too-many-points") and body["limit"] == limit
+
+
+def test_the_cli_reduces_a_big_npy(toy_repository, big_case, tmp_path):
+    from typer.testing import CliRunner
+
+    from spacemesh.cli import _register, app
+
+    points, seed = big_case
+    cloud = tmp_path / "big.npy"
+    np.save(cloud, points.astype(np.float32))
+    out = tmp_path / "m.obj"
+    _register()
+    result = CliRunner().invoke(app, ["generate", str(cloud), "-o", str(out), "--model",
+                                      str(toy_repository), "--seed", str(seed),
+                                      "--no-progress", "--json"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.stdout)
+    assert summary["points_reduced"] == {"read": BIG, "used": 200_000}
+    assert summary["faces"] > 0 and out.exists()
