@@ -7,9 +7,11 @@ resolves them once, and an option of the wrong type or out of range is one line 
 and exit code 2. The point cloud is checked
 as the service checks it (:func:`spacemesh.runtime.cloud.validate_cloud`, with the
 service's default limits): too few or too many points, NaN or infinite values, or
-identical, collinear or coplanar points are one line on stderr and exit code 2. The
-summary reports the resolved options, the fit report (:meth:`FitReport.to_dict`) and
-every seed's score.
+identical, collinear or coplanar points are one line on stderr and exit code 2. A cloud
+of more than :data:`~spacemesh.io.reduce.DEFAULT_WORKING_POINTS` points is first reduced
+to that many (a seeded random subset, as the service does; ``points_reduced`` in the
+summary says from how many). The summary reports the resolved options, the fit report
+(:meth:`FitReport.to_dict`) and every seed's score.
 """
 
 from __future__ import annotations
@@ -97,6 +99,7 @@ def generate(
 
     from spacemesh.io import save_mesh
     from spacemesh.io.errors import MeshFormatError
+    from spacemesh.io.reduce import DEFAULT_WORKING_POINTS
     from spacemesh.io.surface import load_cloud_input
     from spacemesh.runtime import MeshGenerator, ModelRepositoryError
     from spacemesh.runtime.cloud import CloudError, validate_cloud
@@ -115,8 +118,9 @@ def generate(
         generator = MeshGenerator.from_repository(model, intra_op_threads=use_threads(threads))
     except ModelRepositoryError as error:
         fail(str(error))
-    try:  # a mesh's surface is sampled to the model's point count
-        cloud = load_cloud_input(points_path, n_points=generator.spec.n_points)
+    try:  # a mesh's surface is sampled to the model's point count, a big cloud reduced
+        cloud = load_cloud_input(points_path, n_points=generator.spec.n_points,
+                                 keep=DEFAULT_WORKING_POINTS)
     except MeshFormatError as error:
         fail(f"{points_path}: {error}")
     points, normals = cloud.points, cloud.normals
@@ -151,6 +155,11 @@ def generate(
         "sample_scores": [[s, score] for s, score in result.sample_scores],
         "timings": {k: round(v, 4) for k, v in result.timings.items()},
     }
+    if cloud.count is not None:  # a big cloud, reduced to the working size
+        summary["points_reduced"] = {"read": cloud.count, "used": len(cloud.points)}
+        if not as_json:
+            typer.echo(f"spacemesh: {points_path}: {cloud.count} points, reduced to "
+                       f"{len(cloud.points)} (a seeded random subset)", err=True)
     if as_json:
         typer.echo(json.dumps(summary))
     else:
