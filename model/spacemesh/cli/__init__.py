@@ -1,4 +1,5 @@
-"""The ``spacemesh`` command line: fit, data, train, export, eval, generate, repair, serve.
+"""The ``spacemesh`` command line: fit, data, train, export, eval, generate, repair, serve,
+batch.
 
 Each command group lives in its own module and registers itself on :data:`app`.
 Errors a user can cause are printed as one line on stderr with exit code 2.
@@ -21,6 +22,7 @@ COMMAND_MODULES = (
     "spacemesh.cli.generate",
     "spacemesh.cli.repair",
     "spacemesh.cli.serve",
+    "spacemesh.cli.batch",
 )
 
 
