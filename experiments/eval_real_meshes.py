@@ -13,7 +13,8 @@ into the repository; the script skips cleanly (exit 0) when the folder is absent
 Usage::
 
     python experiments/eval_real_meshes.py --split test [--model MODEL_REPO]
-        [--out docs/results/real] [--modes default,raw,samples4,gt] [--noise 0.01] [--outliers 0.05] [--partial]
+        [--out docs/results/real] [--modes default,raw,samples4,gt] [--noise 0.01]
+        [--outliers 0.05] [--partial]
 """
 
 from __future__ import annotations

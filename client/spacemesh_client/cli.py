@@ -185,6 +185,10 @@ def _fit_line(mesh: Mesh) -> str:
         line += (f"; {pieces} piece{'' if pieces == 1 else 's'}{points}, "
                  f"genus {int(fit['genus'])}")
         line += f", {loops} boundary loop{'' if loops == 1 else 's'}" if loops else ""
+    if fit.get("points_noise") is not None:  # servers from 2026-12-04 on
+        line += f"; the points: noise {100 * fit['points_noise']:.2g}% of the diagonal"
+        share = float(fit.get("points_outliers") or 0.0)
+        line += f", {100 * share:.2g}% outliers set aside" if share > 0 else ""
     return line
 
 

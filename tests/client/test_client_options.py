@@ -183,3 +183,5 @@ def test_the_cli_sends_the_options_and_prints_the_fit(url, case, tmp_path):
     points_pieces = summary["fit"]["points_pieces"]
     assert (f"; {pieces} piece{'' if pieces == 1 else 's'} (the points: {points_pieces}), "
             f"genus {genus}") in done.stdout
+    noise = summary["fit"]["points_noise"]
+    assert f"; the points: noise {100 * noise:.2g}% of the diagonal" in done.stdout

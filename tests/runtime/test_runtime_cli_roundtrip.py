@@ -81,6 +81,7 @@ def test_generate_options_and_fit_report(toy_model, tmp_path):
     piece = "piece" if fit["pieces"] == 1 else "pieces"
     assert (f"; {fit['pieces']} {piece} (the points: {fit['points_pieces']}), "
             f"genus {fit['genus']}") in plain.stdout
+    assert f"; the points: noise {100 * fit['points_noise']:.2g}% of the diagonal" in plain.stdout
 
 
 @pytest.mark.parametrize(("flags", "message"), [

@@ -227,3 +227,21 @@ def test_retry_seeds_in_a_manifest_are_checked():
     for bad in (-1, 9, 2.0, True, "4"):
         with pytest.raises(ValueError, match="retry_seeds"):
             check_retry_seeds(bad)
+
+
+def test_outliers_are_set_aside_before_anything_else_and_reported(generator, cloud):
+    stray = np.array([[3.0, 3.0, 3.0], [-4.0, 2.5, 0.0], [0.5, -3.5, 2.0]])  # (3, 3)
+    request = GenerateRequest(np.concatenate([cloud, stray]),
+                              options=GenerateOptions(seed=1, start="points"))
+    prepared = generator.prepare_input(request, request.options.resolve(generator.spec))
+    assert prepared.quality is not None and not prepared.quality.kept[-3:].any()
+    assert len(prepared.points) == len(cloud) + 3 - int((~prepared.quality.kept).sum())
+    assert np.abs(prepared.points).max() <= 1.0 + 1e-9  # the frame is the sphere's
+    result = generator.generate(request.points, seed=1, start="points")
+    fit = result.fit
+    assert fit is not None and fit.points_outliers == pytest.approx(
+        (~prepared.quality.kept).mean())
+    assert fit.points_noise is not None and 0.0 <= fit.points_noise < 0.01
+    assert fit.n_points == len(prepared.points)  # measured from the kept points
+    # nothing reaches for the strays (the toy model may make an empty mesh)
+    assert result.mesh.n_vertices == 0 or np.abs(result.mesh.vertices).max() < 1.5

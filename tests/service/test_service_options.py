@@ -217,3 +217,11 @@ def test_every_generated_mesh_reports_its_fit(http, stub, case):
     assert response.headers["x-spacemesh-fit-points-pieces"] == str(fit["points_pieces"])
     assert reply.stats.fit.HasField("points_pieces")
     assert reply.stats.fit.points_pieces == fit["points_pieces"]
+    # and what the points are like: outliers set aside, the noise of the rest
+    assert 0.0 <= fit["points_outliers"] < 0.05 and 0.0 <= fit["points_noise"] < 0.05
+    assert response.headers["x-spacemesh-fit-points-noise"] == str(fit["points_noise"])
+    assert response.headers["x-spacemesh-fit-points-outliers"] == str(fit["points_outliers"])
+    assert reply.stats.fit.HasField("points_noise") and reply.stats.fit.HasField(
+        "points_outliers")
+    assert (reply.stats.fit.points_noise, reply.stats.fit.points_outliers) == (
+        fit["points_noise"], fit["points_outliers"])

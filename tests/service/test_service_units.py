@@ -329,8 +329,10 @@ def test_the_fit_report_becomes_headers_json_and_grpc_by_its_field_names():
 
     mesh = cube_quads()
     plain = fit_report(mesh, mesh.vertices)
-    fit = replace(plain, tolerance=0.01, tolerance_met=True, points_pieces=1).to_dict()
-    assert set(fit) - set(plain.to_dict()) == {"tolerance", "tolerance_met", "points_pieces"}
+    fit = replace(plain, tolerance=0.01, tolerance_met=True, points_pieces=1,
+                  points_outliers=0.05, points_noise=0.004).to_dict()
+    assert set(fit) - set(plain.to_dict()) == {"tolerance", "tolerance_met", "points_pieces",
+                                               "points_outliers", "points_noise"}
     encoded = encode_mesh(mesh, "json", {"seed": 1}, fit)
     assert json.loads(encoded.body)["stats"]["fit"] == fit
     headers = stats_headers(encoded.stats)
@@ -342,11 +344,14 @@ def test_the_fit_report_becomes_headers_json_and_grpc_by_its_field_names():
     assert headers["X-SpaceMesh-Fit-Components"] == "1"
     assert headers["X-SpaceMesh-Fit-Tolerance-Met"] == "true"
     assert headers["X-SpaceMesh-Fit-Points-Pieces"] == "1"
+    assert headers["X-SpaceMesh-Fit-Points-Outliers"] == "0.05"
+    assert headers["X-SpaceMesh-Fit-Points-Noise"] == "0.004"
     message = stats_to_pb(encoded.stats)
     assert {f.name: getattr(message.fit, f.name) for f in message.fit.DESCRIPTOR.fields} == fit
     without = stats_to_pb(replace(encoded.stats, fit=plain.to_dict())).fit
     assert not without.HasField("tolerance") and not without.HasField("tolerance_met")
     assert not without.HasField("points_pieces")
+    assert not without.HasField("points_outliers") and not without.HasField("points_noise")
     assert not stats_to_pb(replace(encoded.stats, fit=None)).HasField("fit")
     nan = {**fit, "points_to_mesh_mean": float("nan")}
     assert json.loads(encode_mesh(mesh, "json", {}, nan).body)["stats"]["fit"][

@@ -169,7 +169,7 @@ def generate(
                    f"{fit.get('points_to_mesh_mean_rel', float('nan')):.4g}, mesh->points "
                    f"{fit.get('mesh_to_points_mean_rel', float('nan')):.4g} of the diagonal, "
                    f"coverage {100 * fit.get('coverage', float('nan')):.0f}%"
-                   f"{_tolerance_text(fit)}{_topology_text(fit)}")
+                   f"{_tolerance_text(fit)}{_topology_text(fit)}{_points_text(fit)}")
 
 
 def _tolerance_text(fit: dict) -> str:
@@ -177,6 +177,16 @@ def _tolerance_text(fit: dict) -> str:
     if fit.get("tolerance") is None:
         return ""
     return f", tolerance {fit['tolerance']:g} {'met' if fit.get('tolerance_met') else 'not met'}"
+
+
+def _points_text(fit: dict) -> str:
+    """``; the points: noise 0.45% of the diagonal, 4.8% outliers set aside`` from a fit
+    report ("" without the points' estimates; the outliers only when some were)."""
+    if fit.get("points_noise") is None:
+        return ""
+    text = f"; the points: noise {100 * fit['points_noise']:.2g}% of the diagonal"
+    share = float(fit.get("points_outliers") or 0.0)
+    return text + (f", {100 * share:.2g}% outliers set aside" if share > 0 else "")
 
 
 def _topology_text(fit: dict) -> str:

@@ -21,7 +21,12 @@ lines and ``samples=K`` (which keeps the seed with the lowest :attr:`FitReport.s
   (:mod:`spacemesh.runtime.tolerance`);
 * ``points_pieces``: from a generate, the pieces of the surface the points sample, the
   points' own estimate (:func:`spacemesh.runtime.pieces.point_pieces`); the mesh's
-  ``pieces`` agree with the points when the two are equal (:attr:`FitReport.pieces_agree`).
+  ``pieces`` agree with the points when the two are equal (:attr:`FitReport.pieces_agree`);
+* ``points_outliers`` and ``points_noise``: from a generate, the share of the uploaded
+  points set aside as outliers before anything else ran, and the noise of the rest
+  along the surface normal as a fraction of their diagonal
+  (:func:`spacemesh.geometry.cleaning.assess_points`). The distances above are measured
+  from the kept points.
 """
 
 from __future__ import annotations
@@ -51,7 +56,7 @@ REPORT_SEED = 0
 
 
 #: Fields of :class:`FitReport` that only some responses have (left out when None).
-_OPTIONAL = ("tolerance", "tolerance_met", "points_pieces")
+_OPTIONAL = ("tolerance", "tolerance_met", "points_pieces", "points_outliers", "points_noise")
 
 
 @dataclass(frozen=True)
@@ -80,6 +85,8 @@ class FitReport:
     tolerance: float | None = None
     tolerance_met: bool | None = None
     points_pieces: int | None = None
+    points_outliers: float | None = None
+    points_noise: float | None = None
 
     @property
     def pieces_agree(self) -> bool | None:
@@ -94,8 +101,8 @@ class FitReport:
         return self.points_to_mesh_mean_rel + self.mesh_to_points_mean_rel
 
     def to_dict(self) -> dict[str, float | int]:
-        """Every field by name (``tolerance``, ``tolerance_met`` and ``points_pieces``
-        only when set)."""
+        """Every field by name (``tolerance``, ``tolerance_met``, ``points_pieces``,
+        ``points_outliers`` and ``points_noise`` only when set)."""
         return {k: v for k, v in asdict(self).items() if v is not None or k not in _OPTIONAL}
 
 

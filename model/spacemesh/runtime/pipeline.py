@@ -2,7 +2,8 @@
 
 For each request:
 
-1. normalise the points (bounding-box centre to the origin, longest axis to [-1, 1]);
+1. set the outliers aside and measure the noise (:mod:`spacemesh.geometry.cleaning`),
+   then normalise the rest (bounding-box centre to the origin, longest axis to [-1, 1]);
 2. subsample or pad them to the encoder's point count (deterministically);
 3. encoder, once -> feature volumes;
 4. sampler loop over the denoiser -> vertex tokens; the mask channel picks the vertices
@@ -36,6 +37,7 @@ from spacemesh.geometry import (
     feature_weights,
     fit_report,
 )
+from spacemesh.geometry.cleaning import PointsQuality, assess_points
 from spacemesh.geometry.policy import decode_changes
 from spacemesh.geometry.untangle import untangle
 from spacemesh.mesh import PolygonMesh
@@ -295,13 +297,16 @@ class PreparedInput:
     scale : float
         ``points = unit * scale + centre``.
     points : (P, 3) float64
-        The uploaded points (the fit report's reference).
+        The uploaded points that are not outliers (the fit report's reference).
     unit : (P, 3) float64
         The same, normalised.
     normals : (P, 3) float64, optional
-        The upload's normals.
+        The upload's normals of those points.
     weights : (P,) float64, optional
         Farthest-point weights (``start=points`` only).
+    quality : PointsQuality, optional
+        The outliers set aside and the noise of the rest (:func:`assess_points`; its
+        ``kept`` mask is over the upload's points).
     pieces : int
         The pieces the points form (:func:`point_pieces` of the encoder's cloud), made
         once on first use and shared by the request's seeds and tolerance tries.
@@ -314,6 +319,16 @@ class PreparedInput:
     unit: FloatArray
     normals: FloatArray | None
     weights: FloatArray | None
+    quality: PointsQuality | None = None
+
+    def report(self, mesh: PolygonMesh) -> FitReport:
+        """The fit report of ``mesh`` (in the upload's frame) against these points, with
+        the points' noise and outlier share."""
+        report = fit_report(mesh, self.points)
+        if self.quality is None:
+            return report
+        return replace(report, points_noise=self.quality.noise,
+                       points_outliers=self.quality.outliers)
 
     @cached_property
     def pieces(self) -> int:
@@ -610,7 +625,7 @@ class MeshGenerator:
             return result
         result.mesh = mesh
         result.geometry_stats = {**result.geometry_stats, **stats}
-        result.fit = replace(fit_report(mesh, prepared.points),
+        result.fit = replace(prepared.report(mesh),
                              points_pieces=result.fit.points_pieces,
                              tolerance=result.fit.tolerance,
                              tolerance_met=result.fit.tolerance_met)
@@ -734,6 +749,10 @@ class MeshGenerator:
         p, n = check_points(request.points, request.normals)
         if self.spec.normals and n is None:
             raise ValueError("this model needs normals with the points")
+        quality = assess_points(p)
+        if not quality.kept.all():
+            p = p[quality.kept]
+            n = None if n is None else n[quality.kept]
         unit, centre, scale = normalize_points(p)
         rng = np.random.default_rng(POINT_SUBSET_SEED)
         pick = choose_points(len(unit), self.spec.n_points, rng)
@@ -745,7 +764,7 @@ class MeshGenerator:
         cloud = np.concatenate(columns, axis=1).astype(np.float32)
         weights = (feature_weights(unit, self.spec.feature_boost)
                    if options is not None and options.start == "points" else None)
-        return PreparedInput(cloud, centre, scale, p, unit, n, weights)
+        return PreparedInput(cloud, centre, scale, p, unit, n, weights, quality)
 
     def vertex_count(self, options: GenerateOptions) -> int:
         """Vertices ``start=points`` chooses: the target, else the model's default."""
@@ -834,7 +853,7 @@ class MeshGenerator:
             mesh = mesh.with_vertices(mesh.vertices * prepared.scale + prepared.centre)
             e2 = time.perf_counter()
             stage("report", b + 1, len(jobs))
-            report = fit_report(mesh, prepared.points)
+            report = prepared.report(mesh)
             timings = {"encoder": t1 - t0, "sampler": t2 - t1, "connectivity": t3 - t2,
                        "extraction": e1 - e0, "geometry": e2 - e1,
                        "report": time.perf_counter() - e2}

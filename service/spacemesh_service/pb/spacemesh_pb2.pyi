@@ -53,7 +53,7 @@ class GenerateRequest(_message.Message):
     def __init__(self, file: _Optional[_Union[PointCloudFile, _Mapping]] = ..., points: _Optional[_Union[Points, _Mapping]] = ..., format: _Optional[str] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., start: _Optional[str] = ..., start_time: _Optional[float] = ..., target_vertices: _Optional[int] = ..., samples: _Optional[int] = ..., raw: _Optional[bool] = ..., tolerance: _Optional[float] = ..., stages: _Optional[bool] = ...) -> None: ...
 
 class FitReport(_message.Message):
-    __slots__ = ("points_to_mesh_mean", "points_to_mesh_p95", "mesh_to_points_mean", "mesh_to_points_p95", "points_to_mesh_mean_rel", "points_to_mesh_p95_rel", "mesh_to_points_mean_rel", "mesh_to_points_p95_rel", "coverage", "components", "self_intersections", "diagonal", "n_points", "pieces", "genus", "boundary_loops", "tolerance", "tolerance_met", "points_pieces")
+    __slots__ = ("points_to_mesh_mean", "points_to_mesh_p95", "mesh_to_points_mean", "mesh_to_points_p95", "points_to_mesh_mean_rel", "points_to_mesh_p95_rel", "mesh_to_points_mean_rel", "mesh_to_points_p95_rel", "coverage", "components", "self_intersections", "diagonal", "n_points", "pieces", "genus", "boundary_loops", "tolerance", "tolerance_met", "points_pieces", "points_outliers", "points_noise")
     POINTS_TO_MESH_MEAN_FIELD_NUMBER: _ClassVar[int]
     POINTS_TO_MESH_P95_FIELD_NUMBER: _ClassVar[int]
     MESH_TO_POINTS_MEAN_FIELD_NUMBER: _ClassVar[int]
@@ -73,6 +73,8 @@ class FitReport(_message.Message):
     TOLERANCE_FIELD_NUMBER: _ClassVar[int]
     TOLERANCE_MET_FIELD_NUMBER: _ClassVar[int]
     POINTS_PIECES_FIELD_NUMBER: _ClassVar[int]
+    POINTS_OUTLIERS_FIELD_NUMBER: _ClassVar[int]
+    POINTS_NOISE_FIELD_NUMBER: _ClassVar[int]
     points_to_mesh_mean: float
     points_to_mesh_p95: float
     mesh_to_points_mean: float
@@ -92,7 +94,9 @@ class FitReport(_message.Message):
     tolerance: float
     tolerance_met: bool
     points_pieces: int
-    def __init__(self, points_to_mesh_mean: _Optional[float] = ..., points_to_mesh_p95: _Optional[float] = ..., mesh_to_points_mean: _Optional[float] = ..., mesh_to_points_p95: _Optional[float] = ..., points_to_mesh_mean_rel: _Optional[float] = ..., points_to_mesh_p95_rel: _Optional[float] = ..., mesh_to_points_mean_rel: _Optional[float] = ..., mesh_to_points_p95_rel: _Optional[float] = ..., coverage: _Optional[float] = ..., components: _Optional[int] = ..., self_intersections: _Optional[float] = ..., diagonal: _Optional[float] = ..., n_points: _Optional[int] = ..., pieces: _Optional[int] = ..., genus: _Optional[int] = ..., boundary_loops: _Optional[int] = ..., tolerance: _Optional[float] = ..., tolerance_met: _Optional[bool] = ..., points_pieces: _Optional[int] = ...) -> None: ...
+    points_outliers: float
+    points_noise: float
+    def __init__(self, points_to_mesh_mean: _Optional[float] = ..., points_to_mesh_p95: _Optional[float] = ..., mesh_to_points_mean: _Optional[float] = ..., mesh_to_points_p95: _Optional[float] = ..., points_to_mesh_mean_rel: _Optional[float] = ..., points_to_mesh_p95_rel: _Optional[float] = ..., mesh_to_points_mean_rel: _Optional[float] = ..., mesh_to_points_p95_rel: _Optional[float] = ..., coverage: _Optional[float] = ..., components: _Optional[int] = ..., self_intersections: _Optional[float] = ..., diagonal: _Optional[float] = ..., n_points: _Optional[int] = ..., pieces: _Optional[int] = ..., genus: _Optional[int] = ..., boundary_loops: _Optional[int] = ..., tolerance: _Optional[float] = ..., tolerance_met: _Optional[bool] = ..., points_pieces: _Optional[int] = ..., points_outliers: _Optional[float] = ..., points_noise: _Optional[float] = ...) -> None: ...
 
 class SampleScore(_message.Message):
     __slots__ = ("seed", "score")
