@@ -17,7 +17,22 @@ from typing import Annotated, Any
 
 import typer
 
-from spacemesh.cli.common import app, fail, generate_options, option_flag, require_extra
+from spacemesh.cli.common import (
+    RawFlag,
+    SamplerFlag,
+    SamplesFlag,
+    SeedFlag,
+    StartFlag,
+    StartTimeFlag,
+    StepsFlag,
+    TargetVerticesFlag,
+    ToleranceFlag,
+    app,
+    fail,
+    generate_options,
+    option_flag,
+    require_extra,
+)
 
 #: Generate options that ``--repair`` does not take (it reads seed, steps and sampler).
 GENERATE_ONLY = ("start", "start_time", "target_vertices", "tolerance", "samples", "raw")
@@ -57,25 +72,15 @@ def batch(
     model: Annotated[Path | None, typer.Option(
         "--model", help="Model repository, as every worker sees it (default: the shipped "
         "model or $SPACEMESH_MODEL).")] = None,
-    seed: Annotated[str | None, typer.Option(
-        "--seed", metavar="INTEGER", help="The same seed gives the same mesh (default 0).")
-    ] = None,
-    steps: Annotated[str | None, typer.Option(
-        "--steps", metavar="INTEGER", help="Sampler steps (default: the model's).")] = None,
-    sampler: Annotated[str | None, typer.Option(
-        "--sampler", help="ddim or ddpm (default: the model's).")] = None,
-    start: Annotated[str | None, typer.Option(
-        "--start", help="noise or points (as spacemesh generate).")] = None,
-    start_time: Annotated[str | None, typer.Option(
-        "--start-time", metavar="NUMBER", help="As spacemesh generate.")] = None,
-    target_vertices: Annotated[str | None, typer.Option(
-        "--target-vertices", metavar="INTEGER", help="As spacemesh generate.")] = None,
-    tolerance: Annotated[str | None, typer.Option(
-        "--tolerance", metavar="NUMBER", help="As spacemesh generate.")] = None,
-    samples: Annotated[str | None, typer.Option(
-        "--samples", metavar="INTEGER", help="As spacemesh generate.")] = None,
-    raw: Annotated[bool, typer.Option(
-        "--raw", help="The networks' mesh without the geometry stage.")] = False,
+    seed: SeedFlag = None,
+    steps: StepsFlag = None,
+    sampler: SamplerFlag = None,
+    start: StartFlag = None,
+    start_time: StartTimeFlag = None,
+    target_vertices: TargetVerticesFlag = None,
+    tolerance: ToleranceFlag = None,
+    samples: SamplesFlag = None,
+    raw: RawFlag = False,
     retry_errors: Annotated[bool, typer.Option(
         "--retry-errors", help="Run inputs with an error row again (by default a rerun "
         "retries only unreadable-input and internal-error rows).")] = False,

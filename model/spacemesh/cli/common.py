@@ -34,6 +34,33 @@ Threads = Annotated[
     ),
 ]
 
+# The generate options of ``spacemesh generate`` and ``spacemesh batch`` (one flag and
+# help text each). Values are taken as text and parsed by :func:`generate_options`.
+SeedFlag = Annotated[str | None, typer.Option(
+    "--seed", metavar="INTEGER", help="The same seed gives the same mesh (default 0).")]
+StepsFlag = Annotated[str | None, typer.Option(
+    "--steps", metavar="INTEGER", help="Sampler steps (default: the model's).")]
+SamplerFlag = Annotated[str | None, typer.Option(
+    "--sampler", help="ddim or ddpm (default: the model's).")]
+StartFlag = Annotated[str | None, typer.Option(
+    "--start", help="Where the vertices start: noise (the paper) or points (chosen on the "
+    "input) (default: the model's).")]
+StartTimeFlag = Annotated[str | None, typer.Option(
+    "--start-time", metavar="NUMBER", help="With --start points: the fraction of the "
+    "diffusion to denoise from, 0..1 (0: the chosen points as they are).")]
+TargetVerticesFlag = Annotated[str | None, typer.Option(
+    "--target-vertices", metavar="INTEGER", help="Vertices of the mesh (within 10%), "
+    "4..10,000; needs --start points.")]
+ToleranceFlag = Annotated[str | None, typer.Option(
+    "--tolerance", metavar="NUMBER", help="The smallest mesh whose mean distance from the "
+    "points is at most this fraction of their bounding-box diagonal, 1e-4..0.5 (not with "
+    "--target-vertices).")]
+SamplesFlag = Annotated[str | None, typer.Option(
+    "--samples", metavar="INTEGER", help="Try this many seeds (1..16) from --seed on and "
+    "keep the mesh that fits the points best (default 1).")]
+RawFlag = Annotated[bool, typer.Option(
+    "--raw", help="The networks' mesh without the geometry stage.")]
+
 P = ParamSpec("P")
 R = TypeVar("R")
 

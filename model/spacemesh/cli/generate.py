@@ -23,7 +23,16 @@ from typing import Annotated
 import typer
 
 from spacemesh.cli.common import (
+    RawFlag,
+    SamplerFlag,
+    SamplesFlag,
+    SeedFlag,
+    StartFlag,
+    StartTimeFlag,
+    StepsFlag,
+    TargetVerticesFlag,
     Threads,
+    ToleranceFlag,
     app,
     fail,
     generate_options,
@@ -49,45 +58,15 @@ def generate(
         typer.Option("--model", help="Model repository (default: the shipped model or "
                                      "$SPACEMESH_MODEL)."),
     ] = None,
-    seed: Annotated[
-        str | None, typer.Option("--seed", metavar="INTEGER",
-                                 help="The same seed gives the same mesh (default 0).")
-    ] = None,
-    steps: Annotated[
-        str | None, typer.Option("--steps", metavar="INTEGER",
-                                 help="Sampler steps (default: the model's).")
-    ] = None,
-    sampler: Annotated[
-        str | None, typer.Option("--sampler", help="ddim or ddpm (default: the model's).")
-    ] = None,
-    start: Annotated[
-        str | None, typer.Option("--start", help="Where the vertices start: noise (the "
-                                 "paper) or points (chosen on the input) (default: the "
-                                 "model's).")
-    ] = None,
-    start_time: Annotated[
-        str | None, typer.Option("--start-time", metavar="NUMBER", help="With --start "
-                                 "points: the fraction of the diffusion to denoise from, "
-                                 "0..1 (0: the chosen points as they are).")
-    ] = None,
-    target_vertices: Annotated[
-        str | None, typer.Option("--target-vertices", metavar="INTEGER", help="Vertices of "
-                                 "the mesh (within 10%), 4..10,000; needs --start points.")
-    ] = None,
-    tolerance: Annotated[
-        str | None, typer.Option("--tolerance", metavar="NUMBER", help="The smallest mesh "
-                                 "whose mean distance from the points is at most this "
-                                 "fraction of their bounding-box diagonal, 1e-4..0.5 (not "
-                                 "with --target-vertices).")
-    ] = None,
-    samples: Annotated[
-        str | None, typer.Option("--samples", metavar="INTEGER", help="Try this many seeds "
-                                 "(1..16) from --seed on and keep the mesh that fits the "
-                                 "points best (default 1).")
-    ] = None,
-    raw: Annotated[
-        bool, typer.Option("--raw", help="The networks' mesh without the geometry stage.")
-    ] = False,
+    seed: SeedFlag = None,
+    steps: StepsFlag = None,
+    sampler: SamplerFlag = None,
+    start: StartFlag = None,
+    start_time: StartTimeFlag = None,
+    target_vertices: TargetVerticesFlag = None,
+    tolerance: ToleranceFlag = None,
+    samples: SamplesFlag = None,
+    raw: RawFlag = False,
     threads: Threads = 0,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
     progress: Annotated[
