@@ -216,7 +216,9 @@ def test_a_model_with_retry_seeds_tries_more_when_no_mesh_is_acceptable(generato
     if "untangle_rounds" in result.geometry_stats:
         stats = result.geometry_stats
         assert "untangle" in stages and stats["crossing_after"] < stats["crossing_before"]
-        assert result.fit.self_intersections == stats["crossing_after"]
+        # then fitted to the points again, whose guard lets nothing cross again
+        assert "untangle_refit_kept" in stats
+        assert result.fit.self_intersections <= stats["crossing_after"]
         assert check_topology(result.mesh).is_closed_oriented_manifold
 
 

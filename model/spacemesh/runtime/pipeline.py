@@ -614,7 +614,10 @@ class MeshGenerator:
                    stage: StageFn | None) -> GenerateResult:
         """With the model's topology check on (:attr:`ModelSpec.retry_seeds`), the
         chosen mesh's crossing faces smoothed apart (:func:`untangle`, stage
-        ``untangle``) and its fit report made again; ``raw`` results are left alone."""
+        ``untangle``), fitted to the points again (:func:`finish_geometry`, whose guard
+        lets no face cross that the untangling freed; smoothing alone can pull a folded
+        mesh far from the points) and its fit report made again; ``raw`` results are
+        left alone."""
         if (not self.spec.retry_seeds or result.options.raw or result.fit is None
                 or not _crosses(result)):
             return result
@@ -623,6 +626,11 @@ class MeshGenerator:
         mesh, stats = untangle(result.mesh)
         if stats["crossing_after"] >= stats["crossing_before"]:
             return result
+        unit = mesh.with_vertices((mesh.vertices - prepared.centre) / prepared.scale)
+        points, normals = prepared.fit_points()
+        refitted, refit_stats = finish_geometry(unit, points, normals, self.spec.geometry)
+        mesh = refitted.with_vertices(refitted.vertices * prepared.scale + prepared.centre)
+        stats["untangle_refit_kept"] = bool(refit_stats.get("kept", False))
         result.mesh = mesh
         result.geometry_stats = {**result.geometry_stats, **stats}
         result.fit = replace(prepared.report(mesh),
