@@ -163,7 +163,16 @@ def mesh_from_response(response: httpx.Response, fmt: str | None) -> Mesh:
         repair=_repair(headers.get(HEADER_PREFIX + "repair")),
         options=options_from_headers(headers),
         sample_scores=sample_scores_from_text(headers.get(HEADER_PREFIX + "sample-scores", "")),
+        points_reduced=_reduced(headers),
     )
+
+
+def _reduced(headers: httpx.Headers) -> dict[str, int] | None:
+    """``{"read": ..., "used": ...}`` from ``X-SpaceMesh-Points-Read`` / ``-Used`` (None
+    when the points were not reduced)."""
+    read = _int(headers.get(HEADER_PREFIX + "points-read"))
+    used = _int(headers.get(HEADER_PREFIX + "points-used"))
+    return None if read is None or used is None else {"read": read, "used": used}
 
 
 class EventReader:

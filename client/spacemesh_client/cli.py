@@ -137,6 +137,8 @@ def _summary(mesh: Mesh, output: Path, seconds: float) -> dict[str, Any]:
                **mesh.stats.to_dict(), "options": mesh.options}
     if mesh.sample_scores:
         summary["sample_scores"] = [list(item) for item in mesh.sample_scores]
+    if mesh.points_reduced is not None:
+        summary["points_reduced"] = dict(mesh.points_reduced)
     if mesh.repair is not None:
         summary["repair"] = {k: ({str(d): c for d, c in v.items()} if isinstance(v, dict)
                                  else v) for k, v in mesh.repair.items()}
@@ -159,6 +161,9 @@ def _report(mesh: Mesh, output: Path, seconds: float, as_json: bool) -> None:
                     f"{r.get('new_faces')} new faces, fallback {r.get('fallback')}")
         if r.get("welded_vertices"):
             repaired += f", {r['welded_vertices']} vertices welded"
+    if mesh.points_reduced is not None:  # a big binary cloud, reduced by the server
+        print(f"the server used {mesh.points_reduced['used']:,} of the "
+              f"{mesh.points_reduced['read']:,} points read", file=sys.stderr)
     print(f"{output}: {s.vertices} vertices, {s.faces} faces ({degrees}), {shape}, "
           f"genus {s.genus}{repaired}; seed {mesh.seed}, {mesh.steps} steps, {mesh.model} "
           f"({seconds:.2f} s){_fit_line(mesh)}")

@@ -193,7 +193,9 @@ def mesh_from_reply(reply: Any) -> Mesh:
                 model=f"{reply.model_name}/{reply.model_version}",
                 timings=dict(reply.timings), batch_size=reply.batch_size, repair=repair,
                 options=_reported_options(reply),
-                sample_scores=[(x.seed, x.score) for x in reply.sample_scores])
+                sample_scores=[(x.seed, x.score) for x in reply.sample_scores],
+                points_reduced=({"read": reply.points_read, "used": reply.points_used}
+                                if reply.HasField("points_read") else None))
 
 
 def _extensions(text: str | None) -> dict[str, Any]:

@@ -182,6 +182,9 @@ class Mesh:
         ``removed-new-vertices`` or ``polygon``), ``fill``, ``inpaint``,
         ``flipped_orientation`` and ``welded_vertices`` (vertices merged away by
         ``repair(..., weld=True)``, 0 without); the same over REST and gRPC.
+    points_reduced : dict or None
+        ``{"read": N, "used": M}`` when the server reduced the uploaded points to the
+        ``M`` the pipeline works on (a big binary cloud); None otherwise.
     """
 
     data: bytes = field(repr=False)
@@ -196,6 +199,7 @@ class Mesh:
     repair: dict[str, Any] | None = field(default=None, repr=False)
     options: dict[str, Any] = field(default_factory=dict, repr=False)
     sample_scores: list[tuple[int, float]] = field(default_factory=list, repr=False)
+    points_reduced: dict[str, int] | None = field(default=None, repr=False)
 
     @property
     def media_type(self) -> str:

@@ -80,6 +80,9 @@ def reply_to_pb(reply: Reply) -> pb.MeshReply:
         message.repair.CopyFrom(repair_stats_to_pb(reply.repair))
     if reply.input_kind is not None:
         message.input_kind = reply.input_kind
+    if reply.reduction is not None:
+        message.points_read = int(reply.reduction["read"])
+        message.points_used = int(reply.reduction["used"])
     return message
 
 

@@ -5,6 +5,8 @@ refused with 413, and ``spacemesh generate`` reduces them too."""
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -35,18 +37,51 @@ def big_case(generator):
 
 
 @pytest.fixture(scope="module")
-def default_http(start_server, generator):
+def default_server(start_server, generator):
     """A server with the default point and byte limits."""
-    import httpx
-
     from spacemesh_service.settings import Settings
 
     defaults = {name: Settings.model_fields[name].default for name in
                 ("max_points", "max_text_points", "working_points", "max_upload_bytes",
                  "max_text_bytes")}
-    server = start_server(generator, **defaults)
-    with httpx.Client(base_url=server.url, timeout=120) as client:
+    return start_server(generator, **defaults)
+
+
+@pytest.fixture(scope="module")
+def default_http(default_server):
+    import httpx
+
+    with httpx.Client(base_url=default_server.url, timeout=120) as client:
         yield client
+
+
+def test_the_sdk_says_the_points_were_reduced_over_rest_and_grpc(default_server, big_case,
+                                                                   tmp_path):
+    pytest.importorskip("spacemesh_client")
+    from spacemesh_client import Client
+
+    points, seed = big_case
+    cloud = tmp_path / "big.npy"
+    np.save(cloud, points.astype(np.float32))
+    meshes = []
+    for url in (default_server.url, "grpc://" + default_server.grpc_target):
+        with Client(url, timeout=120) as client:
+            meshes.append(client.generate(cloud, seed=seed, format="obj"))
+    for mesh in meshes:
+        assert mesh.points_reduced == {"read": BIG, "used": 200_000}
+    assert meshes[0].data == meshes[1].data
+    with Client(default_server.url) as client:  # a small cloud is not reduced
+        assert client.generate(points[:5000], seed=seed, format="obj").points_reduced is None
+    # and the SDK's command line says so too
+    cli = [sys.executable, "-c", "from spacemesh_client.cli import main; main()", "generate",
+           str(cloud), "-o", str(tmp_path / "m.obj"), "--url", default_server.url, "--seed",
+           str(seed)]
+    done = subprocess.run([*cli, "--json"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["points_reduced"] == {"read": BIG, "used": 200_000}
+    done = subprocess.run(cli, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and "the server used 200,000 of the 300,000 points read" in (
+        done.stderr)
 
 
 def test_binary_clouds_above_the_text_limit_are_reduced(default_http, big_case):
