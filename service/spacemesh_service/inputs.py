@@ -39,9 +39,7 @@ import numpy as np
 from spacemesh.io import SUPPORTED_MESH_READ
 from spacemesh.io.errors import (
     MeshFormatError,
-    NonFiniteError,
     TooLargeError,
-    UnsupportedFormatError,
     is_blank,
 )
 from spacemesh.io.limits import ReadLimits, load_json
@@ -292,14 +290,8 @@ def read_cloud_upload(data: bytes, filename: str | None, limits: ReadLimits | No
     try:
         cloud = load_cloud_input(data, file_type=source, limits=limits,
                                  keep=rules.working_points)
-    except TooLargeError as error:
-        raise P.too_large_problem(error) from None
-    except UnsupportedFormatError as error:
-        raise Problem(P.UNSUPPORTED_FORMAT, str(error)) from None
-    except NonFiniteError as error:
-        raise Problem(P.NON_FINITE, str(error)) from None
     except MeshFormatError as error:
-        raise Problem(P.MALFORMED_INPUT, str(error)) from None
+        raise P.read_problem(error) from None
     return cloud.points, cloud.normals, cloud.source, cloud.count
 
 
@@ -340,14 +332,10 @@ def read_mesh_upload(data: bytes, filename: str | None, limits: ReadLimits | Non
                       supported=list(MESH_FORMATS))
     try:
         mesh = load_mesh(data, file_type=source, limits=limits)
-    except TooLargeError as error:
-        raise P.too_large_problem(error) from None
-    except UnsupportedFormatError as error:
-        raise Problem(P.UNSUPPORTED_FORMAT, str(error)) from None
-    except NonFiniteError as error:
-        raise Problem(P.NON_FINITE, str(error)) from None
+    except MeshFormatError as error:
+        raise P.read_problem(error) from None
     except (ValueError, IndexError, KeyError, TypeError, OverflowError) as error:
-        # MeshFormatError, or a reader's or PolygonMesh's own check
+        # a reader's or PolygonMesh's own check
         raise Problem(P.MALFORMED_INPUT, str(error) or type(error).__name__) from None
     if mesh.n_faces == 0:
         raise Problem(P.MALFORMED_INPUT, f"the {source.upper()} file has no faces; repair "

@@ -247,8 +247,22 @@ def too_large_problem(error: Any) -> Problem:
     """The problem (413) of a :class:`spacemesh.io.errors.TooLargeError`: ``too-many-points``
     when a point cloud has more rows than allowed, else ``payload-too-large``; the
     extension members say what was counted (``what``, ``count``, ``limit``)."""
-    kind = TOO_MANY_POINTS if error.what == "points" else PAYLOAD_TOO_LARGE
-    return Problem(kind, str(error), what=error.what, count=error.count, limit=error.limit)
+    from spacemesh.io.errors import read_error_kind
+
+    return Problem(KINDS[read_error_kind(error)], str(error), what=error.what,
+                   count=error.count, limit=error.limit)
+
+
+def read_problem(error: Any) -> Problem:
+    """The problem of a reader's :class:`spacemesh.io.errors.MeshFormatError`, by its
+    kind (:func:`spacemesh.io.errors.read_error_kind`): 413 for a limit
+    (:func:`too_large_problem`), 415 for a format no reader takes, 422 for NaN or
+    infinity, 400 for a malformed file."""
+    from spacemesh.io.errors import TooLargeError, read_error_kind
+
+    if isinstance(error, TooLargeError):
+        return too_large_problem(error)
+    return Problem(KINDS[read_error_kind(error)], str(error))
 
 
 def cloud_problem(error: Any) -> Problem:

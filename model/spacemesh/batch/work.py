@@ -28,8 +28,8 @@ from typing import Any
 from spacemesh.batch.inputs import full_source, is_local, split_url
 from spacemesh.batch.manifest import write_bytes
 from spacemesh.errors import KindedError
-from spacemesh.io import MeshFormatError, ReadLimits, TooLargeError, UnsupportedFormatError
-from spacemesh.io.errors import NonFiniteError
+from spacemesh.io import MeshFormatError, ReadLimits
+from spacemesh.io.errors import read_error_kind
 from spacemesh.runtime.cloud import DEFAULT_MAX_POINTS
 from spacemesh.runtime.options import GenerateOptions, OptionError
 from spacemesh.threads import limit_threads
@@ -130,14 +130,8 @@ def error_kind(error: BaseException) -> tuple[str, str]:
         return "invalid-option", f"{error.option}: {message}"
     if isinstance(error, KindedError):
         return error.kind, message
-    if isinstance(error, TooLargeError):
-        return ("too-many-points" if error.what == "points" else "payload-too-large"), message
-    if isinstance(error, UnsupportedFormatError):
-        return "unsupported-format", message
-    if isinstance(error, NonFiniteError):
-        return "non-finite", message
     if isinstance(error, MeshFormatError):
-        return "malformed-input", message
+        return read_error_kind(error), message
     if isinstance(error, OSError):
         return "unreadable-input", f"{type(error).__name__}: {message}"
     return "internal-error", f"{type(error).__name__}: {message}"

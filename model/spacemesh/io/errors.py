@@ -50,6 +50,19 @@ class TooLargeError(MeshFormatError):
         self.what, self.count, self.limit = what, count, limit
 
 
+def read_error_kind(error: MeshFormatError) -> str:
+    """The problem kind (the service's slug) of a reader's error: ``too-many-points``
+    (a point cloud past its row limit) or ``payload-too-large`` (any other limit),
+    ``unsupported-format``, ``non-finite``, else ``malformed-input``."""
+    if isinstance(error, TooLargeError):
+        return "too-many-points" if error.what == "points" else "payload-too-large"
+    if isinstance(error, UnsupportedFormatError):
+        return "unsupported-format"
+    if isinstance(error, NonFiniteError):
+        return "non-finite"
+    return "malformed-input"
+
+
 def decode_text(data: bytes, fmt: str) -> str:
     """Decode a text format as UTF-8 (tolerating a BOM), falling back to Latin-1.
 
