@@ -52,6 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from spacemesh.io.reduce import reduction_indices
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Neighbour whose distance measures how isolated a point is.
@@ -81,7 +82,6 @@ NOISE_NEIGHBOURS = 24
 CLEANING_SEED = 0
 #: Fewest points the tests need; smaller clouds are kept whole, their noise 0.
 MIN_CLEANING_POINTS = 32
-
 
 
 @dataclass(frozen=True)
@@ -262,10 +262,8 @@ def find_outliers(points: FloatArray) -> BoolArray:
         :data:`MIN_CLEANING_POINTS` points.
     """
     points, _ = _unit(points)
-    subset = np.arange(len(points))
-    if len(points) > CLEANING_POINTS:
-        subset = np.sort(np.random.default_rng(CLEANING_SEED).choice(
-            len(points), CLEANING_POINTS, replace=False))
+    picked = reduction_indices(len(points), CLEANING_POINTS, seed=CLEANING_SEED)
+    subset = np.arange(len(points)) if picked is None else picked
     outliers = np.zeros(len(points), dtype=bool)
     patches = None
     for _ in range(OUTLIER_ROUNDS):
@@ -306,11 +304,8 @@ def estimate_noise(points: FloatArray) -> float:
     points, diagonal = _unit(points)
     if len(points) < MIN_CLEANING_POINTS or diagonal <= 0:
         return 0.0
-    centres = points
-    if len(points) > NOISE_CENTRES:
-        pick = np.random.default_rng(CLEANING_SEED).choice(len(points), NOISE_CENTRES,
-                                                           replace=False)
-        centres = points[np.sort(pick)]
+    pick = reduction_indices(len(points), NOISE_CENTRES, seed=CLEANING_SEED)
+    centres = points if pick is None else points[pick]
     k = min(NOISE_NEIGHBOURS, len(points) - 1)
     _, near = cKDTree(points).query(centres, k=k + 1)  # (C, k + 1), the centre included
     return float(np.median(_quadric_fits(points, near)[3]))  # unit diagonal

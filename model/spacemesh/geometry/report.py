@@ -39,6 +39,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from spacemesh.geometry.intersections import self_intersection_fraction
+from spacemesh.io.reduce import reduction_indices
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangle_areas, triangles_of
 from spacemesh.primitives.closest import nearest_triangles
@@ -135,10 +136,9 @@ def _report_points(points: FloatArray) -> tuple[FloatArray, float]:
     :data:`MAX_REPORT_POINTS`), and their bounding-box diagonal."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     points = points[np.isfinite(points).all(axis=1)]
-    if len(points) > MAX_REPORT_POINTS:
-        pick = np.random.default_rng(REPORT_SEED).choice(len(points), MAX_REPORT_POINTS,
-                                                         replace=False)
-        points = points[np.sort(pick)]
+    pick = reduction_indices(len(points), MAX_REPORT_POINTS, seed=REPORT_SEED)
+    if pick is not None:
+        points = points[pick]
     diagonal = float(np.linalg.norm(np.ptp(points, axis=0))) if len(points) else 0.0
     return points, diagonal
 

@@ -40,6 +40,7 @@ from spacemesh.geometry import (
 from spacemesh.geometry.cleaning import PointsQuality, assess_points
 from spacemesh.geometry.policy import decode_changes
 from spacemesh.geometry.untangle import untangle
+from spacemesh.io.reduce import reduction_indices
 from spacemesh.mesh import PolygonMesh
 from spacemesh.runtime.backend import Backend, ConnectivityOutputs, denoiser_fn
 from spacemesh.runtime.finishing import finish_geometry, outward
@@ -304,7 +305,7 @@ class PreparedInput:
         The upload's normals of those points.
     weights : (P,) float64, optional
         Farthest-point weights (``start=points`` only).
-    quality : PointsQuality, optional
+    quality : PointsQuality
         The outliers set aside and the noise of the rest (:func:`assess_points`; its
         ``kept`` mask is over the upload's points).
     pieces : int
@@ -319,15 +320,12 @@ class PreparedInput:
     unit: FloatArray
     normals: FloatArray | None
     weights: FloatArray | None
-    quality: PointsQuality | None = None
+    quality: PointsQuality
 
     def report(self, mesh: PolygonMesh) -> FitReport:
         """The fit report of ``mesh`` (in the upload's frame) against these points, with
         the points' noise and outlier share."""
-        report = fit_report(mesh, self.points)
-        if self.quality is None:
-            return report
-        return replace(report, points_noise=self.quality.noise,
+        return replace(fit_report(mesh, self.points), points_noise=self.quality.noise,
                        points_outliers=self.quality.outliers)
 
     @cached_property
@@ -338,10 +336,9 @@ class PreparedInput:
     def fit_points(self) -> tuple[FloatArray, FloatArray | None]:
         """The normalised points (and normals) the geometry stage fits to, at most
         :data:`MAX_FIT_POINTS` of them (a fixed subset)."""
-        if len(self.unit) <= MAX_FIT_POINTS:
+        pick = reduction_indices(len(self.unit), MAX_FIT_POINTS, seed=POINT_SUBSET_SEED)
+        if pick is None:
             return self.unit, self.normals
-        pick = np.sort(np.random.default_rng(POINT_SUBSET_SEED).choice(
-            len(self.unit), MAX_FIT_POINTS, replace=False))
         return self.unit[pick], None if self.normals is None else self.normals[pick]
 
 
