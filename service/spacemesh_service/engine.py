@@ -210,6 +210,7 @@ class Engine:
         self._inflight = 0  # requests inside generate()
         #: What one upload may declare or hold, and the parses allowed at once.
         self.read_limits = read_limits(settings)
+        self.upload_rules = UploadRules.from_settings(settings)
         self.parsing = ParseSlots(settings.max_parallel_parses)
 
     # ------------------------------------------------------------------ lifecycle
@@ -368,7 +369,7 @@ class Engine:
     def _decode(self, parse: ParseFn, options: dict[str, Any]
                 ) -> tuple[Any, RequestOptions]:
         points, normals, source, body_options, points_read = parse(
-            self.read_limits, UploadRules.from_settings(self.settings))
+            self.read_limits, self.upload_rules)
         merged = {**{k: v for k, v in options.items() if v is not None}, **body_options}
         opts = resolve_request(merged, GENERATE_ROUTE_OPTIONS, self._generator.spec,
                                self.settings)
@@ -500,7 +501,7 @@ class Engine:
                                self.settings)
         shape = read_region(region, self.read_limits)
         mesh, _ = read_mesh_upload(upload.data, upload.filename, self.read_limits,
-                                   UploadRules.from_settings(self.settings))
+                                   self.upload_rules)
         try:
             plan = plan_repair(mesh, shape, self._generator.spec.max_vertices,
                                weld=opts.weld, max_growth=opts.max_growth)
