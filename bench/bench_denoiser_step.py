@@ -44,7 +44,7 @@ def main() -> None:
 
     with tempfile.TemporaryDirectory() as tmp:
         path = _exported(args.config, Path(tmp)) if args.config else args.model
-        repo = ModelRepository.load(path, intra_op_threads=args.threads)
+        repo = ModelRepository.load(path, threads=args.threads)
         backend = repo.backend
         rng = np.random.default_rng(0)
         n_points = repo.manifest["inputs"]["n_points"]

@@ -41,7 +41,7 @@ def main() -> None:
     from spacemesh.primitives import sample_surface
     from spacemesh.runtime import MeshGenerator
 
-    generator = MeshGenerator.from_repository(args.model, intra_op_threads=args.threads)
+    generator = MeshGenerator.from_repository(args.model, threads=args.threads)
     box = cube_quads()
     shapes = {"box": box.with_vertices(box.vertices * [2.0, 1.0, 0.6]),
               "cylinder": prism(32), "torus": torus_grid(32, 16)}

@@ -301,7 +301,7 @@ def main() -> None:
     configure_logging("warning")
     with tempfile.TemporaryDirectory() as tmp:
         path, model = export_model(args, Path(tmp))
-        generator = MeshGenerator.from_repository(path, intra_op_threads=args.threads)
+        generator = MeshGenerator.from_repository(path, threads=args.threads)
         cloud = torus_cloud(args.points)
         steps = args.steps or generator.spec.steps
         results: dict[str, Any] = {

@@ -61,7 +61,7 @@ def child(args: argparse.Namespace) -> None:
     from spacemesh.runtime import MeshGenerator
 
     points = np.load(args.cloud)
-    generator = MeshGenerator.from_repository(intra_op_threads=args.threads)
+    generator = MeshGenerator.from_repository(threads=args.threads)
     if args.mode == "split":
         generator.spec = replace(generator.spec, large_meshes="split")
     raw = args.mode == "raw"

@@ -45,7 +45,7 @@ def main() -> None:
     from spacemesh.topology import check_topology
 
     model, _ = find_model(None)
-    generator = MeshGenerator.from_repository(model, intra_op_threads=args.threads)
+    generator = MeshGenerator.from_repository(model, threads=args.threads)
     cases = []
     if args.mode == "holes":
         for name, _, mesh, region in punched_cases(0, 2, args.max_vertices, args.split):

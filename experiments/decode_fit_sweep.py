@@ -69,7 +69,7 @@ def main() -> None:
     gains = _floats(args.gains)
     if not gains:
         parser.error("--gains needs at least one value")
-    generator = MeshGenerator.from_repository(args.model, intra_op_threads=args.threads)
+    generator = MeshGenerator.from_repository(args.model, threads=args.threads)
     samples = load_samples(args.data, args.split, generator.spec.max_vertices,
                            limit=args.shapes)
     embeddings = repository_embeddings(generator, samples)

@@ -70,7 +70,7 @@ def main() -> int:
     wanted = set(args.categories.split(","))
     paths, categories = split_meshes(args.meshes, args.split, wanted)
     shapes = mesh_shapes(paths, categories=categories, seed=args.seed)[: args.limit]
-    generator = MeshGenerator.from_repository(args.model, intra_op_threads=args.threads)
+    generator = MeshGenerator.from_repository(args.model, threads=args.threads)
     result = run_evaluation(
         shapes,
         generator=generator,

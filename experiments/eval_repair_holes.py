@@ -485,7 +485,7 @@ def main() -> None:
     from spacemesh.runtime import MeshGenerator
 
     model, label = find_model(args.model)
-    generator = MeshGenerator.from_repository(model, intra_op_threads=args.threads)
+    generator = MeshGenerator.from_repository(model, threads=args.threads)
     steps = args.steps or generator.spec.steps
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

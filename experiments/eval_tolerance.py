@@ -59,7 +59,7 @@ def main() -> int:
 
     paths, categories = split_meshes(args.meshes, args.split, set(args.categories.split(",")))
     shapes = mesh_shapes(paths, categories=categories, seed=args.seed)[: args.limit]
-    generator = MeshGenerator.from_repository(None, intra_op_threads=args.threads)
+    generator = MeshGenerator.from_repository(None, threads=args.threads)
     within, met, counts, seconds = [], [], [], []
     for index, shape in enumerate(shapes):
         centre, scale = normalisation(shape.mesh)

@@ -102,7 +102,7 @@ def main() -> int:
     from spacemesh.metrics.compare import Reference, score_mesh
     from spacemesh.runtime import MeshGenerator
 
-    generator = MeshGenerator.from_repository(intra_op_threads=args.threads)
+    generator = MeshGenerator.from_repository(threads=args.threads)
     targets = [int(t) for t in args.targets.split(",")]
     methods = args.methods.split(",")
     shapes = (real_shapes(args.meshes, args.real) if args.real else [])

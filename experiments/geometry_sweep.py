@@ -63,7 +63,7 @@ def main() -> int:
     rows.sort(key=lambda r: (r["category"], int(r["n_vertices"])))
     shapes = mesh_shapes([args.meshes / r["file"] for r in rows],
                          categories=[r["category"] for r in rows], seed=0)
-    generator = MeshGenerator.from_repository(args.model, intra_op_threads=1)
+    generator = MeshGenerator.from_repository(args.model, threads=1)
     prepared = []
     for index, shape in enumerate(shapes):
         centre, scale = normalisation(shape.mesh)

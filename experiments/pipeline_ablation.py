@@ -55,7 +55,7 @@ def main() -> int:
     for text in args.case:
         path, spacing = parse_case(text)
         try:
-            generator = MeshGenerator.from_repository(path, intra_op_threads=args.threads)
+            generator = MeshGenerator.from_repository(path, threads=args.threads)
         except Exception as error:
             print(f"error: {path}: {error}", file=sys.stderr)
             return 2

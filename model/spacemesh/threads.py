@@ -1,8 +1,12 @@
 """One meaning of ``--threads`` for every command: how many CPU threads the libraries use.
 
-``threads >= 1`` means exactly that many intra-op threads for torch, onnxruntime and the
-BLAS/OpenMP pools (numpy, scipy); ``0`` or ``None`` means one per core this process may
-run on (:func:`default_threads`). Waiting threads sleep instead of spinning: OpenMP gets
+``threads >= 1`` means exactly that many threads for torch's intra-op pool, for the
+BLAS/OpenMP pools of numpy and scipy (limited through threadpoolctl, so that libraries
+loaded before the limit obey it too) and for the served networks, whose onnxruntime
+sessions run one batch item per call on one thread each and run up to that many items at
+once (:class:`spacemesh.runtime.backend.OnnxBackend`: the meshes do not depend on the
+count); ``0`` or ``None`` means one per core this process may run on
+(:func:`default_threads`). Waiting threads sleep instead of spinning: OpenMP gets
 ``OMP_WAIT_POLICY=PASSIVE`` (unless set) and onnxruntime sessions are built with
 spinning off (:func:`spacemesh.runtime.repository.create_session`), so that a loaded
 machine is shared instead of fought over. torch's inter-op pool is one thread: nothing
@@ -71,9 +75,10 @@ def limit_threads(threads: int | None) -> int:
     """Use exactly :func:`resolve_threads` ``(threads)`` CPU threads from now on.
 
     Sets :data:`THREAD_VARIABLES` (read by libraries that load later), limits the pools of
-    libraries already loaded when threadpoolctl is installed, and sets torch's intra-op
-    threads (and its inter-op pool to :data:`INTEROP_THREADS`, where torch still allows
-    it) when torch is loaded. Pass the result to onnxruntime as ``intra_op_threads``.
+    libraries already loaded (threadpoolctl), and sets torch's intra-op threads (and its
+    inter-op pool to :data:`INTEROP_THREADS`, where torch still allows it) when torch is
+    loaded. Pass the result on as a model's ``threads``
+    (:meth:`spacemesh.runtime.MeshGenerator.from_repository`).
 
     Parameters
     ----------
@@ -89,12 +94,9 @@ def limit_threads(threads: int | None) -> int:
     for name in THREAD_VARIABLES:
         os.environ[name] = str(n)
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # sleep, do not spin, when idle
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        pass
-    else:
-        threadpool_limits(n)
+    from threadpoolctl import threadpool_limits  # a dependency: every pool, loaded or not
+
+    threadpool_limits(n)
     torch = sys.modules.get("torch")
     if torch is not None:
         torch.set_num_threads(n)

@@ -266,9 +266,7 @@ class Engine:
 
     def _load(self) -> MeshGenerator:
         return MeshGenerator.from_repository(
-            self.settings.model, intra_op_threads=self.settings.intra_op_threads,
-            inter_op_threads=1,
-        )
+            self.settings.model, threads=self.settings.network_threads)
 
     def _warm_up(self) -> None:
         spec = self._generator.spec

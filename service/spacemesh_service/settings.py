@@ -87,7 +87,9 @@ class Settings(BaseModel):
         1.0, ge=0, le=1, description="Largest max_growth a repair request may ask for (the "
         "share of the mesh's faces a region may grow to; the default is 0.25).")
     ort_threads: int = Field(
-        0, ge=0, description="onnxruntime intra-op threads (0: one per available core).")
+        0, ge=0, description="Threads that run the networks' batch items at once (0: one per "
+        "available core); each graph call runs one item on one onnxruntime thread, so the "
+        "meshes are the same whatever this count.")
     warmup: bool = Field(True, description="Run a warm-up inference before reporting ready.")
     drain_timeout_s: float = Field(
         30.0, ge=0, description="On SIGTERM, how long in-flight requests may still run.")
@@ -196,8 +198,8 @@ class Settings(BaseModel):
             ) from None
 
     @property
-    def intra_op_threads(self) -> int:
-        """The onnxruntime intra-op thread count, always explicit (never 0)."""
+    def network_threads(self) -> int:
+        """The threads that run the networks' batch items, always explicit (never 0)."""
         return self.ort_threads or _cpu_count()
 
     def limits(self) -> dict[str, Any]:

@@ -60,7 +60,7 @@ def test_export_copies_the_base_graphs_and_matches_torch(base_run, tmp_path):
         assert (directory / graph).read_bytes() == (base / graph).read_bytes()
     new, old = (directory / "connectivity.onnx").read_bytes(), (base / "connectivity.onnx")
     assert new != old.read_bytes()
-    repo = ModelRepository.load(directory, intra_op_threads=1)  # every sha256 checked
+    repo = ModelRepository.load(directory, threads=1)  # every sha256 checked
     training = repo.manifest["training"]
     assert training["steps"] == 0 and training["connectivity_steps"] > 0
     assert training["base"]["name"] == "spacemesh-tiny" and "base_training" in training
@@ -76,7 +76,7 @@ def test_export_copies_the_base_graphs_and_matches_torch(base_run, tmp_path):
     co = repo.backend.connect(vertices, valid, volumes)
     for name in ("x", "root", "prev", "next"):
         assert np.allclose(getattr(ct, name), getattr(co, name), atol=1e-4), name
-    result = MeshGenerator.from_repository(directory, intra_op_threads=1).generate(
+    result = MeshGenerator.from_repository(directory, threads=1).generate(
         rng.normal(size=(300, 3)), seed=0)
     assert check_topology(result.mesh).is_closed_oriented_manifold
 

@@ -23,7 +23,7 @@ SAME_FACES = 0.95
 @pytest.fixture(scope="module")
 def backends(toy_model):
     model, _ = load_trained_model(toy_model.run)
-    repo = ModelRepository.load(toy_model.repository, intra_op_threads=1)
+    repo = ModelRepository.load(toy_model.repository, threads=1)
     return model, TorchBackend(model), repo
 
 

@@ -38,7 +38,7 @@ def test_layout_and_manifest(toy_model):
 def test_sha256_mismatch_and_missing_files_are_refused(toy_model, tmp_path):
     copy = tmp_path / "copy"
     shutil.copytree(toy_model.repository, copy)
-    ModelRepository.load(copy, intra_op_threads=1)
+    ModelRepository.load(copy, threads=1)
     with open(copy / "denoiser.onnx", "ab") as handle:
         handle.write(b"\0")
     with pytest.raises(ModelRepositoryError, match=r"denoiser\.onnx.*sha256"):

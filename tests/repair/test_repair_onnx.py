@@ -17,7 +17,7 @@ def generator(toy_model):
     pytest.importorskip("onnxruntime")
     from spacemesh.runtime import MeshGenerator
 
-    return MeshGenerator.from_repository(toy_model.repository, intra_op_threads=1)
+    return MeshGenerator.from_repository(toy_model.repository, threads=1)
 
 
 @pytest.mark.parametrize("make, region", [

@@ -24,4 +24,4 @@ def shipped():
 
     if not default_model_dir().exists():
         pytest.skip("no shipped model in this checkout")
-    return ModelRepository.load(intra_op_threads=1)
+    return ModelRepository.load(threads=1)

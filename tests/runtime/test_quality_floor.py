@@ -54,7 +54,7 @@ def _shapes():
 def generator():
     if not default_model_dir().exists():
         pytest.skip("no shipped model in this checkout")
-    return MeshGenerator.from_repository(intra_op_threads=1)
+    return MeshGenerator.from_repository(threads=1)
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +98,7 @@ def test_the_floor_fails_a_broken_pipeline(generator, cases, name):
 
 
 if __name__ == "__main__":  # print the values the floors come from
-    model = MeshGenerator.from_repository(intra_op_threads=1)
+    model = MeshGenerator.from_repository(threads=1)
     for shape, (cloud, ref) in cases.__wrapped__().items():
         for label, options in (("default", {}), ("paper", {"raw": True, "start": "noise"})):
             score = _score(model.generate(cloud, seed=0, **options).mesh, ref)

@@ -15,7 +15,7 @@ import numpy as np
 import spacemesh.runtime
 from spacemesh.runtime import MeshGenerator
 
-generator = MeshGenerator.from_repository(sys.argv[1], intra_op_threads=1)
+generator = MeshGenerator.from_repository(sys.argv[1], threads=1)
 points = np.random.default_rng(0).normal(size=(300, 3))
 result = generator.generate(points, seed=1, steps=3)
 assert "torch" not in sys.modules

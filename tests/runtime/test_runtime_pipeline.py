@@ -18,7 +18,7 @@ from spacemesh.topology import check_topology
 
 @pytest.fixture(scope="module")
 def generator(toy_model):
-    return MeshGenerator.from_repository(toy_model.repository, intra_op_threads=1)
+    return MeshGenerator.from_repository(toy_model.repository, threads=1)
 
 
 @pytest.fixture(scope="module")

@@ -21,7 +21,7 @@ from spacemesh.runtime.tolerance import (
 def toy_generator(toy_model):
     from spacemesh.runtime import MeshGenerator
 
-    return MeshGenerator.from_repository(toy_model.repository, intra_op_threads=1)
+    return MeshGenerator.from_repository(toy_model.repository, threads=1)
 
 
 def made(distance_of_count):

@@ -47,7 +47,7 @@ def toy_repository(tmp_path_factory) -> Path:
 def generator(toy_repository):
     from spacemesh.runtime import MeshGenerator
 
-    return MeshGenerator.from_repository(toy_repository, intra_op_threads=1)
+    return MeshGenerator.from_repository(toy_repository, threads=1)
 
 
 @pytest.fixture(scope="session")

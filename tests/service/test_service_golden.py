@@ -63,7 +63,7 @@ def test_shipped_versions_pass_with_1_and_2_threads(version):
     assert set(section["graphs"]) == {"encoder", "denoiser", "connectivity"}
     assert section["tolerance"] == TOLERANCE
     for threads in (1, 2):
-        repository = ModelRepository.load(path, intra_op_threads=threads)  # checks it
+        repository = ModelRepository.load(path, threads=threads)  # checks it
         # and far inside the tolerance: a tenth of it is never approached
         strict = {**repository.manifest, SECTION: {**section, "tolerance": TOLERANCE / 10}}
         assert golden_mismatches(repository.backend, strict) == []

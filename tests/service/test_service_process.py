@@ -55,10 +55,11 @@ SLOW_CLI = textwrap.dedent('''
 class Served:
     """A ``spacemesh serve`` subprocess; its stderr is collected in the background."""
 
-    def __init__(self, code: str, args: list[str], env: dict[str, str] | None = None) -> None:
+    def __init__(self, code: str, args: list[str], env: dict[str, str] | None = None,
+                 threads: int = 1) -> None:
         self.process = subprocess.Popen(
             [sys.executable, "-c", code, "serve", "--port", "0", "--grpc-port", "0",
-             "--ort-threads", "1", "--host", "127.0.0.1", *args],
+             "--ort-threads", str(threads), "--host", "127.0.0.1", *args],
             env={**os.environ, **(env or {})}, stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE, text=True)
         self.lines: list[str] = []

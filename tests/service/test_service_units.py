@@ -42,7 +42,7 @@ def test_settings_flags_env_defaults():
     assert settings.max_batch_size == 8 and settings.grpc is False
     assert Settings.from_env({}).grpc_port == 8001
     assert Settings.env_name("max_upload_bytes") == "SPACEMESH_MAX_UPLOAD_BYTES"
-    assert Settings.from_env({}).intra_op_threads >= 1  # always explicit
+    assert Settings.from_env({}).network_threads >= 1  # always explicit
     with pytest.raises(ValueError, match="SPACEMESH_QUEUE_SIZE"):
         Settings.from_env({"SPACEMESH_QUEUE_SIZE": "0"})
 

@@ -15,7 +15,7 @@ from spacemesh.topology import check_topology
 
 
 def test_repair_runs_with_a_local_point_denoiser(local_model):
-    generator = MeshGenerator.from_repository(local_model.directory, intra_op_threads=1)
+    generator = MeshGenerator.from_repository(local_model.directory, threads=1)
     assert generator.spec.local_points == 8
     mesh = icosphere(1)
     region = Region.sphere([0, 0, 1], 0.7)

@@ -112,7 +112,7 @@ def test_local_denoiser_on_a_base_exports_and_generates(local_model, one_thread)
     assert list(csv.DictReader(open(run / "metrics.csv")))[-1]["val_epsilon"]
     for graph in ("encoder.onnx", "connectivity.onnx"):
         assert (directory / graph).read_bytes() == (base / graph).read_bytes()
-    repo = ModelRepository.load(directory, intra_op_threads=1)
+    repo = ModelRepository.load(directory, threads=1)
     assert repo.manifest["graphs"]["denoiser"]["inputs"][-1] == "points"
     assert repo.manifest["training"]["connectivity_steps"] == 0
     assert repo.manifest["training"]["base"]["name"] == "spacemesh-tiny"
@@ -128,7 +128,7 @@ def test_local_denoiser_on_a_base_exports_and_generates(local_model, one_thread)
     assert np.allclose(embeddings.x, repo.backend.connect(x_t[..., :3], x_t[..., 3] > 0,
                                                           volumes).x, atol=1e-4)
 
-    generator = MeshGenerator.from_repository(directory, intra_op_threads=1)
+    generator = MeshGenerator.from_repository(directory, threads=1)
     assert generator.spec.local_points == 8
     steps = []
     result = generator.generate(rng.normal(size=(400, 3)), seed=0, start="points",

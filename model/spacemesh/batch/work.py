@@ -150,7 +150,7 @@ class Mesher:
 
         self.settings = settings
         threads = limit_threads(settings.threads)
-        self.generator = MeshGenerator.from_repository(settings.model, intra_op_threads=threads)
+        self.generator = MeshGenerator.from_repository(settings.model, threads=threads)
 
     def __call__(self, item: dict[str, Any]) -> dict[str, str]:
         """Mesh one input.

@@ -111,7 +111,7 @@ def batch(
             fail(f"{option_flag(given[0])}: does not apply to --repair (it takes --seed, "
                  "--steps and --sampler)")
     try:
-        generator = MeshGenerator.from_repository(model, intra_op_threads=1)
+        generator = MeshGenerator.from_repository(model, threads=1)
     except ModelRepositoryError as error:
         fail(str(error))
     try:

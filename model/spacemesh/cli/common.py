@@ -29,8 +29,9 @@ Threads = Annotated[
     typer.Option(
         "--threads",
         min=0,
-        help="CPU threads of torch, onnxruntime and BLAS: exactly N; 0 means one per core "
-        f"this process may use ({default_threads()} here). Idle threads sleep, never spin.",
+        help="CPU threads of torch, the networks and BLAS: exactly N; 0 means one per core "
+        f"this process may use ({default_threads()} here). Idle threads sleep, never spin. "
+        "The mesh does not depend on it.",
     ),
 ]
 
@@ -161,7 +162,7 @@ def use_threads(threads: int) -> int:
     Returns
     -------
     int
-        The thread count in force, to pass on (onnxruntime's ``intra_op_threads``).
+        The thread count in force, to pass on (a model's ``threads``).
     """
     return limit_threads(threads)
 

@@ -109,7 +109,7 @@ def evaluate(
     generator = None
     if not no_model:
         try:
-            generator = MeshGenerator.from_repository(model, intra_op_threads=threads)
+            generator = MeshGenerator.from_repository(model, threads=threads)
         except ModelRepositoryError as error:
             raise UserError(str(error)) from None
     result = run_evaluation(

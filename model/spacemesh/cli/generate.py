@@ -94,7 +94,7 @@ def generate(
     if not points_path.is_file():
         fail(f"{points_path}: no such file")
     try:
-        generator = MeshGenerator.from_repository(model, intra_op_threads=use_threads(threads))
+        generator = MeshGenerator.from_repository(model, threads=use_threads(threads))
     except ModelRepositoryError as error:
         fail(str(error))
     try:  # a mesh's surface is sampled to the model's point count, a big cloud reduced

@@ -166,7 +166,7 @@ def repair(
     except MeshFormatError as error:
         fail(f"{mesh_path}: {error}")
     try:
-        generator = MeshGenerator.from_repository(model, intra_op_threads=use_threads(threads))
+        generator = MeshGenerator.from_repository(model, threads=use_threads(threads))
     except ModelRepositoryError as error:
         fail(str(error))
     try:

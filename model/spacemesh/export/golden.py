@@ -38,7 +38,7 @@ def record_golden(directory: str | Path, *, threads: int = 1) -> dict[str, Any]:
     spacemesh.runtime.ModelRepositoryError
         A missing file or a sha256 mismatch.
     """
-    repository = ModelRepository.load(directory, intra_op_threads=threads, golden=False)
+    repository = ModelRepository.load(directory, threads=threads, golden=False)
     section = golden_section(repository.backend, repository.manifest)
     return update_manifest(repository.path, **{SECTION: section})
 

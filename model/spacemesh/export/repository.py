@@ -306,7 +306,7 @@ def heldout_metrics(
     from spacemesh.train.evaluate import connectivity_metrics, pipeline_metrics
     from spacemesh.train.loop import load_samples
 
-    generator = MeshGenerator.from_repository(version_dir, intra_op_threads=threads)
+    generator = MeshGenerator.from_repository(version_dir, threads=threads)
     max_vertices = generator.spec.max_vertices
     samples = load_samples(data, None, max_vertices, limit=connectivity_shapes)
     if model is None:
@@ -393,7 +393,7 @@ def calibrate_vertex_spacing(
     from spacemesh.runtime.pipeline import MeshGenerator
     from spacemesh.train.evaluate import pipeline_metrics
 
-    generator = MeshGenerator.from_repository(version_dir, intra_op_threads=threads)
+    generator = MeshGenerator.from_repository(version_dir, threads=threads)
     spec = generator.spec
     records = first_records(data, "val", max_vertices=spec.max_vertices, limit=shapes)
     require_calibration_shapes(data, len(records), spec.max_vertices)

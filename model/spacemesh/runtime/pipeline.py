@@ -462,8 +462,7 @@ class MeshGenerator:
 
     @classmethod
     def from_repository(
-        cls, path: str | Path | None = None, *, intra_op_threads: int = 0,
-        inter_op_threads: int = 1,
+        cls, path: str | Path | None = None, *, threads: int = 0,
     ) -> MeshGenerator:
         """Load a model repository (default: the shipped model) into a generator.
 
@@ -471,8 +470,9 @@ class MeshGenerator:
         ----------
         path : path, optional
             See :meth:`spacemesh.runtime.repository.ModelRepository.load`.
-        intra_op_threads, inter_op_threads : int
-            onnxruntime thread counts.
+        threads : int
+            Threads that run the networks' batch items at once (0: one per core); the
+            meshes do not depend on it (:class:`~spacemesh.runtime.backend.OnnxBackend`).
 
         Returns
         -------
@@ -480,9 +480,7 @@ class MeshGenerator:
         """
         from spacemesh.runtime.repository import ModelRepository
 
-        repo = ModelRepository.load(
-            path, intra_op_threads=intra_op_threads, inter_op_threads=inter_op_threads
-        )
+        repo = ModelRepository.load(path, threads=threads)
         generator = cls(repo.backend, ModelSpec.from_manifest(repo.manifest), name=repo.name)
         generator.repository = repo
         return generator

@@ -23,6 +23,7 @@ from typing import Any
 from spacemesh.runtime.backend import OnnxBackend
 from spacemesh.runtime.golden import SECTION as GOLDEN
 from spacemesh.runtime.golden import golden_mismatches
+from spacemesh.threads import resolve_threads
 
 #: Manifest ``format`` value.
 FORMAT = "spacemesh-model"
@@ -137,6 +138,12 @@ def verified_manifest(directory: str | Path) -> dict[str, Any]:
     return manifest
 
 
+#: onnxruntime's intra-op threads of a served model's sessions: one, the only count at
+#: which its kernels sum in a fixed order (parallelism comes from running batch items at
+#: once, :class:`~spacemesh.runtime.backend.OnnxBackend`).
+DETERMINISTIC_INTRA_OP_THREADS = 1
+
+
 @dataclass(frozen=True)
 class SessionOptions:
     """onnxruntime threading and providers.
@@ -190,8 +197,7 @@ class ModelRepository:
         cls,
         path: str | Path | None = None,
         *,
-        intra_op_threads: int = 0,
-        inter_op_threads: int = 1,
+        threads: int = 0,
         providers: tuple[str, ...] = ("CPUExecutionProvider",),
         verify: bool = True,
         golden: bool = True,
@@ -203,8 +209,11 @@ class ModelRepository:
         path : path, optional
             Version folder, model folder or repository root (see
             :func:`resolve_version_dir`); default :func:`default_model_dir`.
-        intra_op_threads, inter_op_threads : int
-            onnxruntime thread counts (``intra_op_threads=0``: onnxruntime's default).
+        threads : int
+            Threads that run the items of a batch at once (0: one per core this process
+            may use, :func:`spacemesh.threads.resolve_threads`). Every graph call runs
+            one item on one onnxruntime thread, so outputs are the same to the bit
+            whatever this count (:class:`~spacemesh.runtime.backend.OnnxBackend`).
         providers : tuple of str
             onnxruntime execution providers.
         verify : bool
@@ -236,11 +245,12 @@ class ModelRepository:
             )
         if verify:
             verify_files(directory, manifest)
-        options = SessionOptions(intra_op_threads, inter_op_threads, tuple(providers))
+        options = SessionOptions(DETERMINISTIC_INTRA_OP_THREADS, 1, tuple(providers))
         sessions = {
             g: create_session(directory / manifest["graphs"][g]["file"], options) for g in GRAPHS
         }
-        repository = cls(directory, manifest, OnnxBackend(**sessions))
+        backend = OnnxBackend(**sessions, workers=resolve_threads(threads))
+        repository = cls(directory, manifest, backend)
         if golden:
             repository.check_golden()
         return repository
