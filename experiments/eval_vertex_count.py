@@ -50,7 +50,7 @@ DEV_MESHES = (
 )
 POINTS = 8192
 #: Methods that are the default pipeline with one way of making large meshes
-#: (:attr:`spacemesh.runtime.pipeline.ModelSpec.large_meshes`).
+#: (:attr:`spacemesh.runtime.spec.ModelSpec.large_meshes`).
 LARGE_MODES = {"split": "split", "tokens": "tokens"}
 
 

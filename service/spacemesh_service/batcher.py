@@ -28,7 +28,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
-from spacemesh.runtime.pipeline import GenerateRequest, GenerateResult
+from spacemesh.runtime.request import GenerateRequest, GenerateResult
 from spacemesh.runtime.sampler import StageFn
 from spacemesh_service.metrics import BATCH_STAGES, Metrics
 

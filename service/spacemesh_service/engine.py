@@ -39,7 +39,8 @@ from spacemesh.repair import (
 )
 from spacemesh.repair.region import Region
 from spacemesh.runtime.options import GenerateOptions, OptionError
-from spacemesh.runtime.pipeline import GenerateRequest, MeshGenerator
+from spacemesh.runtime.pipeline import MeshGenerator
+from spacemesh.runtime.request import GenerateRequest
 from spacemesh.runtime.sampler import StageFn
 from spacemesh_service import problems as P
 from spacemesh_service.batcher import Batcher, ProgressFn, QueueFull, ShuttingDown

@@ -47,8 +47,8 @@ from spacemesh.runtime.options import (
     OptionError,
     parse_value,
 )
-from spacemesh.runtime.pipeline import ModelSpec
 from spacemesh.runtime.schedule import METHODS
+from spacemesh.runtime.spec import ModelSpec
 from spacemesh_service import problems as P
 from spacemesh_service.outputs import OUTPUT_FORMATS
 from spacemesh_service.problems import Problem

@@ -91,6 +91,7 @@ def test_one_row_per_input_and_an_error_row_for_the_corrupt_file(first_run, inpu
         assert Path(row["output"]).is_file() and row["faces"] > 0
         assert row["operation"] == "generate" and row["seconds"] > 0
         assert row["fit"]["n_points"] == 300 and "coverage" in row["fit"]
+        assert row["points_read"] == row["points_used"] == 300
     lines = [line for line in result.stderr.splitlines() if line.startswith("[")]
     assert len(lines) == CLOUDS + 1  # one progress line per finished input
     assert f"{CLOUDS + 1} inputs: {CLOUDS} meshed, 1 failed, 0 already done" in result.stdout
@@ -245,3 +246,32 @@ def test_inputs_at_an_fsspec_url():
         ("memory:///batch-test/clouds/two.ply", "two")]
     assert [i.name for i in expand_inputs(["memory://batch-test/clouds"], repair=True)] == [
         "two"]
+
+
+def _binary_ply(path: Path, points: np.ndarray) -> Path:
+    header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(points)}\n"
+              "property float x\nproperty float y\nproperty float z\nend_header\n")
+    path.write_bytes(header.encode() + points.astype("<f4").tobytes())
+    return path
+
+
+def test_a_million_point_binary_ply_is_reduced_and_matches_spacemesh_generate(
+        ray_cluster, model_dir, tmp_path):
+    """Batch reads as ``spacemesh generate`` does (one path): a 1,000,000-point cloud is
+    reduced to the working size, not refused, and gives the command's bytes."""
+    rng = np.random.default_rng(11)
+    d = rng.normal(size=(1_000_000, 3))
+    big = _binary_ply(tmp_path / "million.ply",
+                      d / np.linalg.norm(d, axis=1, keepdims=True) * [1.0, 0.7, 0.5])
+    out = tmp_path / "out"
+    result = invoke(str(big), "--out", str(out), "--model", str(model_dir))
+    assert result.exit_code == 0, result.output
+    (row,) = _rows(out)
+    assert row["error_kind"] is None and row["faces"] > 0, row
+    assert row["points_read"] == 1_000_000
+    assert row["points_used"] == 200_000  # the working size, as the command reduces
+    single = tmp_path / "single.obj"
+    done = CliRunner().invoke(app, ["generate", str(big), "-o", str(single),
+                                    "--model", str(model_dir), "--no-progress"])
+    assert done.exit_code == 0, done.output
+    assert single.read_bytes() == (out / "million.obj").read_bytes()

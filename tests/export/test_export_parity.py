@@ -11,8 +11,9 @@ ort = pytest.importorskip("onnxruntime")
 from spacemesh.export.repository import load_trained_model  # noqa: E402
 from spacemesh.nn.model import TorchBackend  # noqa: E402
 from spacemesh.primitives import edge_keys  # noqa: E402
-from spacemesh.runtime.pipeline import MeshGenerator, ModelSpec  # noqa: E402
+from spacemesh.runtime.pipeline import MeshGenerator  # noqa: E402
 from spacemesh.runtime.repository import ModelRepository  # noqa: E402
+from spacemesh.runtime.spec import ModelSpec  # noqa: E402
 
 #: The conv blocks' group norms may differ by ~1e-4 between torch and onnxruntime.
 ATOL = 1e-3

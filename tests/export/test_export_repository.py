@@ -55,7 +55,7 @@ def test_sha256_mismatch_and_missing_files_are_refused(toy_model, tmp_path):
 
 def test_vertex_spacing_is_calibrated_on_the_val_split(toy_model, tmp_path):
     from spacemesh.export.repository import calibrate_vertex_spacing
-    from spacemesh.runtime.pipeline import ModelSpec
+    from spacemesh.runtime.spec import ModelSpec
 
     found = calibrate_vertex_spacing(toy_model.repository, toy_model.data, shapes=3,
                                      threads=1, grid=(1e-4, 0.1, 10.0))
@@ -74,7 +74,7 @@ def test_vertex_spacing_is_calibrated_on_the_val_split(toy_model, tmp_path):
 
 def test_the_decode_section_follows_the_training_style(toy_model):
     from spacemesh.geometry.policy import decode_section
-    from spacemesh.runtime.pipeline import ModelSpec
+    from spacemesh.runtime.spec import ModelSpec
 
     manifest = json.loads((toy_model.repository / "manifest.json").read_text())
     assert manifest["decode"]["max_sides"] is None  # the toy data card names no style
@@ -119,7 +119,7 @@ def test_shipped_versions_decode_as_their_manifests_say(version):
     from pathlib import Path
 
     from spacemesh.geometry.policy import DECODE_KEYS, decode_section
-    from spacemesh.runtime.pipeline import ModelSpec
+    from spacemesh.runtime.spec import ModelSpec
 
     path = Path(__file__).resolve().parents[2] / "models/spacemesh-small" / str(version)
     manifest = json.loads((path / "manifest.json").read_text())

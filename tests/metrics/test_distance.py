@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from spacemesh.examples import cube_quads, icosphere
+from spacemesh.geometry.finishing import flip_faces
 from spacemesh.metrics import (
     Reference,
     apply_normalisation,
@@ -17,7 +18,6 @@ from spacemesh.metrics import (
     sample_mesh,
     score_mesh,
 )
-from spacemesh.runtime.finishing import flip_faces
 
 
 def unit_cube():

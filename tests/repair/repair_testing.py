@@ -18,8 +18,8 @@ from scipy.spatial import cKDTree
 from spacemesh.decode import DecodeOptions, Embeddings
 from spacemesh.mesh import PolygonMesh
 from spacemesh.runtime.backend import ConnectivityOutputs
-from spacemesh.runtime.pipeline import ModelSpec
 from spacemesh.runtime.schedule import NoiseSchedule
+from spacemesh.runtime.spec import ModelSpec
 from tests.validity import assert_valid_mesh
 
 K, N_SPACE, KP = 16, 8, 6

@@ -195,3 +195,19 @@ def test_the_cli_searches_a_tolerance_and_refuses_it_with_a_target(toy_model, tm
                           timeout=120)
     assert both.returncode == 2 and "Traceback" not in both.stderr
     assert both.stderr.strip().count("\n") == 0 and "--tolerance" in both.stderr
+
+
+def test_the_progress_line_names_the_stage_that_is_running(tmp_path):
+    """A default generate (the shipped model) names its stages on stderr, the geometry
+    stage included, rather than a step count that stands still (issue 46)."""
+    points = tmp_path / "cloud.xyz"
+    d = np.random.default_rng(5).normal(size=(2048, 3))
+    np.savetxt(points, d / np.linalg.norm(d, axis=1, keepdims=True) * [1.0, 0.8, 0.6])
+    done = subprocess.run([*CLI, "generate", str(points), "-o", str(tmp_path / "m.obj"),
+                           "--threads", "1", "--progress"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    shown = [part.strip() for part in done.stderr.replace("\r", "\n").splitlines()]
+    names = {part.split(" [")[0].split(" ")[0] for part in shown if part.endswith("]")}
+    assert {"encoder", "connectivity", "decode", "geometry", "report"} <= names, shown
+    assert "step" not in done.stderr.replace("sampler step", "")

@@ -7,12 +7,13 @@ import pytest
 
 pytest.importorskip("onnxruntime")
 
+from spacemesh.geometry.finishing import flip_faces
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import signed_volume
 from spacemesh.runtime import GenerateRequest, MeshGenerator
-from spacemesh.runtime.finishing import flip_faces
+from spacemesh.runtime.network import drop_duplicates
 from spacemesh.runtime.options import GenerateOptions, OptionError
-from spacemesh.runtime.pipeline import drop_duplicates, normalize_points
+from spacemesh.runtime.request import normalize_points
 from spacemesh.topology import check_topology
 
 
@@ -167,11 +168,11 @@ def test_the_seed_whose_pieces_agree_with_the_points_wins_over_a_closer_fit():
     from types import SimpleNamespace
 
     from spacemesh.examples import icosphere
-    from spacemesh.geometry import fit_report
-    from spacemesh.runtime.pipeline import _best_fit
+    from spacemesh.geometry import PointFacts, fit_report
+    from spacemesh.runtime.choice import best_fit as _best_fit
 
     sphere = icosphere(1)
-    base = fit_report(sphere, sphere.vertices)
+    base = fit_report(sphere, sphere.vertices, PointFacts(pieces=1, outliers=0.0, noise=0.0))
 
     def tried(seed, pieces, score, crossing=0.0):
         fit = replace(base, pieces=pieces, self_intersections=crossing,
@@ -183,7 +184,8 @@ def test_the_seed_whose_pieces_agree_with_the_points_wins_over_a_closer_fit():
     winner = _best_fit(results, options, expected_pieces=1)
     assert winner.seed == 7 and winner.options.seed == 7
     assert winner.fit.points_pieces == 1 and winner.fit.pieces_agree
-    assert "points_pieces" in winner.fit.to_dict() and "points_pieces" not in base.to_dict()
+    assert "points_pieces" in winner.fit.to_dict()
+    assert "points_pieces" not in fit_report(sphere, sphere.vertices).to_dict()
     assert winner.sample_scores == [(5, 0.010), (6, 0.012), (7, 0.011)]
     # none agrees: the closest fit
     assert _best_fit(results, options, expected_pieces=3).seed == 5
@@ -197,7 +199,7 @@ def test_the_seed_whose_pieces_agree_with_the_points_wins_over_a_closer_fit():
 def test_a_model_with_retry_seeds_tries_more_when_no_mesh_is_acceptable(generator, cloud):
     from dataclasses import replace
 
-    from spacemesh.runtime.pieces import point_pieces
+    from spacemesh.geometry.pieces import point_pieces
 
     retrying = MeshGenerator(generator.backend, replace(generator.spec, retry_seeds=3))
     stages = []
@@ -223,7 +225,7 @@ def test_a_model_with_retry_seeds_tries_more_when_no_mesh_is_acceptable(generato
 
 
 def test_retry_seeds_in_a_manifest_are_checked():
-    from spacemesh.runtime.pipeline import check_retry_seeds
+    from spacemesh.runtime.spec import check_retry_seeds
 
     assert check_retry_seeds(4) == 4
     for bad in (-1, 9, 2.0, True, "4"):

@@ -10,7 +10,7 @@ import pytest
 
 from spacemesh.mesh import PolygonMesh
 from spacemesh.runtime.options import GenerateOptions
-from spacemesh.runtime.pipeline import GenerateRequest, GenerateResult
+from spacemesh.runtime.request import GenerateRequest, GenerateResult
 from spacemesh_service.batcher import Batcher, QueueFull, ShuttingDown
 
 

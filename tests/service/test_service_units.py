@@ -104,8 +104,8 @@ def toy_spec(**changes):
     from dataclasses import replace
 
     from spacemesh.decode import DecodeOptions
-    from spacemesh.runtime.pipeline import ModelSpec
     from spacemesh.runtime.schedule import NoiseSchedule
+    from spacemesh.runtime.spec import ModelSpec
 
     spec = ModelSpec(n_points=64, max_vertices=16, normals=False,
                      schedule=NoiseSchedule(np.linspace(1e-4, 0.02, 64)), method="ddim",

@@ -1,6 +1,8 @@
 """The manifest of a batch: one row per input, as JSON lines (and Parquet) in the output folder.
 
-A row (:data:`ROW_FIELDS`) says where an input's mesh went, the mesh's fit report, and,
+A row (:data:`ROW_FIELDS`) says where an input's mesh went, how many points were read
+and used (a cloud of more than the working size is reduced to it, as ``spacemesh
+generate`` and the service reduce it), the mesh's fit report, and,
 for an input that failed, the error's stable ``kind`` (the service's problem slugs:
 ``malformed-input``, ``degenerate-geometry`` ...) and message. The driver appends each
 row to ``manifest.jsonl`` as its input finishes (a local folder; at a URL the file is
@@ -28,8 +30,8 @@ MANIFEST_NAME = "manifest.jsonl"
 #: The Parquet copy's file name (written only where pyarrow is installed).
 PARQUET_NAME = "manifest.parquet"
 #: The fields of a row, in order.
-ROW_FIELDS = ("input", "output", "operation", "vertices", "faces", "fit", "repair",
-              "error_kind", "error", "seconds")
+ROW_FIELDS = ("input", "output", "operation", "points_read", "points_used", "vertices",
+              "faces", "fit", "repair", "error_kind", "error", "seconds")
 #: Fields written to Parquet as JSON text (nested dictionaries whose keys vary by row).
 JSON_FIELDS = ("fit", "repair")
 #: The file in the output folder recording the settings of the batch it holds.

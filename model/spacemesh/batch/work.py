@@ -2,8 +2,9 @@
 
 :class:`Mesher` holds one :class:`~spacemesh.runtime.MeshGenerator` for its life (Ray Data
 builds one per worker) and turns an input row into a manifest row. It reads the input
-exactly as ``spacemesh generate`` does (:func:`~spacemesh.io.surface.load_cloud_input`
-with the model's point count, :func:`~spacemesh.runtime.cloud.validate_cloud`), runs
+exactly as ``spacemesh generate`` does (:func:`~spacemesh.runtime.cloud.read_generate_input`:
+a cloud of more than the working size reduced to it, a mesh's surface sampled to the
+model's point count, the points checked), runs
 :meth:`MeshGenerator.generate` with the same options and writes
 :func:`~spacemesh.io.export_mesh`'s bytes, so its files are byte-identical to the
 command's for the same seed, format, options and thread count. With ``repair`` set it
@@ -30,7 +31,8 @@ from spacemesh.batch.manifest import write_bytes
 from spacemesh.errors import KindedError
 from spacemesh.io import MeshFormatError, ReadLimits
 from spacemesh.io.errors import read_error_kind
-from spacemesh.runtime.cloud import DEFAULT_MAX_POINTS
+from spacemesh.io.reduce import DEFAULT_MAX_BINARY_POINTS
+from spacemesh.runtime.cloud import read_generate_input
 from spacemesh.runtime.options import GenerateOptions, OptionError
 from spacemesh.threads import limit_threads
 
@@ -38,12 +40,13 @@ from spacemesh.threads import limit_threads
 REPAIR_MODES = {"auto": "all", "holes": "holes", "defects": "defects"}
 #: Output formats (the extension of each output file).
 OUTPUT_FORMATS = ("obj", "ply", "off", "glb", "gltf")
-#: The read limits of a batch input: the service's defaults (points, mesh vertices and
-#: faces, decoded bytes).
-BATCH_LIMITS = ReadLimits(max_points=DEFAULT_MAX_POINTS, max_vertices=1_000_000,
-                          max_faces=2_000_000, max_bytes=256 * 1024 * 1024)
 #: The largest input file read (bytes).
-MAX_INPUT_BYTES = 256 * 1024 * 1024
+MAX_INPUT_BYTES = 512 * 1024 * 1024
+#: The read limits of a batch input: the service's defaults (points in a file, before a
+#: bigger cloud is reduced to the working size as ``spacemesh generate`` and the service
+#: reduce it; mesh vertices and faces; decoded bytes).
+BATCH_LIMITS = ReadLimits(max_points=DEFAULT_MAX_BINARY_POINTS, max_vertices=1_000_000,
+                          max_faces=2_000_000, max_bytes=MAX_INPUT_BYTES)
 
 
 class RowError(Exception):
@@ -186,9 +189,10 @@ class Mesher:
         """
         started = time.perf_counter()
         row: dict[str, Any] = {"input": source, "output": None,
-                               "operation": self.settings.operation, "vertices": None,
-                               "faces": None, "fit": None, "repair": None,
-                               "error_kind": None, "error": None}
+                               "operation": self.settings.operation, "points_read": None,
+                               "points_used": None, "vertices": None, "faces": None,
+                               "fit": None, "repair": None, "error_kind": None,
+                               "error": None}
         try:
             row.update(self._mesh(source, name))
         except Exception as error:  # every failure becomes an error row
@@ -223,16 +227,13 @@ class Mesher:
         return {"output": output, "vertices": mesh.n_vertices, "faces": mesh.n_faces, **extra}
 
     def _generate(self, data: Any, file_type: str | None) -> tuple[Any, dict[str, Any]]:
-        from spacemesh.io.surface import load_cloud_input
-        from spacemesh.runtime.cloud import validate_cloud
-
         spec = self.generator.spec
-        cloud = load_cloud_input(data, file_type=file_type, limits=self.settings.limits,
-                                 n_points=spec.n_points)
-        points, normals = validate_cloud(cloud.points, cloud.normals,
-                                         needs_normals=spec.normals)
-        result = self.generator.generate(points, normals, self.settings.options)
-        return result.mesh, {"fit": result.fit.to_dict() if result.fit is not None else None}
+        cloud = read_generate_input(data, file_type=file_type, limits=self.settings.limits,
+                                    n_points=spec.n_points, needs_normals=spec.normals)
+        result = self.generator.generate(cloud.points, cloud.normals, self.settings.options)
+        return result.mesh, {"fit": result.fit.to_dict() if result.fit is not None else None,
+                             "points_read": cloud.points_read,
+                             "points_used": len(cloud.points)}
 
     def _repair(self, data: Any, file_type: str | None) -> tuple[Any, dict[str, Any]]:
         from spacemesh.io import load_mesh

@@ -167,6 +167,45 @@ def use_threads(threads: int) -> int:
     return limit_threads(threads)
 
 
+class StageBar:
+    """One progress line on stderr naming the pipeline stage that is really running:
+    ``geometry 1/1 [00:02]``, ``sampler step 12/50 [00:01]``, ``pieces``, ``untangle``,
+    ``tolerance 2/6``... Pass :meth:`stage` and :meth:`progress` to
+    :meth:`spacemesh.runtime.MeshGenerator.generate`.
+
+    Parameters
+    ----------
+    enabled : bool
+        False draws nothing (``--no-progress``, ``--json``).
+    first : str
+        What the line says before the first stage (``reading``).
+    """
+
+    def __init__(self, enabled: bool, first: str = "starting") -> None:
+        from tqdm import tqdm
+
+        self.bar = tqdm(desc=first, bar_format="{desc} [{elapsed}]", disable=not enabled,
+                        leave=False)
+
+    def stage(self, name: str, done: int, total: int) -> None:
+        """A stage begins (the ``done``-th of ``total``)."""
+        if name == "sampler" and total and not done:
+            self._show(f"sampler step 0/{total}")
+        else:
+            self._show(f"{name} {done}/{total}" if total > 1 else name)
+
+    def progress(self, done: int, total: int) -> None:
+        """A sampler step finished."""
+        self._show(f"sampler step {done}/{total}")
+
+    def _show(self, text: str) -> None:
+        self.bar.set_description_str(text, refresh=True)
+
+    def close(self) -> None:
+        """Remove the line."""
+        self.bar.close()
+
+
 def fit_progress(bar) -> Callable[[object], None]:
     """A fit's per-step callback that advances the tqdm ``bar`` and shows the step's
     ``loss``, ``edge_f1`` and ``next_accuracy`` (``spacemesh fit`` and

@@ -4,13 +4,14 @@ The generate options are :class:`spacemesh.runtime.options.GenerateOptions`, one
 each (``--start-time`` for ``start_time``), read as text and parsed by the service's rule
 (:meth:`GenerateOptions.parse`: ``--seed 1e3`` is refused, not converted); the generator
 resolves them once, and an option of the wrong type or out of range is one line on stderr
-and exit code 2. The point cloud is checked
-as the service checks it (:func:`spacemesh.runtime.cloud.validate_cloud`, with the
-service's default limits): too few or too many points, NaN or infinite values, or
-identical, collinear or coplanar points are one line on stderr and exit code 2. A cloud
-of more than :data:`~spacemesh.io.reduce.DEFAULT_WORKING_POINTS` points is first reduced
-to that many (a seeded random subset, as the service does; ``points_reduced`` in the
-summary says from how many). The summary reports the resolved options, the fit report
+and exit code 2. The input is read
+and checked as the service and ``spacemesh batch`` read it
+(:func:`spacemesh.runtime.cloud.read_generate_input`, with the service's default limits):
+too few or too many points, NaN or infinite values, or identical, collinear or coplanar
+points are one line on stderr and exit code 2. A cloud of more than
+:data:`~spacemesh.io.reduce.DEFAULT_WORKING_POINTS` points is first reduced to that many
+(a seeded random subset, as the service does; ``points_reduced`` in the summary says from
+how many). The summary reports the resolved options, the fit report
 (:meth:`FitReport.to_dict`) and every seed's score.
 """
 
@@ -27,6 +28,7 @@ from spacemesh.cli.common import (
     SamplerFlag,
     SamplesFlag,
     SeedFlag,
+    StageBar,
     StartFlag,
     StartTimeFlag,
     StepsFlag,
@@ -74,14 +76,10 @@ def generate(
     ] = True,
 ) -> None:
     """Generate a mesh of the surface sampled by POINTS."""
-    from tqdm import tqdm
-
     from spacemesh.io import save_mesh
     from spacemesh.io.errors import MeshFormatError
-    from spacemesh.io.reduce import DEFAULT_WORKING_POINTS
-    from spacemesh.io.surface import load_cloud_input
     from spacemesh.runtime import MeshGenerator, ModelRepositoryError
-    from spacemesh.runtime.cloud import CloudError, validate_cloud
+    from spacemesh.runtime.cloud import CloudError, read_generate_input
     from spacemesh.runtime.options import OptionError
 
     options = generate_options(seed=seed, steps=steps, sampler=sampler, start=start,
@@ -98,25 +96,17 @@ def generate(
     except ModelRepositoryError as error:
         fail(str(error))
     try:  # a mesh's surface is sampled to the model's point count, a big cloud reduced
-        cloud = load_cloud_input(points_path, n_points=generator.spec.n_points,
-                                 keep=DEFAULT_WORKING_POINTS)
+        cloud = read_generate_input(points_path, n_points=generator.spec.n_points,
+                                    needs_normals=generator.spec.normals)
     except MeshFormatError as error:
         fail(f"{points_path}: {error}")
-    points, normals = cloud.points, cloud.normals
-    try:
-        points, normals = validate_cloud(points, normals,
-                                         needs_normals=generator.spec.normals)
     except CloudError as error:
         fail(f"{points_path}: {error} ({error.kind})")
-    bar = tqdm(desc="diffusion", unit="step", disable=not progress or as_json, leave=False)
-
-    def report(done: int, total: int) -> None:
-        bar.total = total
-        bar.n = done
-        bar.refresh()
-
+    points, normals = cloud.points, cloud.normals
+    bar = StageBar(progress and not as_json)
     try:
-        result = generator.generate(points, normals, options, progress=report)
+        result = generator.generate(points, normals, options, progress=bar.progress,
+                                    stage=bar.stage)
     except OptionError as error:
         fail(f"{option_flag(error.option)}: {error}")
     except ValueError as error:

@@ -16,7 +16,7 @@ The steps, in order (each drawn per shape; see :class:`AugmentConfig`):
 2. **uneven density**: points are kept with a probability that falls linearly along a
    random direction, from 1 to ``1 - s`` with ``s`` uniform in ``[0, density]``;
 3. the ``count`` conditioning points are chosen from those left
-   (:func:`spacemesh.runtime.pipeline.choose_points`, as without augmentation);
+   (:func:`spacemesh.runtime.request.choose_points`, as without augmentation);
 4. **noise**: Gaussian noise of a standard deviation uniform in ``[0, noise]`` (the
    ``[-1, 1]`` frame) on every point;
 5. **outliers**: a fraction uniform in ``[0, outliers]`` of the points is replaced by
@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from spacemesh.runtime.pipeline import choose_points
+from spacemesh.runtime.request import choose_points
 from spacemesh.typed import FloatArray
 
 #: A drop never leaves fewer points than this (nor fewer than ``min_keep`` of the cloud).

@@ -11,7 +11,7 @@ numpy and scipy only: the service uses all of it without torch, trimesh or pymes
 """
 
 from spacemesh.geometry.fitting import VertexFitOptions, fit_vertices
-from spacemesh.geometry.report import FitReport, fit_report, fit_score
+from spacemesh.geometry.report import FitReport, PointFacts, fit_report, fit_score
 from spacemesh.geometry.sampling import farthest_point_sampling, feature_weights
 from spacemesh.geometry.stage import GeometryOptions, GeometryResult, refine_geometry
 
@@ -19,6 +19,7 @@ __all__ = [
     "FitReport",
     "GeometryOptions",
     "GeometryResult",
+    "PointFacts",
     "VertexFitOptions",
     "farthest_point_sampling",
     "feature_weights",

@@ -20,7 +20,8 @@ lines and ``samples=K`` (which keeps the seed with the lowest :attr:`FitReport.s
   asked for and whether ``points_to_mesh_mean_rel`` reached it
   (:mod:`spacemesh.runtime.tolerance`);
 * ``points_pieces``: from a generate, the pieces of the surface the points sample, the
-  points' own estimate (:func:`spacemesh.runtime.pieces.point_pieces`); the mesh's
+  points' own estimate (:func:`spacemesh.geometry.pieces.point_pieces`, a
+  :class:`PointFacts` field); the mesh's
   ``pieces`` agree with the points when the two are equal (:attr:`FitReport.pieces_agree`);
 * ``points_outliers`` and ``points_noise``: from a generate, the share of the uploaded
   points set aside as outliers before anything else ran, and the noise of the rest
@@ -168,14 +169,44 @@ def fit_score(mesh: PolygonMesh, points: FloatArray) -> float:
     return float(to_mesh.mean()) / relative + float(to_points.mean()) / relative
 
 
-def fit_report(mesh: PolygonMesh, points: FloatArray) -> FitReport:
-    """The fit report of ``mesh`` against the finite rows of ``points``.
+@dataclass(frozen=True)
+class PointFacts:
+    """What a generate knows of its points before any mesh is made, carried by every
+    fit report of the request.
+
+    Attributes
+    ----------
+    pieces : int
+        The pieces of the surface the points sample
+        (:func:`spacemesh.geometry.pieces.point_pieces`).
+    outliers : float
+        The share of the uploaded points set aside as outliers.
+    noise : float
+        The noise of the rest, a fraction of their diagonal
+        (:func:`spacemesh.geometry.cleaning.assess_points`).
+    """
+
+    pieces: int
+    outliers: float
+    noise: float
+
+
+def fit_report(mesh: PolygonMesh, points: FloatArray, facts: PointFacts | None = None,
+               tolerance: float | None = None) -> FitReport:
+    """The fit report of ``mesh`` against the finite rows of ``points``, made once with
+    everything a response says.
 
     Parameters
     ----------
     mesh : PolygonMesh
         In the points' frame.
     points : (P, 3) float
+    facts : PointFacts, optional
+        A generate's facts of its points (``points_pieces``, ``points_outliers``,
+        ``points_noise``).
+    tolerance : float, optional
+        A tolerance request's tolerance (``tolerance``; ``tolerance_met`` when
+        ``points_to_mesh_mean_rel`` is within it).
 
     Returns
     -------
@@ -186,10 +217,13 @@ def fit_report(mesh: PolygonMesh, points: FloatArray) -> FitReport:
     relative = diagonal if diagonal > 0 else 1.0
     nan = float("nan")
     topology = surface_topology(mesh)
+    known = (None, None, None) if facts is None else (facts.pieces, facts.outliers,
+                                                      facts.noise)
     if mesh.n_faces == 0 or len(points) == 0:
         return FitReport(nan, nan, nan, nan, nan, nan, nan, nan, 0.0, face_components(mesh),
                          0.0, diagonal, len(points), topology.pieces, topology.genus,
-                         topology.boundary_loops)
+                         topology.boundary_loops, tolerance,
+                         None if tolerance is None else False, *known)
     to_mesh, to_points = _distances(mesh, points)
     to_mesh_mean, to_mesh_p95 = float(to_mesh.mean()), float(np.percentile(to_mesh, 95))
     to_points_mean = float(to_points.mean())
@@ -206,4 +240,7 @@ def fit_report(mesh: PolygonMesh, points: FloatArray) -> FitReport:
         self_intersections=self_intersection_fraction(mesh),
         diagonal=diagonal, n_points=len(points), pieces=topology.pieces,
         genus=topology.genus, boundary_loops=topology.boundary_loops,
+        tolerance=tolerance,
+        tolerance_met=None if tolerance is None else to_mesh_mean / relative <= tolerance,
+        points_pieces=known[0], points_outliers=known[1], points_noise=known[2],
     )

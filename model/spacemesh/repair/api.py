@@ -58,9 +58,11 @@ from spacemesh.repair.region import (
 from spacemesh.repair.splice import Spliced, fill_hole, splice
 from spacemesh.repair.weld import weld_region, weld_vertices
 from spacemesh.runtime.backend import Backend, ConnectivityOutputs
-from spacemesh.runtime.pipeline import MeshGenerator, ModelSpec, drop_duplicates
+from spacemesh.runtime.network import drop_duplicates
+from spacemesh.runtime.pipeline import MeshGenerator
 from spacemesh.runtime.sampler import ProgressFn
 from spacemesh.runtime.schedule import METHODS
+from spacemesh.runtime.spec import ModelSpec
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Hole points sampled per free token (the first ``N - K`` pad the alignment; all of

@@ -8,7 +8,7 @@ are free to become new vertices. ``rings`` is the largest number (at most
 rings reach every face and the patch is the whole mesh, as in the paper.
 
 The patch is normalised like a generation request (bounding-box centre to the origin,
-longest axis to [-1, 1], :func:`spacemesh.runtime.pipeline.normalize_points`) over its
+longest axis to [-1, 1], :func:`spacemesh.runtime.request.normalize_points`) over its
 faces' vertices and the hole. Everything the inpainting needs is sampled here, in that
 unit frame:
 
@@ -31,7 +31,7 @@ from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import edge_keys, sample_surface, surface_area
 from spacemesh.repair.cut import Cut
 from spacemesh.repair.region import INVALID_REGION, REGION_TOO_LARGE, RegionError
-from spacemesh.runtime.pipeline import normalize_points
+from spacemesh.runtime.request import normalize_points
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Most face rings of context around the region.

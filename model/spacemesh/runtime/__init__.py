@@ -9,13 +9,15 @@
 - :mod:`~spacemesh.runtime.backend`: the graph interface and its onnxruntime backend.
 """
 
-from spacemesh.runtime.pipeline import GenerateRequest, GenerateResult, MeshGenerator, ModelSpec
+from spacemesh.runtime.pipeline import MeshGenerator
 from spacemesh.runtime.repository import (
     DEFAULT_MODEL_DIR,
     ModelRepository,
     ModelRepositoryError,
     default_model_dir,
 )
+from spacemesh.runtime.request import GenerateRequest, GenerateResult
+from spacemesh.runtime.spec import ModelSpec
 
 __all__ = [
     "DEFAULT_MODEL_DIR",

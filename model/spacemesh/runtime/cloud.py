@@ -1,18 +1,31 @@
-"""The one check of a point cloud before generation, shared by the service and the CLI.
+"""The one way a generation's input is read and checked, shared by the service, the CLI
+and batch.
 
-:func:`validate_cloud` applies the point-count limits and the geometry checks;
-``spacemesh generate`` and the service (``POST /generate``, gRPC ``Generate``) both call
-it, so the same input is refused by both. A refusal is a :class:`CloudError` whose
-``kind`` is stable (one of :data:`ERROR_KINDS`): the service answers it as the
-problem+json type of that name (413 for ``too-many-points``, 422 for the others), the
-CLI as one line on stderr and exit code 2.
+:func:`read_generate_input` reads a file (a cloud, reduced to the working size when it is
+bigger, or a mesh's surface sampled) within the read limits and checks it with
+:func:`validate_cloud`; ``spacemesh generate`` and ``spacemesh batch`` call it, and the
+service (``POST /generate``, gRPC ``Generate``) calls its two steps (the reading in a
+parse slot, :func:`validate_cloud` with its settings), so the same input is read, reduced
+and refused alike everywhere.
+
+:func:`validate_cloud` applies the point-count limits and the geometry checks. A refusal
+is a :class:`CloudError` whose ``kind`` is stable (one of :data:`ERROR_KINDS`): the
+service answers it as the problem+json type of that name (413 for ``too-many-points``,
+422 for the others), the CLI as one line on stderr and exit code 2.
 """
 
 from __future__ import annotations
 
+import os
+from dataclasses import replace
+from typing import BinaryIO
+
 import numpy as np
 
 from spacemesh.errors import KindedError
+from spacemesh.io.limits import ReadLimits
+from spacemesh.io.reduce import DEFAULT_MAX_BINARY_POINTS, DEFAULT_WORKING_POINTS
+from spacemesh.io.surface import CloudInput, load_cloud_input
 from spacemesh.typed import FloatArray
 
 #: Fewest and most points of a request, unless the caller sets other limits (the
@@ -127,5 +140,56 @@ def validate_cloud(
     return np.ascontiguousarray(points), normals
 
 
+def read_generate_input(
+    source: str | os.PathLike[str] | bytes | BinaryIO, *, n_points: int,
+    needs_normals: bool = False, file_type: str | None = None,
+    limits: ReadLimits | None = None, working_points: int = DEFAULT_WORKING_POINTS,
+    min_points: int = DEFAULT_MIN_POINTS,
+) -> CloudInput:
+    """Read and check a generation's input: the path every caller of the pipeline shares.
+
+    A point cloud of more than ``working_points`` points is reduced to a seeded random
+    subset of that many (:func:`spacemesh.io.reduce.reduce_cloud`); a mesh's surface is
+    sampled to ``n_points`` points; then :func:`validate_cloud` checks the points.
+
+    Parameters
+    ----------
+    source : path, bytes or binary file object
+    n_points : int
+        Points sampled on a mesh's surface (the model's encoder count).
+    needs_normals : bool
+        The model's encoder reads normals.
+    file_type : str, optional
+        Overrides the extension.
+    limits : ReadLimits, optional
+        Checked while reading (``max_points`` counts the points in the file, before the
+        reduction); None: the service's default point limit
+        (:data:`~spacemesh.io.reduce.DEFAULT_MAX_BINARY_POINTS`) and no other.
+    working_points : int
+        The size a bigger cloud is reduced to.
+    min_points : int
+        Fewest points accepted.
+
+    Returns
+    -------
+    CloudInput
+        Its points C-contiguous and checked; ``count`` set when they were reduced.
+
+    Raises
+    ------
+    MeshFormatError, TooLargeError, UnsupportedFormatError
+        From the readers.
+    CloudError
+        From :func:`validate_cloud`.
+    """
+    limits = limits or ReadLimits(max_points=DEFAULT_MAX_BINARY_POINTS)
+    cloud = load_cloud_input(source, file_type=file_type, limits=limits, n_points=n_points,
+                             keep=working_points)
+    max_points = limits.max_points or DEFAULT_MAX_BINARY_POINTS
+    points, normals = validate_cloud(cloud.points, cloud.normals, min_points=min_points,
+                                     max_points=max_points, needs_normals=needs_normals)
+    return replace(cloud, points=points, normals=normals)
+
+
 __all__ = ["DEFAULT_MAX_POINTS", "DEFAULT_MIN_POINTS", "DEGENERACY_TOLERANCE", "ERROR_KINDS",
-           "CloudError", "check_degenerate", "validate_cloud"]
+           "CloudError", "check_degenerate", "read_generate_input", "validate_cloud"]

@@ -2,7 +2,7 @@
 
 With ``start=points`` and a ``target_vertices`` above the model's ``max_vertices`` (256
 for ``small``), the pipeline can make the extra vertices in one of two ways
-(:attr:`spacemesh.runtime.pipeline.ModelSpec.large_meshes`, manifest
+(:attr:`spacemesh.runtime.spec.ModelSpec.large_meshes`, manifest
 ``sampler.large_meshes``):
 
 ``split``

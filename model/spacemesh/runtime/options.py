@@ -35,12 +35,10 @@ import types
 import typing
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from spacemesh.runtime.schedule import METHODS
-
-if TYPE_CHECKING:
-    from spacemesh.runtime.pipeline import ModelSpec
+from spacemesh.runtime.spec import MAX_RETRY_SEEDS, ModelSpec
 
 #: Where the vertices start: pure noise (the paper) or points chosen on the input.
 START_MODES = ("noise", "points")
@@ -62,10 +60,6 @@ FEATURE_BOOST = 1.0
 #: request sets a target.
 POINTS_START = {"start": "points", "start_time": 0.0, "vertices": 200,
                 "feature_boost": FEATURE_BOOST}
-#: Most seeds a model's ``sampler.retry_seeds`` may add to a request's own when none of
-#: its meshes has as many pieces as the points and uncrossed faces
-#: (:class:`spacemesh.runtime.pipeline.ModelSpec`; larger values are refused on load).
-MAX_RETRY_SEEDS = 8
 #: The ``sampler.retry_seeds`` a release records when it is repackaged with this code
 #: (``spacemesh export MODEL_VERSION_DIR``; a freshly trained run records none).
 RELEASE_RETRY_SEEDS = 4

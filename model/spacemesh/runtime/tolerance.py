@@ -47,7 +47,7 @@ MAX_TRIES = 8
 #: within this ratio.
 BRACKET_RATIO = 1.15
 
-#: A generate's result (:class:`~spacemesh.runtime.pipeline.GenerateResult`).
+#: A generate's result (:class:`~spacemesh.runtime.request.GenerateResult`).
 Result = TypeVar("Result")
 
 

@@ -27,7 +27,7 @@ from spacemesh.data.augment import AugmentConfig, augment_cloud
 from spacemesh.data.shards import MeshRecord
 from spacemesh.encode import encode_connectivity
 from spacemesh.nn.model import NeighbourTable
-from spacemesh.runtime.pipeline import choose_points
+from spacemesh.runtime.request import choose_points
 from spacemesh.typed import FloatArray
 
 

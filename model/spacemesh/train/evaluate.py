@@ -232,7 +232,7 @@ def pipeline_metrics(
         and ``shapes``.
     """
     from spacemesh.runtime.options import GenerateOptions
-    from spacemesh.runtime.pipeline import GenerateRequest
+    from spacemesh.runtime.request import GenerateRequest
 
     valid, empty, chamfer, f1, vertices = [], [], [], [], []
     for start in range(0, len(records), batch_size):

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 
 from spacemesh.examples import icosphere
+from spacemesh.geometry.pieces import FragmentPolicy, drop_fragments, point_pieces
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import sample_surface
-from spacemesh.runtime.pieces import FragmentPolicy, drop_fragments, point_pieces
 from spacemesh.topology import surface_topology
 from tests.validity import assert_valid_mesh
 

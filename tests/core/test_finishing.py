@@ -7,8 +7,8 @@ import pytest
 
 from spacemesh.examples import cube_quads, icosphere
 from spacemesh.geometry import GeometryOptions, fit_report, refine_geometry
+from spacemesh.geometry.finishing import finish_geometry, outward
 from spacemesh.primitives import sample_surface
-from spacemesh.runtime.finishing import finish_geometry, outward
 from tests.validity import assert_valid_mesh
 
 

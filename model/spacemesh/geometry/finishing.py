@@ -18,10 +18,11 @@ from typing import Any
 
 import numpy as np
 
-from spacemesh.geometry import GeometryOptions, fit_score, refine_geometry
+from spacemesh.geometry.pieces import drop_fragments
+from spacemesh.geometry.report import fit_score
+from spacemesh.geometry.stage import GeometryOptions, refine_geometry
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import signed_volume
-from spacemesh.runtime.pieces import drop_fragments
 from spacemesh.typed import FloatArray
 
 
