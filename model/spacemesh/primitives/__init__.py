@@ -1,6 +1,8 @@
 """Mesh primitives: the ground floor that every other package builds on.
 
 * :mod:`~spacemesh.primitives.keys`: integer keys of undirected edges;
+* :mod:`~spacemesh.primitives.graph`: connected components of node pairs, the uniform
+  (umbrella) adjacency;
 * :mod:`~spacemesh.primitives.triangles`: polygons and polygon meshes as triangles,
   signed volume (also per corner), surface area;
 * :mod:`~spacemesh.primitives.closest`: closest points on triangles, nearest triangles;
@@ -17,6 +19,7 @@ ours, so any layer may use them.
 
 from spacemesh.primitives.decimation import decimate
 from spacemesh.primitives.frame import normalize
+from spacemesh.primitives.graph import component_labels, uniform_adjacency
 from spacemesh.primitives.keys import edge_keys
 from spacemesh.primitives.masks import faces_subset, faces_touching, vertices_of
 from spacemesh.primitives.sampling import sample_surface
@@ -34,6 +37,7 @@ from spacemesh.primitives.triangles import (
 from spacemesh.primitives.welding import weld
 
 __all__ = [
+    "component_labels",
     "decimate",
     "edge_keys",
     "faces_subset",
@@ -49,6 +53,7 @@ __all__ = [
     "triangulate_faces",
     "triangulate_manifold",
     "triangulate_polygon",
+    "uniform_adjacency",
     "vertices_of",
     "weld",
 ]
