@@ -9,11 +9,9 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import edge_keys, weld
+from spacemesh.primitives import component_labels, edge_keys, weld
 from spacemesh.typed import IntArray
 
 
@@ -122,10 +120,8 @@ def count_vertex_fans(mesh: PolygonMesh) -> IntArray:
     b1 = np.where(same_dir, c2, nxt[c2])  # the other face's corner at the origin of c1
     a2 = nxt[c1]
     b2 = np.where(same_dir, nxt[c2], c2)  # ... at the target of c1
-    rows = np.concatenate([a1, a2])
-    cols = np.concatenate([b1, b2])
-    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_corners, n_corners))
-    _, label = connected_components(graph, directed=False)
+    pairs = np.stack([np.concatenate([a1, a2]), np.concatenate([b1, b2])], axis=1)  # (E, 2)
+    _, label = component_labels(n_corners, pairs)  # (S,)
     vertex = halfedges[:, 0]
     fan_ids = np.unique(np.stack([vertex, label], axis=1), axis=0)
     return np.bincount(fan_ids[:, 0], minlength=mesh.n_vertices).astype(np.int64)
@@ -148,11 +144,8 @@ def face_components(mesh: PolygonMesh) -> tuple[int, IntArray]:
     order = np.argsort(keys, kind="stable")
     sk = keys[order]
     same = sk[1:] == sk[:-1]
-    rows = face[order[:-1][same]]
-    cols = face[order[1:][same]]
-    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(mesh.n_faces, mesh.n_faces))
-    n, label = connected_components(graph, directed=False)
-    return int(n), label.astype(np.int64)
+    pairs = np.stack([face[order[:-1][same]], face[order[1:][same]]], axis=1)  # (E, 2)
+    return component_labels(mesh.n_faces, pairs)
 
 
 def check_topology(mesh: PolygonMesh) -> TopologyReport:
@@ -267,8 +260,7 @@ def surface_topology(mesh: PolygonMesh) -> SurfaceTopology:
     if len(open_keys):
         n = max(welded.n_vertices, 1)
         a, b = open_keys // n, open_keys % n
-        graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n))
-        _, label = connected_components(graph, directed=False)
+        _, label = component_labels(n, np.stack([a, b], axis=1))  # (V,)
         loops = len(np.unique(label[np.concatenate([a, b])]))
     return SurfaceTopology(pieces=int(pieces), genus=int((2 * pieces - euler - loops) // 2),
                            boundary_loops=int(loops))

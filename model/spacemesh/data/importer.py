@@ -30,7 +30,7 @@ from spacemesh.data.pipeline import prepare_shape
 from spacemesh.data.shards import SHARD_PATTERN, write_manifest, write_shard
 from spacemesh.data.validate import MIN_ALTITUDE, MIN_EDGE
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import decimate
+from spacemesh.primitives import component_labels, decimate
 from spacemesh.topology import check_topology
 
 #: File name suffixes that are imported (case-insensitive).
@@ -71,8 +71,6 @@ def weld_close_vertices(mesh: PolygonMesh, tolerance: float = MIN_EDGE) -> Polyg
     PolygonMesh
         ``mesh`` itself when no two vertices are that close.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
 
     scale = max(float(np.ptp(mesh.vertices, axis=0).max()) / 2, 1e-300)
@@ -80,8 +78,7 @@ def weld_close_vertices(mesh: PolygonMesh, tolerance: float = MIN_EDGE) -> Polyg
     if pairs.size == 0:
         return mesh
     n = mesh.n_vertices
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    _, label = connected_components(graph, directed=False)
+    _, label = component_labels(n, pairs)  # (V,)
     first = np.full(label.max() + 1, n, dtype=np.int64)
     np.minimum.at(first, label, np.arange(n))
     remap = first[label]  # every vertex -> the smallest index of its cluster

@@ -28,12 +28,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import faces_subset, triangle_areas, triangles_of
+from spacemesh.primitives import component_labels, faces_subset, triangle_areas, triangles_of
 from spacemesh.topology import face_components, weld_equal_positions
 from spacemesh.typed import FloatArray, IntArray
 
@@ -65,9 +63,7 @@ def point_pieces(points: FloatArray) -> int:
     if spacing <= 0:
         spacing = float(np.mean(gaps[:, 1])) or 1.0
     pairs = tree.query_pairs(POINT_PIECE_SPACINGS * spacing, output_type="ndarray")  # (E, 2)
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
-                       shape=(len(points), len(points)))
-    _, label = connected_components(graph, directed=False)
+    _, label = component_labels(len(points), pairs)  # (P,)
     sizes = np.bincount(label)
     return max(1, int(np.sum(sizes >= MIN_PIECE_SHARE * len(points))))
 

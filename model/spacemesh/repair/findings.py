@@ -10,11 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import faces_touching
+from spacemesh.primitives import component_labels, faces_touching
 from spacemesh.repair.halfedges import FaceSubset
 from spacemesh.typed import BoolArray, IntArray
 
@@ -57,9 +55,7 @@ def _clusters(mesh: PolygonMesh, edges: IntArray, marked: BoolArray) -> list[Int
     if ids.size == 0:
         return []
     keep = marked[edges[:, 0]] & marked[edges[:, 1]] if len(edges) else np.zeros(0, bool)
-    e = edges[keep]
-    graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
-    _, label = connected_components(graph, directed=False)
+    _, label = component_labels(n, edges[keep])  # (V,)
     order = ids[np.argsort(label[ids], kind="stable")]
     cuts = np.flatnonzero(np.diff(label[order])) + 1
     return [np.sort(group) for group in np.split(order, cuts)]

@@ -10,11 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import edge_keys
+from spacemesh.primitives import component_labels, edge_keys
 from spacemesh.typed import IntArray
 
 
@@ -90,8 +88,7 @@ class FaceSubset:
             return np.zeros(n_vertices, dtype=np.int64)
         has = np.flatnonzero(self.twin >= 0)
         rot = self.next[self.twin[has]]  # next(twin(h)) leaves the origin of h
-        graph = coo_matrix((np.ones(len(has)), (has, rot)), shape=(total, total))
-        n_comp, label = connected_components(graph, directed=False)
+        n_comp, label = component_labels(total, np.stack([has, rot], axis=1))  # label (S,)
         origin_of = np.zeros(n_comp, dtype=np.int64)
         origin_of[label] = self.halfedges[:, 0]
         return np.bincount(origin_of, minlength=n_vertices).astype(np.int64)

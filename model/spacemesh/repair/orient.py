@@ -9,11 +9,9 @@ numpy and scipy only.
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import fan_volumes
+from spacemesh.primitives import component_labels, fan_volumes
 from spacemesh.repair.findings import MAX_REPORTED
 from spacemesh.repair.halfedges import FaceSubset
 from spacemesh.repair.region import NON_ORIENTABLE, RegionError
@@ -78,8 +76,7 @@ def orient_faces(mesh: PolygonMesh) -> tuple[PolygonMesh, BoolArray]:
     # nodes f (kept) and f + F (reversed): a same-way edge joins f with g + F
     rows = np.concatenate([fa, fa + n_faces])
     cols = np.concatenate([np.where(same, fb + n_faces, fb), np.where(same, fb, fb + n_faces)])
-    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(2 * n_faces, 2 * n_faces))
-    _, label = connected_components(graph, directed=False)
+    _, label = component_labels(2 * n_faces, np.stack([rows, cols], axis=1))  # (2F,)
     keep, flip = label[:n_faces], label[n_faces:]
     bad = np.flatnonzero(keep == flip)
     if bad.size:

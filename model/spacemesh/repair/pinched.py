@@ -11,10 +11,9 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import component_labels
 from spacemesh.repair.cut import boundary_loops
 from spacemesh.repair.halfedges import FaceSubset
 from spacemesh.typed import FloatArray, IntArray
@@ -26,8 +25,7 @@ def _fan_labels(sub: FaceSubset) -> IntArray:
     total = len(sub.halfedges)
     has = np.flatnonzero(sub.twin >= 0)
     rot = sub.next[sub.twin[has]]
-    graph = coo_matrix((np.ones(len(has)), (has, rot)), shape=(total, total))
-    return connected_components(graph, directed=False)[1]
+    return component_labels(total, np.stack([has, rot], axis=1))[1]
 
 
 #: Most fans at one vertex whose orders :func:`_fan_cycles` tries (all of them).

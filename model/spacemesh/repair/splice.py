@@ -42,8 +42,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from spacemesh.connectivity import csr_from_edges, slot_lookup
 from spacemesh.decode import (
@@ -63,7 +61,7 @@ from spacemesh.permutation import (
     neighbourhood_log_phi_bar,
     reduction_logits,
 )
-from spacemesh.primitives import edge_keys
+from spacemesh.primitives import component_labels, edge_keys
 from spacemesh.repair.cut import Cut
 from spacemesh.spacetime import edges_below_threshold
 from spacemesh.typed import BoolArray, FloatArray, IntArray
@@ -122,8 +120,7 @@ def _prune(edges: IntArray, alive: BoolArray, is_new: BoolArray, n_boundary: int
         if n_boundary == 0 or not (is_new & alive).any():
             return edges, alive, pruned, detached
         new_new = edges[is_new[edges[:, 0]] & is_new[edges[:, 1]]]
-        graph = coo_matrix((np.ones(len(new_new)), (new_new[:, 0], new_new[:, 1])), shape=(n, n))
-        _, label = connected_components(graph, directed=False)
+        _, label = component_labels(n, new_new)  # (N,)
         to_boundary = edges[~(is_new[edges[:, 0]] & is_new[edges[:, 1]])]
         anchored_vertices = to_boundary.max(axis=1)  # the new end (new ids are larger)
         anchored = np.zeros(n, dtype=bool)
@@ -372,8 +369,7 @@ def fill_hole(
 def _loop_ids(loop_next: IntArray) -> IntArray:
     """(B,) which loop each boundary vertex is on."""
     n = len(loop_next)
-    graph = coo_matrix((np.ones(n), (np.arange(n), loop_next)), shape=(n, n))
-    return connected_components(graph, directed=False)[1].astype(np.int64)
+    return component_labels(n, np.stack([np.arange(n), loop_next], axis=1))[1]
 
 
 # ---------------------------------------------------------------------- assembly

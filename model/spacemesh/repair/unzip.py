@@ -11,10 +11,9 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import component_labels
 from spacemesh.repair.halfedges import FaceSubset
 from spacemesh.typed import BoolArray, IntArray
 
@@ -85,8 +84,7 @@ def unzip_defects(mesh: PolygonMesh, vertices: BoolArray) -> PolygonMesh:
     mate = _pair_sides(mesh, sub)
     total = len(he)
     has = np.flatnonzero(mate >= 0)
-    graph = coo_matrix((np.ones(len(has)), (has, sub.next[mate[has]])), shape=(total, total))
-    _, fan = connected_components(graph, directed=False)
+    _, fan = component_labels(total, np.stack([has, sub.next[mate[has]]], axis=1))  # (S,)
     origin = he[:, 0]
     split = vertices[origin]
     first_fan = np.full(mesh.n_vertices, -1, dtype=np.int64)

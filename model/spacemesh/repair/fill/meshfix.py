@@ -16,11 +16,15 @@ and the fairing's patch is kept.
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import faces_subset, faces_touching, triangulate_faces, vertices_of
+from spacemesh.primitives import (
+    component_labels,
+    faces_subset,
+    faces_touching,
+    triangulate_faces,
+    vertices_of,
+)
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Rings of faces around a hole handed to MeshFix.
@@ -109,10 +113,9 @@ def meshfix_fill(mesh: PolygonMesh, loops: list[IntArray]
         return None
     # the components of new triangles (joined by shared vertices) touching the loops
     n = mesh.n_vertices + len(points)
-    rows = np.repeat(np.arange(len(triangles)), 3)
-    graph = coo_matrix((np.ones(len(rows)), (rows, len(triangles) + triangles.reshape(-1))),
-                       shape=(len(triangles) + n, len(triangles) + n))
-    _, label = connected_components(graph, directed=False)
+    rows = np.repeat(np.arange(len(triangles)), 3)  # (3T,) nodes: triangles, then vertices
+    _, label = component_labels(len(triangles) + n,
+                                np.stack([rows, len(triangles) + triangles.reshape(-1)], axis=1))
     touching = np.unique(label[len(triangles) + np.flatnonzero(on_loop)])
     patch = triangles[np.isin(label[: len(triangles)], touching)]
     # its border must be the loops, in their direction, and no inner edge an old one
