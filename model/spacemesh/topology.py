@@ -12,7 +12,7 @@ import numpy as np
 
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import component_labels, edge_keys, weld
-from spacemesh.typed import IntArray
+from spacemesh.typed import BoolArray, IntArray
 
 
 @dataclass(frozen=True)
@@ -127,14 +127,19 @@ def count_vertex_fans(mesh: PolygonMesh) -> IntArray:
     return np.bincount(fan_ids[:, 0], minlength=mesh.n_vertices).astype(np.int64)
 
 
-def face_components(mesh: PolygonMesh) -> tuple[int, IntArray]:
-    """Edge-connected components of faces.
+def edge_connected_faces(mesh: PolygonMesh) -> tuple[int, IntArray]:
+    """Components of the faces, two faces joined when they share an edge (compare
+    :func:`vertex_connected_faces`, where a shared vertex is enough).
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
 
     Returns
     -------
     n_components : int
     label : (F,) int64
-        Component of each face.
+        Component of each face, numbered in order of each component's first face.
     """
     if mesh.n_faces == 0:
         return 0, np.zeros(0, dtype=np.int64)
@@ -146,6 +151,37 @@ def face_components(mesh: PolygonMesh) -> tuple[int, IntArray]:
     same = sk[1:] == sk[:-1]
     pairs = np.stack([face[order[:-1][same]], face[order[1:][same]]], axis=1)  # (E, 2)
     return component_labels(mesh.n_faces, pairs)
+
+
+def vertex_connected_faces(mesh: PolygonMesh, faces: BoolArray | None = None
+                           ) -> tuple[int, IntArray]:
+    """Components of the faces ``faces``, two faces joined when they share a vertex
+    (compare :func:`edge_connected_faces`, where they must share an edge).
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+    faces : (F,) bool, optional
+        The faces to group (all by default); the others join nothing.
+
+    Returns
+    -------
+    n_components : int
+        0 when no face is chosen.
+    label : (F,) int64
+        Component of each chosen face, numbered in order of each component's first face;
+        -1 for the others.
+    """
+    n_f, n_v = mesh.n_faces, mesh.n_vertices
+    chosen = np.ones(n_f, dtype=bool) if faces is None else faces  # (F,)
+    corner = chosen[mesh.face_of_corner]  # (S,) corners of chosen faces
+    # nodes: the faces, then the vertices; a corner joins its face with its vertex
+    pairs = np.stack([mesh.face_of_corner[corner], n_f + mesh.face_indices[corner]], axis=1)
+    _, label = component_labels(n_f + n_v, pairs)  # (F + V,)
+    ids, group = np.unique(label[:n_f][chosen], return_inverse=True)
+    out = np.full(n_f, -1, dtype=np.int64)
+    out[chosen] = group.reshape(-1)
+    return len(ids), out
 
 
 def check_topology(mesh: PolygonMesh) -> TopologyReport:
@@ -182,7 +218,7 @@ def check_topology(mesh: PolygonMesh) -> TopologyReport:
     fans = count_vertex_fans(mesh)
     used = np.zeros(mesh.n_vertices, dtype=bool)
     used[mesh.face_indices] = True
-    n_components, _ = face_components(mesh)
+    n_components, _ = edge_connected_faces(mesh)
     euler = int(used.sum()) - n_edges + mesh.n_faces
     return TopologyReport(
         n_vertices=mesh.n_vertices,
@@ -249,7 +285,7 @@ def surface_topology(mesh: PolygonMesh) -> SurfaceTopology:
     if mesh.n_faces == 0:
         return SurfaceTopology(pieces=0, genus=0, boundary_loops=0)
     welded = weld_equal_positions(mesh)
-    pieces, _ = face_components(welded)
+    pieces, _ = edge_connected_faces(welded)
     keys = edge_keys(welded.halfedges, welded.n_vertices)
     unique, counts = np.unique(keys, return_counts=True)
     used = np.zeros(welded.n_vertices, dtype=bool)

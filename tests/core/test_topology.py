@@ -4,7 +4,9 @@ from spacemesh.mesh import PolygonMesh
 from spacemesh.topology import (
     SurfaceTopology,
     check_topology,
+    edge_connected_faces,
     surface_topology,
+    vertex_connected_faces,
     weld_equal_positions,
 )
 from tests.factories import cube_quads, icosphere, prism, torus_grid
@@ -79,3 +81,21 @@ def test_surface_topology_welds_equal_positions_first():
     assert check_topology(soup).n_components == sphere.n_faces  # unwelded: all apart
     assert surface_topology(soup) == SurfaceTopology(pieces=1, genus=0, boundary_loops=0)
     assert weld_equal_positions(soup).n_vertices == sphere.n_vertices
+
+
+def test_faces_sharing_a_vertex_are_vertex_connected_but_not_edge_connected():
+    # two triangles meeting at vertex 2 only, and a cube far away
+    cube = cube_quads()
+    bow = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0, 2, 0], [1, 2, 0]], dtype=float)
+    faces = [np.array([0, 1, 2]), np.array([2, 4, 3])] + [f + 5 for f in cube.faces]
+    mesh = PolygonMesh.from_faces(np.concatenate([bow, cube.vertices + 5]), faces)
+    n_edge, edge_label = edge_connected_faces(mesh)
+    n_vertex, vertex_label = vertex_connected_faces(mesh)
+    assert n_edge == 3 and edge_label.tolist() == [0, 1] + [2] * 6
+    assert n_vertex == 2 and vertex_label.tolist() == [0, 0] + [1] * 6
+    # only some faces: the others are -1 and join nothing
+    chosen = np.zeros(mesh.n_faces, dtype=bool)
+    chosen[[1, 4]] = True
+    n_chosen, chosen_label = vertex_connected_faces(mesh, chosen)
+    assert n_chosen == 2 and chosen_label.tolist() == [-1, 0, -1, -1, 1, -1, -1, -1]
+    assert vertex_connected_faces(mesh, np.zeros(mesh.n_faces, dtype=bool))[0] == 0

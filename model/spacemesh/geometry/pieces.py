@@ -32,7 +32,7 @@ from scipy.spatial import cKDTree
 
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import component_labels, faces_subset, triangle_areas, triangles_of
-from spacemesh.topology import face_components, weld_equal_positions
+from spacemesh.topology import edge_connected_faces, weld_equal_positions
 from spacemesh.typed import FloatArray, IntArray
 
 #: Points within this many median nearest-neighbour spacings are one piece.
@@ -109,7 +109,7 @@ def drop_fragments(mesh: PolygonMesh, policy: FragmentPolicy | None = None
     policy = policy or FragmentPolicy()
     if mesh.n_faces == 0:
         return mesh, 0
-    n_pieces, label = face_components(weld_equal_positions(mesh))  # (F,) piece of each face
+    n_pieces, label = edge_connected_faces(weld_equal_positions(mesh))  # (F,) piece of each face
     if n_pieces < 2:
         return mesh, 0
     fragment = _fragments(mesh, n_pieces, label, policy)  # (n_pieces,) bool

@@ -35,8 +35,6 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from spacemesh.geometry.intersections import self_intersection_fraction
@@ -44,7 +42,7 @@ from spacemesh.io.reduce import reduction_indices
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangle_areas, triangles_of
 from spacemesh.primitives.closest import nearest_triangles
-from spacemesh.topology import surface_topology
+from spacemesh.topology import surface_topology, vertex_connected_faces
 from spacemesh.typed import FloatArray
 
 #: Input points measured at most (a fixed subset of larger clouds).
@@ -106,17 +104,6 @@ class FitReport:
         """Every field by name (``tolerance``, ``tolerance_met``, ``points_pieces``,
         ``points_outliers`` and ``points_noise`` only when set)."""
         return {k: v for k, v in asdict(self).items() if v is not None or k not in _OPTIONAL}
-
-
-def face_components(mesh: PolygonMesh) -> int:
-    """Connected components of the faces (faces sharing a vertex are connected)."""
-    if mesh.n_faces == 0:
-        return 0
-    face = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
-    incidence = csr_matrix((np.ones(face.size), (face, mesh.face_indices)),
-                           shape=(mesh.n_faces, mesh.n_vertices))
-    count, _ = connected_components(incidence @ incidence.T, directed=False)
-    return int(count)
 
 
 def _surface_samples(vertices: FloatArray, triangles: np.ndarray, count: int) -> FloatArray:
@@ -217,10 +204,11 @@ def fit_report(mesh: PolygonMesh, points: FloatArray, facts: PointFacts | None =
     relative = diagonal if diagonal > 0 else 1.0
     nan = float("nan")
     topology = surface_topology(mesh)
+    components, _ = vertex_connected_faces(mesh)  # faces sharing a vertex are connected
     known = (None, None, None) if facts is None else (facts.pieces, facts.outliers,
                                                       facts.noise)
     if mesh.n_faces == 0 or len(points) == 0:
-        return FitReport(nan, nan, nan, nan, nan, nan, nan, nan, 0.0, face_components(mesh),
+        return FitReport(nan, nan, nan, nan, nan, nan, nan, nan, 0.0, components,
                          0.0, diagonal, len(points), topology.pieces, topology.genus,
                          topology.boundary_loops, tolerance,
                          None if tolerance is None else False, *known)
@@ -236,7 +224,7 @@ def fit_report(mesh: PolygonMesh, points: FloatArray, facts: PointFacts | None =
         mesh_to_points_mean_rel=to_points_mean / relative,
         mesh_to_points_p95_rel=to_points_p95 / relative,
         coverage=float(np.mean(to_mesh <= COVERAGE_FRACTION * relative)),
-        components=face_components(mesh),
+        components=components,
         self_intersections=self_intersection_fraction(mesh),
         diagonal=diagonal, n_points=len(points), pieces=topology.pieces,
         genus=topology.genus, boundary_loops=topology.boundary_loops,

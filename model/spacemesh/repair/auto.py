@@ -53,8 +53,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import faces_subset
@@ -71,6 +69,7 @@ from spacemesh.repair.pinched import hole_loops
 from spacemesh.repair.region import DEFAULT_MAX_GROWTH, EMPTY_REGION, RegionError
 from spacemesh.repair.unzip import SPLIT_KINDS, unpaired_faces, unzip_defects
 from spacemesh.repair.weld import weld_vertices
+from spacemesh.topology import vertex_connected_faces
 from spacemesh.typed import BoolArray, IntArray
 
 #: ``plan_region(mesh, faces, n_tokens, *, max_growth, tolerated)``: the plan of one
@@ -212,21 +211,6 @@ def _name(findings: list[Finding], ids: list[int]) -> str:
     return ", ".join(parts) + more
 
 
-def _face_groups(mesh: PolygonMesh, mask: BoolArray) -> tuple[int, IntArray]:
-    """Faces of ``mask`` grouped by shared vertices: (groups, (F,) group or -1)."""
-    n_f, n_v = mesh.n_faces, mesh.n_vertices
-    corner = mask[mesh.face_of_corner]
-    rows = mesh.face_of_corner[corner]
-    cols = n_f + mesh.face_indices[corner]
-    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_f + n_v, n_f + n_v))
-    _, label = connected_components(graph, directed=False)
-    face_label = label[:n_f]
-    ids, group = np.unique(face_label[mask], return_inverse=True)
-    out = np.full(n_f, -1, dtype=np.int64)
-    out[mask] = group.reshape(-1)
-    return len(ids), out
-
-
 def _others(mesh: PolygonMesh, regions: list[AutoRegion], region: AutoRegion) -> BoolArray:
     """(V,) vertices of the regions other than ``region`` (their defects are theirs)."""
     faces = np.zeros(mesh.n_faces, dtype=bool)
@@ -244,7 +228,7 @@ def _plan_regions(work: PolygonMesh, findings: list[Finding], n_tokens: int,
     rings = [f.ring(work) for f in findings]
     union = np.logical_or.reduce(rings) if rings else np.zeros(work.n_faces, dtype=bool)
     grown = grow_region(work, union)
-    n_groups, group = _face_groups(work, grown)
+    n_groups, group = vertex_connected_faces(work, grown)  # group (F,), -1 outside
     owner = [int(group[np.flatnonzero(r)[0]]) for r in rings]
     regions = []
     for g in range(n_groups):

@@ -7,12 +7,10 @@ numpy and scipy only; nothing here changes a mesh.
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import edge_keys, faces_subset
-from spacemesh.topology import check_topology
+from spacemesh.topology import check_topology, vertex_connected_faces
 from spacemesh.typed import BoolArray, IntArray
 
 
@@ -45,20 +43,8 @@ def patch_loops(mesh: PolygonMesh, patch: BoolArray) -> list[IntArray] | None:
 def patch_parts(mesh: PolygonMesh, patch: BoolArray) -> list[BoolArray]:
     """The parts of a region's patch ((F,) bool) that share no vertex: one per hole, or
     per group of holes whose loops touch."""
-    faces = np.flatnonzero(patch)
-    if len(faces) == 0:
-        return []
-    corners = patch[mesh.face_of_corner]
-    rows = np.searchsorted(faces, mesh.face_of_corner[corners])
-    graph = coo_matrix((np.ones(len(rows)), (rows, len(faces) + mesh.face_indices[corners])),
-                       shape=(len(faces) + mesh.n_vertices,) * 2)
-    _, label = connected_components(graph, directed=False)
-    parts = []
-    for value in np.unique(label[: len(faces)]):
-        part = np.zeros(mesh.n_faces, dtype=bool)
-        part[faces[label[: len(faces)] == value]] = True
-        parts.append(part)
-    return parts
+    n_parts, part = vertex_connected_faces(mesh, patch)  # part (F,), -1 outside
+    return [part == k for k in range(n_parts)]
 
 
 def boundary_edge_length(mesh: PolygonMesh, loops: list[IntArray]) -> float:
