@@ -18,10 +18,10 @@ four (gear 3.91 -> 4.70e-3, scorpion 2.90 -> 4.06e-3).
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
 
 from spacemesh.geometry.intersections import self_intersecting_faces
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import uniform_adjacency
 
 #: Most smoothing rounds.
 MAX_ROUNDS = 30
@@ -53,10 +53,7 @@ def untangle(mesh: PolygonMesh, *, max_rounds: int = MAX_ROUNDS
     if not hit.any():
         return mesh, {"untangle_rounds": 0, "crossing_before": 0.0, "crossing_after": 0.0}
     n = mesh.n_vertices
-    edges = mesh.halfedges  # (H, 2)
-    adjacency = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])),
-                           shape=(n, n)).tocsr()
-    adjacency = ((adjacency + adjacency.T) > 0).astype(np.float64)  # (V, V) symmetric
+    adjacency = uniform_adjacency(n, mesh.halfedges)  # (V, V) symmetric, 1 per edge
     degree = np.maximum(np.asarray(adjacency.sum(axis=1)).ravel(), 1.0)  # (V,)
     face_of_corner = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)  # (S,)
     positions = mesh.vertices.astype(np.float64).copy()  # (V, 3)

@@ -13,8 +13,14 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import MatrixRankWarning, spsolve
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import faces_subset, faces_touching, triangulate_faces, vertices_of
-from spacemesh.typed import BoolArray, FloatArray
+from spacemesh.primitives import (
+    faces_subset,
+    faces_touching,
+    triangulate_faces,
+    uniform_adjacency,
+    vertices_of,
+)
+from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Bounds of the cotangent weights of :func:`fair_positions` (obtuse angles give
 #: negative cotangents, slivers huge ones).
@@ -28,10 +34,25 @@ def laplacian(mesh: PolygonMesh, faces: BoolArray, uniform: bool = False) -> sp.
     cotangent weights ``W`` clamped to [:data:`MIN_COTANGENT`, :data:`MAX_COTANGENT`] (a
     cotangent Laplacian measures the curvature of the fixed ring however its edges are
     laid out, where uniform weights would read an anisotropic ring as curved), or with
-    ``uniform`` weights 1 on every edge, (V, V)."""
-    triangles, _ = triangulate_faces(faces_subset(mesh, faces))
-    p = np.asarray(mesh.vertices, dtype=np.float64)
+    ``uniform`` weights 1 on every edge
+    (:func:`~spacemesh.primitives.graph.uniform_adjacency`), (V, V)."""
+    triangles, _ = triangulate_faces(faces_subset(mesh, faces))  # (T, 3)
     n = mesh.n_vertices
+    if uniform:
+        sides = np.concatenate([triangles[:, [k, (k + 1) % 3]] for k in range(3)])  # (3T, 2)
+        w = uniform_adjacency(n, sides)
+    else:
+        w = _cotangent_weights(np.asarray(mesh.vertices, dtype=np.float64), triangles)
+    degree = np.asarray(w.sum(axis=1)).ravel()
+    inverse = sp.diags(np.where(degree > 0, 1.0 / np.maximum(degree, 1e-300), 0.0))
+    return (sp.identity(n, format="csr") - inverse @ w).tocsr()
+
+
+def _cotangent_weights(p: FloatArray, triangles: IntArray) -> sp.csr_matrix:
+    """(V, V) symmetric weights: half the clamped cotangent of the angle opposite each
+    side of the (T, 3) ``triangles``, summed over the triangles, over the (V, 3)
+    positions ``p``."""
+    n = len(p)
     rows, cols, weights = [], [], []
     for k in range(3):
         i, j, o = triangles[:, k], triangles[:, (k + 1) % 3], triangles[:, (k + 2) % 3]
@@ -42,13 +63,8 @@ def laplacian(mesh: PolygonMesh, faces: BoolArray, uniform: bool = False) -> sp.
         rows += [i, j]
         cols += [j, i]
         weights += [cot / 2, cot / 2]
-    w = sp.coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))),
-                      shape=(n, n)).tocsr()
-    if uniform:
-        w.data[:] = 1.0
-    degree = np.asarray(w.sum(axis=1)).ravel()
-    inverse = sp.diags(np.where(degree > 0, 1.0 / np.maximum(degree, 1e-300), 0.0))
-    return (sp.identity(n, format="csr") - inverse @ w).tocsr()
+    return sp.coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(n, n)).tocsr()
 
 
 def fair_positions(mesh: PolygonMesh, free: BoolArray, order: int = 2,
