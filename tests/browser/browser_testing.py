@@ -82,11 +82,18 @@ def body_state(driver: Any, name: str) -> str | None:
 
 
 def downloaded(driver: Any, suffix: str, timeout: float = 20.0) -> Path:
-    """The first finished download whose name ends with ``suffix``."""
+    """The first finished download whose name ends with ``suffix``: not a
+    ``.crdownload``, not empty, and of the same size at two polls in a row (the browser
+    may show the file under its final name before its bytes are all written)."""
+    sizes: dict[Path, int] = {}
+
     def find() -> Path | None:
         for path in driver.download_dir.iterdir():
             if path.name.endswith(suffix) and not path.name.endswith(".crdownload"):
-                return path
+                size = path.stat().st_size
+                if size > 0 and sizes.get(path) == size:
+                    return path
+                sizes[path] = size
         return None
 
     return wait_for(find, timeout, f"a downloaded *{suffix}")

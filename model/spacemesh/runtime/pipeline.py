@@ -291,7 +291,7 @@ class MeshGenerator:
         tolerance = float(options.tolerance)
 
         def run(count: int) -> GenerateResult:
-            attempt = attempt_options(options, count).resolve(self.spec)  # checks the count
+            attempt = attempt_options(options, count)  # resolved: the request's are
             return self._generate_prepared([(prepared, attempt)], progress, stage,
                                            retry=False)[0]
 

@@ -136,5 +136,8 @@ def aim(tolerance: float) -> float:
 
 def attempt_options(options: GenerateOptions, count: int) -> GenerateOptions:
     """One try's options: the request's, with ``target_vertices = count`` instead of the
-    tolerance."""
-    return replace(options, tolerance=None, target_vertices=count)
+    tolerance. Resolved options stay resolved (the search's counts,
+    :data:`MIN_SEARCH_VERTICES` to :data:`MAX_SEARCH_VERTICES`, are valid targets), so a
+    try needs no second resolution."""
+    assert MIN_SEARCH_VERTICES <= count <= MAX_SEARCH_VERTICES, count
+    return replace(options, tolerance=None, target_vertices=int(count))
