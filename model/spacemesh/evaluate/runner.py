@@ -82,6 +82,9 @@ MODES: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
     "no_fit": ("ours_no_fit", {}, {"fit": {"iterations": 0}}),
     "no_flips": ("ours_no_flips", {}, {"flips": False}),
     "no_sharp": ("ours_no_sharp", {}, {"fit": {"plane_weight": 0.0}}),
+    # a dense decode simplified to the count asked for (spacemesh.geometry.simplify)
+    "dense2": ("ours_dense2", {}, {"dense_factor": 2.0}),
+    "dense4": ("ours_dense4", {}, {"dense_factor": 4.0}),
 }
 #: Conditioning points sampled on a mesh file (as in the datasets).
 N_POINTS = 2048

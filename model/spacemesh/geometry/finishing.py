@@ -20,6 +20,7 @@ import numpy as np
 
 from spacemesh.geometry.pieces import drop_fragments
 from spacemesh.geometry.report import fit_score
+from spacemesh.geometry.simplify import simplify
 from spacemesh.geometry.stage import GeometryOptions, refine_geometry
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import signed_volume
@@ -61,7 +62,10 @@ def finish_geometry(
         is kept.
     options : GeometryOptions
     target_vertices : int, optional
-        Split edges up to this many vertices.
+        The vertices asked for: with a dense decode (``options.dense_factor`` above 1) a
+        mesh with more is simplified to this many first
+        (:func:`spacemesh.geometry.simplify.simplify`); one with fewer gets its edges
+        split up to it.
 
     Returns
     -------
@@ -72,12 +76,18 @@ def finish_geometry(
         ``normals_used`` (whether the kept mesh was fitted with them).
     """
     mesh, dropped = drop_fragments(mesh)
+    simplified: dict[str, Any] = {}
+    if (options.dense_factor > 1 and target_vertices is not None
+            and mesh.n_vertices > target_vertices):
+        # a dense decode: collapsed to the count asked for, the points' planes the cost
+        reduced = simplify(mesh, points, normals, target_vertices=target_vertices)
+        mesh, simplified = reduced.mesh, {"simplify": reduced.stats}
     tries = [normals] if normals is None else [normals, None]
     best: tuple[float, PolygonMesh, dict[str, Any]] | None = None
     for given in tries:
         refined = refine_geometry(mesh, points, given, options, target_vertices=target_vertices)
         fitted = outward(refined.mesh)
-        stats = dict(refined.stats, n_fragments_dropped=dropped)
+        stats = dict(refined.stats, n_fragments_dropped=dropped, **simplified)
         if normals is not None:
             stats["normals_used"] = given is not None
         score = fit_score(fitted, points) if len(tries) > 1 else 0.0

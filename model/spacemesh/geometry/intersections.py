@@ -165,22 +165,49 @@ def intersecting_triangles(vertices: FloatArray, triangles: IntArray,
     if source_face is not None:
         near &= source_face[i] != source_face[j]
     i, j = i[near], j[near]
+    crossing = pairs_cross(vertices, triangles, i, j, eps)
+    hit[i[crossing]] = True
+    hit[j[crossing]] = True
+    return hit
+
+
+def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntArray,
+                eps: float) -> BoolArray:
+    """Which of the triangle pairs ``(i[m], j[m])`` intersect, by the rules of
+    :func:`intersecting_triangles`: pairs that share corners are shrunk by
+    :data:`SHRINK` first, and two triangles on one edge count only when folded onto each
+    other.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float
+    triangles : (T, 3) int
+    i, j : (M,) int
+        Indices into ``triangles`` (``i[m] != j[m]``).
+    eps : float
+        Distance below which touching counts as intersecting.
+
+    Returns
+    -------
+    (M,) bool
+    """
+    crossing = np.zeros(len(i), dtype=bool)
+    if len(i) == 0:
+        return crossing
+    corners = vertices[triangles]  # (T, 3, 3)
     common = (triangles[i][:, :, None] == triangles[j][:, None, :]).sum(axis=(1, 2))
     # triangles on one edge meet elsewhere only when folded flat onto each other
     normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
     folded = np.einsum("md,md->m", normal[i], normal[j]) < -FOLDED_COSINE
-    keep = (common < 2) | folded
-    i, j, common = i[keep], j[keep], common[keep]
-    shared = common > 0
-    ta, tb = corners[i], corners[j]
+    keep = np.flatnonzero((common < 2) | folded)
+    shared = common[keep] > 0
+    ta, tb = corners[i[keep]], corners[j[keep]]
     ta = np.where(shared[:, None, None], _shrunk(ta, SHRINK), ta)
     tb = np.where(shared[:, None, None], _shrunk(tb, SHRINK), tb)
     maybe = np.flatnonzero(~_separated(ta, tb, eps))
-    crossing = maybe[triangle_pairs_intersect(ta[maybe], tb[maybe], eps)]
-    hit[i[crossing]] = True
-    hit[j[crossing]] = True
-    return hit
+    crossing[keep[maybe[triangle_pairs_intersect(ta[maybe], tb[maybe], eps)]]] = True
+    return crossing
 
 
 def self_intersecting_faces(mesh: PolygonMesh) -> BoolArray:

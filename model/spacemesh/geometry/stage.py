@@ -32,6 +32,9 @@ from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangle_areas, triangles_of
 from spacemesh.typed import FloatArray, IntArray
 
+#: Most vertices a dense decode makes (:attr:`GeometryOptions.dense_factor`): the
+#: connectivity network and the decode grow faster than linearly with the tokens.
+MAX_DENSE_VERTICES = 1024
 #: Rounds of the intersection guard's halfway backtracking.
 GUARD_ROUNDS = 3
 #: Rounds of the guard's full reverts after those.
@@ -54,6 +57,11 @@ class GeometryOptions:
         Relative gain a flip needs (:func:`spacemesh.decode.refinement.flip_diagonals`).
     guard : bool
         Never let the share of self-intersecting faces grow.
+    dense_factor : float
+        With ``start=points``, decode this many times the vertices asked for (at most
+        :data:`MAX_DENSE_VERTICES`) and simplify to the count asked for
+        (:mod:`spacemesh.geometry.simplify`) before the fit; 1 (the default) decodes at
+        the count asked for.
     """
 
     fit: VertexFitOptions = field(default_factory=VertexFitOptions)
@@ -61,6 +69,15 @@ class GeometryOptions:
     flips: bool = True
     fit_gain: float = 0.2
     guard: bool = True
+    dense_factor: float = 1.0
+
+    def decode_vertices(self, wanted: int) -> int:
+        """The vertices to decode for a mesh of ``wanted`` vertices: ``wanted`` times
+        :attr:`dense_factor`, at most :data:`MAX_DENSE_VERTICES` (and never fewer than
+        ``wanted``)."""
+        if self.dense_factor <= 1:
+            return wanted
+        return max(wanted, min(round(self.dense_factor * wanted), MAX_DENSE_VERTICES))
 
     @classmethod
     def from_section(cls, section: dict[str, Any]) -> GeometryOptions:

@@ -49,6 +49,14 @@ def vertex_count(spec: ModelSpec, options: GenerateOptions) -> int:
     return int(options.target_vertices or spec.vertices)
 
 
+def decode_count(spec: ModelSpec, options: GenerateOptions) -> int:
+    """Vertices the decode makes for ``options``: :func:`vertex_count`, or more with the
+    model's dense decode (:attr:`spacemesh.geometry.GeometryOptions.dense_factor`; not
+    with ``raw``), which the geometry stage simplifies back to :func:`vertex_count`."""
+    wanted = vertex_count(spec, options)
+    return wanted if options.raw else spec.geometry.decode_vertices(wanted)
+
+
 def drop_duplicates(positions: FloatArray, alive: np.ndarray,
                     tolerance: float = DUPLICATE_TOLERANCE) -> np.ndarray:
     """``alive`` without the later vertex of every pair closer than ``tolerance``.
@@ -81,7 +89,7 @@ def start_tokens(spec: ModelSpec, jobs: list[tuple[PreparedInput, GenerateOption
     normalised cloud (real tokens first, padding after with mask -1)."""
     chosen = []
     for prepared, options in jobs:
-        wanted = network_vertices(vertex_count(spec, options), spec.max_vertices,
+        wanted = network_vertices(decode_count(spec, options), spec.max_vertices,
                                   spec.large_meshes, raw=options.raw)
         pick = farthest_point_sampling(prepared.unit, wanted, seed=options.seed,
                                        weights=prepared.weights)
@@ -193,5 +201,5 @@ def run_group(backend: Backend, spec: ModelSpec,
     return results
 
 
-__all__ = ["SamplerKey", "decode_item", "denoiser_steps", "drop_duplicates", "run_group",
-           "sampler_key", "start_tokens", "vertex_count"]
+__all__ = ["SamplerKey", "decode_count", "decode_item", "denoiser_steps", "drop_duplicates",
+           "run_group", "sampler_key", "start_tokens", "vertex_count"]

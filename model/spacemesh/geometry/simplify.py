@@ -1,0 +1,399 @@
+"""Simplification: a dense decode reduced by edge collapses to the size asked for.
+
+The connectivity network joins near-uniform vertex sets well, and a compact mesh needs an
+anisotropic one (few vertices on flat parts, many at creases), which it cannot join
+(docs/GEOMETRY.md, "Compact meshes"). So the pipeline can decode densely and then
+collapse edges (:func:`simplify`), cheapest first, where the cost is a quadric error
+built from the **input points**: every point adds the plane through it with its normal
+(estimated from its neighbours when the upload has none) to the quadric of the vertex
+nearest to it, so a vertex that covers points on both sides of a crease stays on the
+crease. A small share of the mesh's own face planes keeps the cost defined where a vertex
+covers no point.
+
+Every collapse keeps what the decode guaranteed, and more:
+
+* **a closed oriented manifold**: the link condition (the two ends of the edge share
+  exactly the two vertices opposite it), and no piece falls below a tetrahedron; the
+  faces around the merged vertex keep their cyclic order, so their orientation;
+* **no flipped face**: each face that moves keeps its normal within
+  :attr:`SimplifyOptions.max_turn_cosine` of where it was, and a non-zero area;
+* **no new crossing**: the faces around the merged vertex are tested exactly against
+  every face near them (:func:`spacemesh.geometry.intersections.pairs_cross`);
+* **the same pieces and genus**: edge collapses under the link condition keep both; the
+  result is checked, and the input returned unchanged if it ever differs.
+
+The result's faces are the decode's faces reduced by collapses: no face is made from the
+points. numpy, scipy and a heap only.
+"""
+
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from spacemesh.geometry.fitting import plane_fits
+from spacemesh.geometry.intersections import pairs_cross
+from spacemesh.mesh import PolygonMesh
+from spacemesh.topology import edge_connected_faces, surface_topology
+from spacemesh.typed import FloatArray, IntArray
+
+#: A quadric's 3x3 block is solved for its minimum only when its determinant exceeds this
+#: share of its trace cubed (else the ends and the midpoint are compared).
+WELL_POSED = 1e-9
+
+
+@dataclass(frozen=True)
+class SimplifyOptions:
+    """How :func:`simplify` weighs and checks its collapses.
+
+    Attributes
+    ----------
+    face_weight : float
+        Weight of the mesh's own face planes (area-weighted, per unit of the mean point
+        weight) in each vertex's quadric: a regulariser where a vertex covers no point.
+    max_turn_cosine : float
+        A face may turn by at most this much: its new unit normal's dot product with
+        its old one must exceed it.
+    min_area_ratio : float
+        A face's new area must exceed this share of the mean face area of the input.
+    """
+
+    face_weight: float = 0.05
+    max_turn_cosine: float = 0.2
+    min_area_ratio: float = 1e-3
+
+
+@dataclass
+class SimplifyResult:
+    """The simplified mesh and what :func:`simplify` did.
+
+    Attributes
+    ----------
+    mesh : PolygonMesh
+        A triangle mesh (the input's triangles reduced by collapses).
+    stats : dict
+        ``collapsed`` (edges collapsed), ``refused`` (counts by reason: ``link``,
+        ``piece``, ``flip``, ``crossing``), ``max_error`` (the largest collapse cost, a
+        squared distance), ``kept_topology`` (False when the check failed and the input
+        came back).
+    vertex_map : (V_in,) int, optional
+        The output vertex each input vertex was merged into (None when the input came
+        back unchanged): every output face is an input face with its vertices mapped.
+    """
+
+    mesh: PolygonMesh
+    stats: dict[str, Any]
+    vertex_map: IntArray | None = None
+
+
+def point_quadrics(vertices: FloatArray, points: FloatArray,
+                   normals: FloatArray | None = None) -> FloatArray:
+    """The quadric ``(V, 4, 4)`` of each vertex: the planes of the points nearest to it.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float
+    points : (P, 3) float
+    normals : (P, 3) float, optional
+        The points' normals (unit or not; their sign does not matter); estimated from
+        each point's neighbours (:func:`spacemesh.geometry.fitting.plane_fits`) when None.
+
+    Returns
+    -------
+    (V, 4, 4) float64
+        ``sum p p^T`` over the vertex's points, ``p = (n, -n . x)`` with unit ``n``:
+        ``[v, 1] Q [v, 1]^T`` is the sum of squared distances from ``v`` to their planes.
+    """
+    points = np.asarray(points, dtype=np.float64)
+    if normals is None:
+        normals = plane_fits(points)[0]
+    n = np.asarray(normals, dtype=np.float64)
+    n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    planes = np.concatenate([n, -np.einsum("pd,pd->p", n, points)[:, None]], axis=1)  # (P, 4)
+    _, owner = cKDTree(vertices).query(points)  # (P,)
+    quadrics = np.zeros((len(vertices), 4, 4))
+    np.add.at(quadrics, owner, planes[:, :, None] * planes[:, None, :])
+    return quadrics
+
+
+def face_quadrics(vertices: FloatArray, triangles: IntArray) -> FloatArray:
+    """Area-weighted face-plane quadrics ``(V, 4, 4)`` summed at each face's corners."""
+    corners = vertices[triangles]  # (T, 3, 3)
+    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    double_area = np.linalg.norm(cross, axis=1)
+    n = cross / np.maximum(double_area, 1e-300)[:, None]
+    planes = np.concatenate([n, -np.einsum("td,td->t", n, corners[:, 0])[:, None]], axis=1)
+    each = 0.5 * double_area[:, None, None] * planes[:, :, None] * planes[:, None, :]
+    quadrics = np.zeros((len(vertices), 4, 4))
+    for k in range(3):
+        np.add.at(quadrics, triangles[:, k], each)
+    return quadrics
+
+
+def _placement(quadric: FloatArray, a: FloatArray, b: FloatArray
+               ) -> tuple[float, FloatArray]:
+    """The cost and position that minimise ``quadric`` for the edge ``a``-``b``: the
+    quadric's own minimum when it is well posed and near the edge, else the best of the
+    ends and the midpoint."""
+    middle = 0.5 * (a + b)
+    candidates = [a, b, middle]
+    block = quadric[:3, :3]
+    scale = float(block[0, 0] + block[1, 1] + block[2, 2])
+    if scale > 0 and abs(float(np.linalg.det(block))) > WELL_POSED * scale**3:
+        optimum = np.linalg.solve(block, -quadric[:3, 3])
+        # the optimum is used only near the edge: a far one is an ill-posed quadric
+        if float(np.sum((optimum - middle) ** 2)) <= float(np.sum((a - b) ** 2)):
+            candidates.append(optimum)
+    h = np.ones((len(candidates), 4))
+    h[:, :3] = candidates
+    costs = np.einsum("ci,ij,cj->c", h, quadric, h)
+    best = int(np.argmin(costs))
+    return max(float(costs[best]), 0.0), h[best, :3]
+
+
+def _normals(corners: FloatArray) -> FloatArray:
+    """Unnormalised normals ``(K, 3)`` of triangles ``(K, 3, 3)`` (np.cross without its
+    overhead on small arrays)."""
+    u = corners[:, 1] - corners[:, 0]
+    v = corners[:, 2] - corners[:, 0]
+    return np.stack([u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1],
+                     u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2],
+                     u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]], axis=1)
+
+
+class _Collapser:
+    """The mutable state of one simplification (see :func:`simplify`)."""
+
+    def __init__(self, vertices: FloatArray, triangles: IntArray, quadrics: FloatArray,
+                 options: SimplifyOptions) -> None:
+        self.positions = vertices.copy()
+        self.triangles = triangles.copy()
+        self.quadrics = quadrics
+        self.options = options
+        self.face_alive = np.ones(len(triangles), dtype=bool)
+        self.vertex_alive = np.ones(len(vertices), dtype=bool)
+        self.version = np.zeros(len(vertices), dtype=np.int64)
+        self.faces_of: list[set[int]] = [set() for _ in range(len(vertices))]
+        for f, face in enumerate(triangles):
+            for v in face:
+                self.faces_of[int(v)].add(f)
+        corners = vertices[triangles]
+        areas = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
+                                              corners[:, 2] - corners[:, 0]), axis=1)
+        self.min_area = options.min_area_ratio * float(areas.mean()) if len(areas) else 0.0
+        extent = float(np.ptp(vertices, axis=0).max()) if len(vertices) else 1.0
+        self.eps = 1e-9 * (extent or 1.0)
+        # piece of each vertex and the vertices left in each piece
+        _, face_piece = edge_connected_faces(PolygonMesh(
+            vertices, triangles.reshape(-1), np.arange(0, 3 * len(triangles) + 1, 3)))
+        self.piece = np.zeros(len(vertices), dtype=np.int64)
+        self.piece[triangles.reshape(-1)] = np.repeat(face_piece, 3)
+        self.piece_size = np.bincount(self.piece, minlength=int(self.piece.max()) + 1)
+        self.refused = {"link": 0, "piece": 0, "flip": 0, "crossing": 0}
+        self.heap: list[tuple[float, int, int, int, int]] = []
+        self.parked: list[set[int]] = [set() for _ in range(len(vertices))]
+        self.merged_into = np.arange(len(vertices))
+        self._position: FloatArray = np.zeros(3)
+
+    def neighbours(self, v: int) -> set[int]:
+        """The vertices that share a face with ``v``."""
+        out: set[int] = set()
+        for f in self.faces_of[v]:
+            out.update(int(u) for u in self.triangles[f])
+        out.discard(v)
+        return out
+
+    def push(self, a: int, b: int) -> None:
+        """Queue the collapse of edge ``a``-``b`` at its current cost."""
+        cost, _ = _placement(self.quadrics[a] + self.quadrics[b], self.positions[a],
+                             self.positions[b])
+        lo, hi = min(a, b), max(a, b)
+        heapq.heappush(self.heap, (cost, lo, hi, int(self.version[lo]), int(self.version[hi])))
+
+    def try_collapse(self, a: int, b: int) -> bool:
+        """Collapse ``b`` into ``a`` if every check passes (module docstring); a refused
+        edge is parked and queued again when a collapse next to it changes its
+        surroundings."""
+        reason = self._refusal(a, b)
+        if reason is not None:
+            self.refused[reason] += 1
+            self.parked[a].add(b)
+            self.parked[b].add(a)
+            return False
+        shared = self.faces_of[a] & self.faces_of[b]
+        moved = sorted((self.faces_of[a] | self.faces_of[b]) - shared)
+        self.positions[a] = self._position
+        self.quadrics[a] = self.quadrics[a] + self.quadrics[b]
+        self.triangles[moved] = np.where(self.triangles[moved] == b, a, self.triangles[moved])
+        for f in shared:
+            self.face_alive[f] = False
+            for u in self.triangles[f]:
+                self.faces_of[int(u)].discard(f)
+        self.faces_of[a] |= self.faces_of[b]
+        self.faces_of[b] = set()
+        self.vertex_alive[b] = False
+        self.merged_into[b] = a
+        self.piece_size[self.piece[a]] -= 1
+        self.version[a] += 1
+        self.version[b] += 1
+        ring = self.neighbours(a)
+        for u in ring:  # the edges of the merged vertex, at their new costs
+            self.push(a, u)
+        for u in ring | {a, b}:  # edges refused near here may pass now
+            for w in self.parked[u]:
+                if self.vertex_alive[u] and self.vertex_alive[w] and w not in ring | {a}:
+                    self.push(u, w)
+            self.parked[u] = set()
+        return True
+
+    def _refusal(self, a: int, b: int) -> str | None:
+        """Why the collapse of ``b`` into ``a`` is refused (None: it passes; its
+        position is then in ``self._position``)."""
+        shared = self.faces_of[a] & self.faces_of[b]
+        if len(shared) != 2:
+            return "link"
+        opposite = {int(u) for f in shared for u in self.triangles[f]} - {a, b}
+        if self.neighbours(a) & self.neighbours(b) != opposite:
+            return "link"
+        if self.piece_size[self.piece[a]] <= 4:
+            return "piece"
+        _, position = _placement(self.quadrics[a] + self.quadrics[b], self.positions[a],
+                                 self.positions[b])
+        moved = sorted((self.faces_of[a] | self.faces_of[b]) - shared)  # the new fan
+        old = self.triangles[moved]  # (K, 3)
+        new = np.where(old == b, a, old)
+        old_corners = self.positions[old]  # (K, 3, 3) copies
+        new_corners = self.positions[new]
+        new_corners[new == a] = position
+        if not self._keeps_orientation(old_corners, new_corners):
+            return "flip"
+        if self._crosses(moved, new, a, position, shared):
+            return "crossing"
+        self._position = position
+        return None
+
+    def _keeps_orientation(self, old: FloatArray, new: FloatArray) -> bool:
+        """Whether no face of the fan turns by more than the options allow or shrinks
+        below the smallest area."""
+        n_old, n_new = _normals(old), _normals(new)
+        area_new = 0.5 * np.linalg.norm(n_new, axis=1)
+        if np.any(area_new <= self.min_area):
+            return False
+        unit_old = n_old / np.maximum(np.linalg.norm(n_old, axis=1, keepdims=True), 1e-300)
+        unit_new = n_new / np.maximum(2 * area_new[:, None], 1e-300)
+        return bool(np.all(np.einsum("kd,kd->k", unit_old, unit_new)
+                           > self.options.max_turn_cosine))
+
+    def _crosses(self, moved: list[int], new: IntArray, a: int, position: FloatArray,
+                 removed: set[int]) -> bool:
+        """Whether a face of the new fan ``new`` (``(K, 3)``, vertex ``a`` at
+        ``position``) would intersect another face near it, or another face of the fan."""
+        fan = self.positions[new]  # (K, 3, 3)
+        fan[new == a] = position
+        lo = fan.min(axis=(0, 1)) - self.eps
+        hi = fan.max(axis=(0, 1)) + self.eps
+        alive = np.flatnonzero(self.face_alive)
+        corners = self.positions[self.triangles[alive]]  # (A, 3, 3)
+        near = (np.all(corners.max(axis=1) >= lo, axis=1)
+                & np.all(corners.min(axis=1) <= hi, axis=1))
+        skip = set(moved) | removed
+        others = [int(f) for f in alive[near] if int(f) not in skip]
+        k = len(moved)
+        local = np.concatenate([new, self.triangles[others].reshape(-1, 3)])  # (K + O, 3)
+        ids, inverse = np.unique(local, return_inverse=True)
+        local_positions = self.positions[ids]  # a copy
+        local_positions[ids == a] = position
+        local_tri = inverse.reshape(-1, 3)
+        i_fan, j_fan = np.triu_indices(k, 1)
+        i = np.concatenate([i_fan, np.repeat(np.arange(k), len(others))])
+        j = np.concatenate([j_fan, k + np.tile(np.arange(len(others)), k)])
+        # only pairs whose bounding boxes overlap can meet
+        box = local_positions[local_tri]  # (K + O, 3, 3)
+        low, high = box.min(axis=1) - self.eps, box.max(axis=1) + self.eps
+        overlap = np.all((high[i] >= low[j]) & (high[j] >= low[i]), axis=1)
+        i, j = i[overlap], j[overlap]
+        return bool(pairs_cross(local_positions, local_tri, i, j, self.eps).any())
+
+    def mesh(self) -> tuple[PolygonMesh, IntArray]:
+        """The current mesh, its vertices renumbered in their old order, and the output
+        vertex of every input vertex."""
+        keep = np.flatnonzero(self.vertex_alive)
+        index = np.full(len(self.positions), -1, dtype=np.int64)
+        index[keep] = np.arange(len(keep))
+        tri = index[self.triangles[self.face_alive]]
+        root = self.merged_into.copy()
+        while True:  # follow chains of merges to the surviving vertex
+            deeper = root[root]
+            if np.array_equal(deeper, root):
+                break
+            root = deeper
+        mesh = PolygonMesh(self.positions[keep], tri.reshape(-1),
+                           np.arange(0, 3 * len(tri) + 1, 3))
+        return mesh, index[root]
+
+
+def simplify(mesh: PolygonMesh, points: FloatArray, normals: FloatArray | None = None, *,
+             target_vertices: int, options: SimplifyOptions | None = None) -> SimplifyResult:
+    """Collapse edges of a closed triangle mesh, cheapest first, down to
+    ``target_vertices`` (see the module docstring).
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+        A closed oriented manifold triangle mesh (a decode), in the points' frame.
+    points : (P, 3) float
+        The input points whose planes make the cost.
+    normals : (P, 3) float, optional
+        Their normals (estimated when None).
+    target_vertices : int
+        Collapse until this many vertices are left, or no collapse passes its checks.
+    options : SimplifyOptions, optional
+
+    Returns
+    -------
+    SimplifyResult
+        The input unchanged when it is not a triangle mesh or already small enough.
+    """
+    options = options or SimplifyOptions()
+    stats: dict[str, Any] = {"collapsed": 0, "refused": {}, "max_error": 0.0,
+                             "kept_topology": True}
+    if (not mesh.is_triangle_mesh() or mesh.n_vertices <= target_vertices
+            or mesh.n_faces == 0 or len(points) < 4):
+        return SimplifyResult(mesh, stats)
+    vertices = mesh.vertices.astype(np.float64)
+    triangles = mesh.face_indices.reshape(-1, 3).astype(np.int64)
+    quadrics = point_quadrics(vertices, points, normals)
+    mean_weight = float(np.trace(quadrics[:, :3, :3], axis1=1, axis2=2).sum()) / max(
+        float(np.trace(face_quadrics(vertices, triangles)[:, :3, :3], axis1=1,
+                       axis2=2).sum()), 1e-300)
+    quadrics += options.face_weight * mean_weight * face_quadrics(vertices, triangles)
+    state = _Collapser(vertices, triangles, quadrics, options)
+    edges = np.unique(np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]],
+                                              triangles[:, [2, 0]]]), axis=1), axis=0)
+    for a, b in edges:
+        state.push(int(a), int(b))
+    alive = mesh.n_vertices
+    while alive > target_vertices and state.heap:
+        cost, a, b, version_a, version_b = heapq.heappop(state.heap)
+        if (not state.vertex_alive[a] or not state.vertex_alive[b]
+                or state.version[a] != version_a or state.version[b] != version_b):
+            continue
+        if state.try_collapse(a, b):
+            alive -= 1
+            stats["collapsed"] += 1
+            stats["max_error"] = max(stats["max_error"], cost)
+    stats["refused"] = dict(state.refused)
+    out, vertex_map = state.mesh()
+    before, after = surface_topology(mesh), surface_topology(out)
+    if (before.pieces, before.genus) != (after.pieces, after.genus):
+        stats["kept_topology"] = False
+        return SimplifyResult(mesh, stats)
+    return SimplifyResult(out, stats, vertex_map)
+
+
+__all__ = ["SimplifyOptions", "SimplifyResult", "face_quadrics", "point_quadrics",
+           "simplify"]
