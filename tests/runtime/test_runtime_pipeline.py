@@ -44,6 +44,21 @@ def test_results_are_valid_outward_meshes_with_timings(generator, cloud):
     assert result.fit is not None and result.sample_scores == [(3, result.fit.score)]
 
 
+def test_timings_cover_every_seed_the_request_ran(generator, cloud):
+    """``samples=3`` runs three seeds: the result's timings are their sum (each seed's
+    share of the shared network calls, its own decode, geometry and report), and the
+    stages add up to the total."""
+    from spacemesh.runtime.request import summed_timings
+
+    three = generator.generate(cloud, seed=0, samples=3, start="noise")
+    stages = {k: v for k, v in three.timings.items() if k != "total"}
+    assert three.timings["total"] == pytest.approx(sum(stages.values()))
+    assert len(three.sample_scores) == 3
+    fake = [type("R", (), {"timings": {"geometry": 1.0, "total": 2.0}})(),
+            type("R", (), {"timings": {"geometry": 0.5, "total": 1.5, "report": 0.25}})()]
+    assert summed_timings(fake) == {"geometry": 1.5, "total": 3.5, "report": 0.25}
+
+
 def test_output_is_in_the_input_frame(generator, cloud):
     base = generator.generate(cloud, seed=2)
     moved = generator.generate(cloud * 7.5 + [100.0, -3.0, 2.0], seed=2)

@@ -17,7 +17,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import triangles_of
+from spacemesh.primitives import cross_rows, triangle_normals, triangles_of
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Shrink of triangles that share corners, as a fraction of their size (large enough
@@ -40,7 +40,7 @@ def _separated(ta: FloatArray, tb: FloatArray, eps: float) -> BoolArray:
     """``(M,)`` pairs where one triangle lies strictly on one side of the other's plane."""
     out = np.zeros(len(ta), dtype=bool)
     for s, t in ((ta, tb), (tb, ta)):
-        normal = np.cross(s[:, 1] - s[:, 0], s[:, 2] - s[:, 0])  # (M, 3)
+        normal = triangle_normals(s)  # (M, 3)
         length = np.linalg.norm(normal, axis=1, keepdims=True)
         normal = normal / np.where(length > 0, length, 1.0)
         side = np.einsum("mkd,md->mk", t - s[:, None, 0], normal)  # (M, 3)
@@ -50,7 +50,7 @@ def _separated(ta: FloatArray, tb: FloatArray, eps: float) -> BoolArray:
 
 
 def _unit_normals(t: FloatArray) -> tuple[FloatArray, BoolArray]:
-    normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])  # (M, 3)
+    normal = triangle_normals(t)  # (M, 3)
     length = np.linalg.norm(normal, axis=1, keepdims=True)
     return normal / np.where(length > 0, length, 1.0), length[:, 0] > 0
 
@@ -68,7 +68,7 @@ def _segments_hit(p0: FloatArray, p1: FloatArray, t: FloatArray, normal: FloatAr
     inside = np.ones(len(p0), dtype=bool)
     for k in range(3):
         u, w = t[:, k], t[:, (k + 1) % 3]
-        inward = np.cross(normal, w - u)
+        inward = cross_rows(normal, w - u)
         inward /= np.maximum(np.linalg.norm(inward, axis=1, keepdims=True), 1e-300)
         inside &= np.einsum("md,md->m", x - u, inward) >= -eps
     return ~apart & ~flat & inside
@@ -197,7 +197,7 @@ def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntAr
     corners = vertices[triangles]  # (T, 3, 3)
     common = (triangles[i][:, :, None] == triangles[j][:, None, :]).sum(axis=(1, 2))
     # triangles on one edge meet elsewhere only when folded flat onto each other
-    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normal = triangle_normals(corners)
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
     folded = np.einsum("md,md->m", normal[i], normal[j]) < -FOLDED_COSINE
     keep = np.flatnonzero((common < 2) | folded)

@@ -38,6 +38,7 @@ from scipy.spatial import cKDTree
 from spacemesh.geometry.fitting import plane_fits
 from spacemesh.geometry.intersections import pairs_cross
 from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import triangle_normals
 from spacemesh.topology import edge_connected_faces, surface_topology
 from spacemesh.typed import FloatArray, IntArray
 
@@ -155,16 +156,6 @@ def _placement(quadric: FloatArray, a: FloatArray, b: FloatArray
     return max(float(costs[best]), 0.0), h[best, :3]
 
 
-def _normals(corners: FloatArray) -> FloatArray:
-    """Unnormalised normals ``(K, 3)`` of triangles ``(K, 3, 3)`` (np.cross without its
-    overhead on small arrays)."""
-    u = corners[:, 1] - corners[:, 0]
-    v = corners[:, 2] - corners[:, 0]
-    return np.stack([u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1],
-                     u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2],
-                     u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]], axis=1)
-
-
 class _Collapser:
     """The mutable state of one simplification (see :func:`simplify`)."""
 
@@ -279,7 +270,7 @@ class _Collapser:
     def _keeps_orientation(self, old: FloatArray, new: FloatArray) -> bool:
         """Whether no face of the fan turns by more than the options allow or shrinks
         below the smallest area."""
-        n_old, n_new = _normals(old), _normals(new)
+        n_old, n_new = triangle_normals(old), triangle_normals(new)
         area_new = 0.5 * np.linalg.norm(n_new, axis=1)
         if np.any(area_new <= self.min_area):
             return False
@@ -316,7 +307,8 @@ class _Collapser:
         low, high = box.min(axis=1) - self.eps, box.max(axis=1) + self.eps
         overlap = np.all((high[i] >= low[j]) & (high[j] >= low[i]), axis=1)
         i, j = i[overlap], j[overlap]
-        return bool(pairs_cross(local_positions, local_tri, i, j, self.eps).any())
+        return len(i) > 0 and bool(pairs_cross(local_positions, local_tri, i, j,
+                                               self.eps).any())
 
     def mesh(self) -> tuple[PolygonMesh, IntArray]:
         """The current mesh, its vertices renumbered in their old order, and the output

@@ -34,10 +34,12 @@ from spacemesh.primitives.triangles import (
     triangulate_manifold,
     triangulate_polygon,
 )
+from spacemesh.primitives.vectors import cross_rows, triangle_normals
 from spacemesh.primitives.welding import weld
 
 __all__ = [
     "component_labels",
+    "cross_rows",
     "decimate",
     "edge_keys",
     "faces_subset",
@@ -49,6 +51,7 @@ __all__ = [
     "signed_volume",
     "surface_area",
     "triangle_areas",
+    "triangle_normals",
     "triangles_of",
     "triangulate_faces",
     "triangulate_manifold",

@@ -136,7 +136,8 @@ def run_group(backend: Backend, spec: ModelSpec,
     Returns
     -------
     list of GenerateResult
-        In job order; ``timings`` has the group's network times and the job's own.
+        In job order; ``timings`` has the job's share of the group's network times and
+        its own decode, geometry and report times.
     """
     _, method, start, start_time = key
     stage("encoder", 1, 1)
@@ -189,9 +190,10 @@ def run_group(backend: Backend, spec: ModelSpec,
         e2 = time.perf_counter()
         stage("report", b + 1, len(jobs))
         report = prepared.report(mesh)
-        timings = {"encoder": t1 - t0, "sampler": t2 - t1, "connectivity": t3 - t2,
-                   "extraction": e1 - e0, "geometry": e2 - e1,
-                   "report": time.perf_counter() - e2}
+        share = len(jobs)  # the group's network calls count a share for each job
+        timings = {"encoder": (t1 - t0) / share, "sampler": (t2 - t1) / share,
+                   "connectivity": (t3 - t2) / share, "extraction": e1 - e0,
+                   "geometry": e2 - e1, "report": time.perf_counter() - e2}
         timings["total"] = sum(timings.values())
         results.append(GenerateResult(
             mesh=mesh, options=options, timings=timings,

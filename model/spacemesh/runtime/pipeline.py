@@ -20,6 +20,7 @@ changes a result. This module uses numpy and onnxruntime only (never torch).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -45,6 +46,7 @@ from spacemesh.runtime.request import (
     GenerateResult,
     PreparedInput,
     prepare_input,
+    summed_timings,
 )
 from spacemesh.runtime.sampler import ProgressFn, StageFn
 from spacemesh.runtime.spec import ModelSpec
@@ -209,7 +211,9 @@ class MeshGenerator:
             if (retry and self.spec.retry_seeds and not options.raw
                     and not any(acceptable(r, expected) for r in tried)):
                 tried += self._retry_seeds(prepared, options, progress, stage)
+            spent = summed_timings(tried)  # every seed ran: the request spent them all
             chosen = best_fit(tried, options, expected, check=self.spec.retry_seeds > 0)
+            chosen.timings = spent
             results.append(self._untangled(chosen, prepared, stage))
         return results
 
@@ -226,8 +230,10 @@ class MeshGenerator:
             return result
         if stage is not None:
             stage("untangle", 1, 1)
+        started = time.perf_counter()
         mesh, stats = untangle(result.mesh)
         if stats["crossing_after"] >= stats["crossing_before"]:
+            _add_geometry_time(result, time.perf_counter() - started)
             return result
         unit = mesh.with_vertices((mesh.vertices - prepared.centre) / prepared.scale)
         points, normals = prepared.fit_points()
@@ -237,6 +243,7 @@ class MeshGenerator:
         result.mesh = mesh
         result.geometry_stats = {**result.geometry_stats, **stats}
         result.fit = prepared.report(mesh)
+        _add_geometry_time(result, time.perf_counter() - started)
         return result
 
     def _retry_seeds(self, prepared: PreparedInput, options: GenerateOptions,
@@ -290,10 +297,13 @@ class MeshGenerator:
         assert options.tolerance is not None
         tolerance = float(options.tolerance)
 
+        ran: list[GenerateResult] = []  # every try and retry, for the timings
+
         def run(count: int) -> GenerateResult:
             attempt = attempt_options(options, count)  # resolved: the request's are
-            return self._generate_prepared([(prepared, attempt)], progress, stage,
-                                           retry=False)[0]
+            ran.append(self._generate_prepared([(prepared, attempt)], progress, stage,
+                                               retry=False)[0])
+            return ran[-1]
 
         def on_try(done: int, total: int) -> None:
             if stage is not None:
@@ -304,9 +314,11 @@ class MeshGenerator:
         expected = prepared.pieces
         if self.spec.retry_seeds and not acceptable(found, expected):
             keep_met = distance_of(found) <= tolerance
-            extra = [r for r in self._retry_seeds(prepared, found.options, progress, stage)
-                     if distance_of(r) <= tolerance or not keep_met]
+            retried = self._retry_seeds(prepared, found.options, progress, stage)
+            ran += retried
+            extra = [r for r in retried if distance_of(r) <= tolerance or not keep_met]
             found = best_fit([found, *extra], found.options, expected)
+        found.timings = summed_timings(ran)
         found = self._untangled(found, prepared, stage)
         # the fit reports carry the tolerance and whether it is met (PreparedInput)
         found.options = replace(found.options, tolerance=tolerance, target_vertices=None)
@@ -329,6 +341,12 @@ class MeshGenerator:
     def vertex_count(self, options: GenerateOptions) -> int:
         """Vertices ``start=points`` chooses: the target, else the model's default."""
         return vertex_count(self.spec, options)
+
+
+def _add_geometry_time(result: GenerateResult, seconds: float) -> None:
+    """Count ``seconds`` of geometry work (the untangling) in ``result``'s timings."""
+    for name in ("geometry", "total"):
+        result.timings[name] = result.timings.get(name, 0.0) + seconds
 
 
 def _no_stage(name: str, done: int, total: int) -> None:

@@ -63,8 +63,9 @@ class GenerateResult:
         mesh (with ``samples > 1``, the winner's).
     timings : dict of str to float
         Seconds spent in ``encoder``, ``sampler``, ``connectivity``, ``extraction``
-        (decode), ``geometry``, ``report`` and ``total``. For a batch, the network
-        stages are the whole batch's times.
+        (decode), ``geometry``, ``report`` and ``total``, over everything the request
+        ran: every seed (the model's retry seeds included), every tolerance try and the
+        untangling (in ``geometry``). Network calls shared by a batch count a share each.
     n_sampled_vertices : int
         Vertices given to the connectivity network (before the decode removed any).
     decode_stats : dict
@@ -234,6 +235,25 @@ def check_points(points: Any, normals: Any = None) -> tuple[FloatArray, FloatArr
 
 
 
+def summed_timings(results: list[GenerateResult]) -> dict[str, float]:
+    """The stage times of ``results`` added up (what a request that ran them all spent).
+
+    Parameters
+    ----------
+    results : list of GenerateResult
+
+    Returns
+    -------
+    dict of str to float
+        Each stage's seconds over all of them.
+    """
+    total: dict[str, float] = {}
+    for result in results:
+        for name, seconds in result.timings.items():
+            total[name] = total.get(name, 0.0) + float(seconds)
+    return total
+
+
 def prepare_input(request: GenerateRequest, spec: ModelSpec,
                   options: GenerateOptions | None = None) -> PreparedInput:
     """A request's points checked, normalised and subsampled once for all its seeds.
@@ -281,4 +301,4 @@ def prepare_input(request: GenerateRequest, spec: ModelSpec,
 
 __all__ = ["MAX_FIT_POINTS", "POINT_SUBSET_SEED", "GenerateRequest", "GenerateResult",
            "PreparedInput", "check_points", "choose_points", "normalize_points",
-           "prepare_input"]
+           "prepare_input", "summed_timings"]

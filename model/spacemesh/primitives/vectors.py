@@ -1,0 +1,36 @@
+"""Row-wise vector products for many small arrays.
+
+``np.cross`` moves axes and checks shapes on every call, which costs more than the
+product itself on the few rows a local mesh operation handles (an edge collapse's fan, a
+pair test): :func:`cross_rows` is the same product on ``(M, 3)`` rows without that.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from spacemesh.typed import FloatArray
+
+
+def cross_rows(u: FloatArray, v: FloatArray) -> FloatArray:
+    """``np.cross(u, v)`` of ``(M, 3)`` rows.
+
+    Parameters
+    ----------
+    u, v : (M, 3) float
+
+    Returns
+    -------
+    (M, 3) float
+    """
+    u0, u1, u2 = u[:, 0], u[:, 1], u[:, 2]
+    v0, v1, v2 = v[:, 0], v[:, 1], v[:, 2]
+    return np.stack([u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0], axis=1)
+
+
+def triangle_normals(corners: FloatArray) -> FloatArray:
+    """Unnormalised normals ``(M, 3)`` (twice the areas long) of triangles ``(M, 3, 3)``."""
+    return cross_rows(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+
+
+__all__ = ["cross_rows", "triangle_normals"]
