@@ -33,6 +33,8 @@ def test_a_dense_decode_is_simplified_to_the_target(shipped):
     points = d / np.linalg.norm(d, axis=1, keepdims=True) * [1.0, 0.7, 0.4]
     result = generator.generate(points, target_vertices=60)
     assert_valid_mesh(result.mesh)
+    dense_genus, plain_genus = result.decode_stats["dense_genus"]  # both decodes' genus
+    assert dense_genus <= plain_genus == 0  # so the dense decode was kept, and simplified
     collapsed = result.geometry_stats["simplify"]["collapsed"]
     assert collapsed > 100 and result.mesh.n_vertices == 60
     assert result.fit.self_intersections == 0

@@ -17,12 +17,15 @@ import numpy as np
 from spacemesh.decode import DecodeResult, Embeddings, decode
 from spacemesh.geometry import farthest_point_sampling
 from spacemesh.geometry.finishing import finish_geometry, outward
+from spacemesh.geometry.pieces import drop_fragments
+from spacemesh.mesh import PolygonMesh
 from spacemesh.runtime.backend import Backend, ConnectivityOutputs, denoiser_fn
 from spacemesh.runtime.large import needs_split, network_vertices
 from spacemesh.runtime.options import GenerateOptions
 from spacemesh.runtime.request import GenerateResult, PreparedInput
 from spacemesh.runtime.sampler import ProgressFn, StageFn, sample, split_tokens, start_steps
 from spacemesh.runtime.spec import DUPLICATE_TOLERANCE, ModelSpec
+from spacemesh.topology import surface_topology
 from spacemesh.typed import FloatArray
 
 #: The sampler settings that let seeds share network calls:
@@ -115,6 +118,11 @@ def decode_item(spec: ModelSpec, positions: np.ndarray, emb: ConnectivityOutputs
                   alive=alive, points=prepared.cloud[:, :3])
 
 
+def _genus(mesh: PolygonMesh) -> int:
+    """The genus of a decode without its fragments (what the geometry stage keeps)."""
+    return surface_topology(drop_fragments(mesh)[0]).genus
+
+
 def run_group(backend: Backend, spec: ModelSpec,
               jobs: list[tuple[PreparedInput, GenerateOptions]], key: SamplerKey,
               progress: ProgressFn, stage: StageFn) -> list[GenerateResult]:
@@ -176,6 +184,19 @@ def run_group(backend: Backend, spec: ModelSpec,
                                      [v[b:b + 1] for v in volumes])
             decoded = decode_item(spec, positions[b, :m], prefix, 0, alive[b, :m], prepared)
             decoded.stats["large_meshes"] = "split"
+        wanted = vertex_count(spec, options)
+        if (start == "points" and not options.raw and decode_count(spec, options) > wanted
+                and decoded.stats.get("large_meshes") != "split"):
+            # a dense decode: kept only if it has no more handles than the decode of the
+            # count asked for (its farthest-point prefix), which a denser graph can add
+            plain_emb = backend.connect(positions[b:b + 1, :wanted], alive[b:b + 1, :wanted],
+                                        [v[b:b + 1] for v in volumes])
+            plain = decode_item(spec, positions[b, :wanted], plain_emb, 0, alive[b, :wanted],
+                                prepared)
+            dense_genus, plain_genus = _genus(decoded.mesh), _genus(plain.mesh)
+            if plain_genus < dense_genus:
+                decoded = plain
+            decoded.stats["dense_genus"] = [dense_genus, plain_genus]
         mesh = outward(decoded.mesh)
         e1 = time.perf_counter()
         geometry_stats: dict[str, Any] = {}
