@@ -4,9 +4,11 @@ Start-up: both servers listen first (``/v2/health/live`` answers at once), then 
 model loads and warms up in the background; ``/v2/health/ready`` and grpc.health.v1
 turn ready after that. A model that fails to load ends the process with exit code 1.
 
-SIGTERM (or SIGINT) drains: readiness turns false, both servers stop accepting, and
-requests already received (queued or running) finish, for up to ``drain_timeout_s``;
-then the process exits 0. A second SIGINT exits at once.
+SIGTERM (or SIGINT) drains: readiness turns false, new requests get a 503
+``shutting-down`` with Retry-After (gRPC UNAVAILABLE) while requests already received
+(queued or running) finish, for at least ``drain_notice_s`` and at most
+``drain_timeout_s``; then both servers close and the process exits 0. A second SIGINT
+exits at once.
 
 Protection and connections (:mod:`spacemesh_service.security`,
 :mod:`spacemesh_service.connections`, :mod:`spacemesh_service.access_log`): one
@@ -160,14 +162,19 @@ class SpaceMeshServer:
             await self._grpc.stop(grace)
 
     async def _drain(self) -> None:
+        """Refuse new work with 503 ``shutting-down`` (gRPC UNAVAILABLE) while the work
+        already received finishes, for at least ``drain_notice_s`` (so that a balancer
+        that still sends traffic gets an answer it can retry elsewhere, not a refused
+        connection) and at most ``drain_timeout_s``; then close both servers."""
         grace = self.settings.drain_timeout_s
         log.info("draining (up to %.0f s)", grace)
-        self.engine.begin_drain()
-        if self._uvicorn is not None:
-            self._uvicorn.should_exit = True  # stop accepting, finish open requests
-        grpc_stopped = asyncio.ensure_future(self._stop_grpc(grace))
+        self.engine.begin_drain()  # readiness 503, new requests 503 shutting-down
+        notice = asyncio.ensure_future(asyncio.sleep(min(self.settings.drain_notice_s, grace)))
         drained = await self.engine.stop(grace)
-        await grpc_stopped
+        await notice
+        if self._uvicorn is not None:
+            self._uvicorn.should_exit = True  # stop accepting, finish open responses
+        await self._stop_grpc(0)  # no call is left running: the engine has drained
         if not drained:
             log.warning("drain timeout: some requests were cancelled")
 

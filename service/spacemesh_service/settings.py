@@ -93,6 +93,11 @@ class Settings(BaseModel):
     warmup: bool = Field(True, description="Run a warm-up inference before reporting ready.")
     drain_timeout_s: float = Field(
         30.0, ge=0, description="On SIGTERM, how long in-flight requests may still run.")
+    drain_notice_s: float = Field(
+        2.0, ge=0, description="On SIGTERM, how long at least both servers keep answering "
+        "new requests with 503 shutting-down (gRPC UNAVAILABLE) before they close, so that "
+        "a load balancer that has not yet seen readiness turn false gets an answer to retry "
+        "elsewhere rather than a refused connection (at most drain_timeout_s).")
     log_level: str = Field("info", description="Log level (debug, info, warning, error).")
     # connections (spacemesh_service.connections)
     header_timeout_s: float = Field(

@@ -155,7 +155,7 @@ def server_settings(repository, **changes):
 
     values = dict(model=repository, host="127.0.0.1", port=0, grpc_port=0, ort_threads=1,
                   min_points=16, max_points=5000, max_upload_bytes=2_000_000,
-                  max_batch_delay_ms=2, log_level="warning")
+                  max_batch_delay_ms=2, log_level="warning", drain_notice_s=0)
     values.update(changes)
     return Settings(**values)
 

@@ -148,13 +148,37 @@ def test_sigterm_drains_in_flight_requests(served, toy_repository, case):
             assert time.monotonic() < deadline and not pending.done()
             time.sleep(0.01)
         process.process.send_signal(signal.SIGTERM)
+        deadline = time.monotonic() + 30
+        while "draining" not in process.log:
+            assert time.monotonic() < deadline, process.log
+            time.sleep(0.01)
+        # a request that arrives during the drain gets an answer to retry elsewhere
+        late = httpx.post(url + "/generate", json=body, timeout=60)
+        ready = httpx.get(url + "/v2/health/ready")
         response = pending.result()
+    assert late.status_code == 503, late.text
+    assert late.json()["type"].endswith("shutting-down") and late.headers["retry-after"]
+    assert ready.status_code == 503
     assert response.status_code == 200, response.text + process.log
     assert response.headers["x-spacemesh-closed"] == "true"
     assert process.process.wait(60) == 0
-    assert "draining" in process.log
     with pytest.raises(httpx.ConnectError):
         httpx.get(url + "/v2/health/live")
+
+
+def test_a_request_just_after_sigterm_gets_503_when_nothing_is_in_flight(
+        served, toy_repository, case):
+    process = served(CLI, ["--model", str(toy_repository), "--no-warmup",
+                           "--drain-notice-s", "3"])
+    url = process.wait_ready()
+    process.process.send_signal(signal.SIGTERM)
+    deadline = time.monotonic() + 30
+    while "draining" not in process.log:
+        assert time.monotonic() < deadline, process.log
+        time.sleep(0.01)
+    late = httpx.post(url + "/generate", json={"points": case.points.tolist()}, timeout=60)
+    assert late.status_code == 503 and late.json()["type"].endswith("shutting-down")
+    assert process.process.wait(60) == 0
 
 
 def test_a_corrupt_model_stops_the_server(tmp_path, served, toy_repository):
