@@ -277,6 +277,11 @@ class GrpcServer:
         for service in ("", SERVICE_NAME):
             await self.health.set(service, health_pb2.HealthCheckResponse.SERVING)
 
+    async def set_not_serving(self) -> None:
+        """Report NOT_SERVING (draining: new calls get UNAVAILABLE from the engine)."""
+        for service in ("", SERVICE_NAME):
+            await self.health.set(service, health_pb2.HealthCheckResponse.NOT_SERVING)
+
     async def stop(self, grace: float) -> None:
         """NOT_SERVING, refuse new calls, let running ones finish within ``grace`` s."""
         await self.health.enter_graceful_shutdown()

@@ -169,6 +169,8 @@ class SpaceMeshServer:
         grace = self.settings.drain_timeout_s
         log.info("draining (up to %.0f s)", grace)
         self.engine.begin_drain()  # readiness 503, new requests 503 shutting-down
+        if self._grpc is not None:
+            await self._grpc.set_not_serving()
         notice = asyncio.ensure_future(asyncio.sleep(min(self.settings.drain_notice_s, grace)))
         drained = await self.engine.stop(grace)
         await notice

@@ -155,15 +155,31 @@ def test_sigterm_drains_in_flight_requests(served, toy_repository, case):
         # a request that arrives during the drain gets an answer to retry elsewhere
         late = httpx.post(url + "/generate", json=body, timeout=60)
         ready = httpx.get(url + "/v2/health/ready")
+        grpc_status = _grpc_health(process.log)
         response = pending.result()
     assert late.status_code == 503, late.text
     assert late.json()["type"].endswith("shutting-down") and late.headers["retry-after"]
     assert ready.status_code == 503
+    from grpc_health.v1 import health_pb2
+
+    assert grpc_status == health_pb2.HealthCheckResponse.NOT_SERVING
     assert response.status_code == 200, response.text + process.log
     assert response.headers["x-spacemesh-closed"] == "true"
     assert process.process.wait(60) == 0
     with pytest.raises(httpx.ConnectError):
         httpx.get(url + "/v2/health/live")
+
+
+def _grpc_health(log: str) -> int:
+    """grpc.health.v1's status of the server whose log is ``log``."""
+    import grpc
+    from grpc_health.v1 import health_pb2, health_pb2_grpc
+
+    address = re.search(r"grpc=(\S+)", log).group(1)
+    with grpc.insecure_channel(address) as channel:
+        reply = health_pb2_grpc.HealthStub(channel).Check(
+            health_pb2.HealthCheckRequest(service=""), timeout=10)
+    return reply.status
 
 
 def test_a_request_just_after_sigterm_gets_503_when_nothing_is_in_flight(
