@@ -503,14 +503,17 @@ def create_app(settings: Settings | None = None, *, engine: Engine | None = None
         return {"live": True}
 
     @app.get("/v2/health/ready", tags=["health"], response_model=ReadyModel,
-             responses={503: {"description": "Loading, warming up or draining",
+             responses={503: {"description": "Loading, warming up, draining, or the worker "
+                                             "stuck or saturated (the detail says which)",
                               "model": ReadyModel}})
     async def ready() -> JSONResponse:
-        """Models loaded and a warm-up inference passed (503 otherwise)."""
-        body: dict[str, Any] = {"ready": engine.ready}
-        if engine.error:  # failed to load (e.g. the golden check): say why
-            body["detail"] = f"the model failed to load: {engine.error}"
-        return JSONResponse(body, status_code=200 if engine.ready else 503)
+        """Models loaded, a warm-up inference passed, and new work would be done within
+        the request deadline (503 otherwise: loading, draining, stuck or saturated)."""
+        ready, detail = engine.readiness()
+        body: dict[str, Any] = {"ready": ready}
+        if detail:  # failed to load, or stuck / saturated: say why
+            body["detail"] = detail
+        return JSONResponse(body, status_code=200 if ready else 503)
 
     def _model(name: str, version: str | None = None) -> dict[str, Any]:
         if engine.generator is None:

@@ -128,6 +128,7 @@ class Batcher:
         self._worker: asyncio.Task | None = None
         self._executor = ThreadPoolExecutor(1, thread_name_prefix="spacemesh-inference")
         self._batch_seconds = 0.0  # moving average, for Retry-After
+        self._running_since: float | None = None  # monotonic start of the running batch
 
     # ------------------------------------------------------------------ public
     def start(self) -> None:
@@ -145,6 +146,36 @@ class Batcher:
     def busy(self) -> bool:
         """Whether any request waits, is being batched, or runs."""
         return bool(self._open)
+
+    def overload(self, deadline_s: float) -> str | None:
+        """Why new work would not be done within ``deadline_s`` seconds (None: it would).
+
+        The running batch has run for longer than the deadline (stuck, or one heavy
+        request), the queue is full, or the queue's expected time (its batches at the
+        average batch time) is longer than the deadline.
+
+        Parameters
+        ----------
+        deadline_s : float
+            A request's deadline.
+
+        Returns
+        -------
+        str or None
+            The reason, for readiness's ``detail``.
+        """
+        if self._running_since is not None:
+            running = time.monotonic() - self._running_since
+            if running > deadline_s:
+                return (f"the running batch has taken {running:.0f} s, longer than the "
+                        f"{deadline_s:g} s deadline")
+        if self.depth >= self.queue_size:
+            return f"the queue is full ({self.depth} requests wait)"
+        waiting = (self.depth / self.max_batch_size + 1) * self._batch_seconds
+        if self.depth and waiting > deadline_s:
+            return (f"the {self.depth} waiting requests would take about {waiting:.0f} s, "
+                    f"longer than the {deadline_s:g} s deadline")
+        return None
 
     def retry_after(self) -> int:
         """Seconds a rejected client should wait: the expected time to drain the queue."""
@@ -315,10 +346,13 @@ class Batcher:
     async def _work(self) -> None:
         while True:
             batch = await self._collect()
+            self._running_since = time.monotonic()
             try:
                 await self._run(batch)
             except Exception:  # pragma: no cover - _run settles every future
                 log.exception("batch failed")
+            finally:
+                self._running_since = None
 
     def _record_duration(self, elapsed: float) -> None:
         self._batch_seconds = elapsed if not self._batch_seconds else (

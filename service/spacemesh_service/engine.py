@@ -220,6 +220,26 @@ class Engine:
         """Model loaded, warm-up passed, not draining."""
         return self.state == "ready"
 
+    def readiness(self) -> tuple[bool, str | None]:
+        """Whether new work would be taken and done in time, and why not.
+
+        Returns
+        -------
+        ready : bool
+            :attr:`ready`, and the inference worker neither stuck nor saturated
+            (:meth:`~spacemesh_service.batcher.Batcher.overload` against the request
+            deadline), so that a balancer sends the work elsewhere.
+        detail : str or None
+            Why not: the model failed to load, or the worker's overload.
+        """
+        if self.error:
+            return False, f"the model failed to load: {self.error}"
+        if not self.ready:
+            return False, None
+        busy = None if self.batcher is None else self.batcher.overload(
+            self.settings.request_timeout_s)
+        return busy is None, busy
+
     @property
     def _generator(self) -> MeshGenerator:
         """:attr:`generator`, once given or loaded (everything but :meth:`start` and the

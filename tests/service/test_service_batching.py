@@ -199,3 +199,27 @@ def test_not_ready_until_the_warm_up_passes(start_server, generator, case):
         assert post(server.url, case).status_code == 200
     finally:
         gated.gate.set()
+
+
+def test_readiness_turns_503_while_the_worker_is_stuck_and_back_after(generator,
+                                                                        start_server, case):
+    """A batch that runs past the request deadline (here held at a gate) makes readiness
+    503 with a detail, so a balancer sends new work elsewhere; it is ready again after."""
+    gated = GatedGenerator(generator)
+    server = start_server(gated, warmup=False, max_batch_size=1, queue_size=4,
+                          max_batch_delay_ms=0, request_timeout_s=0.5, drain_timeout_s=1)
+    body = {"points": case.points.tolist(), "seed": case.good_seed}
+    with httpx.Client(base_url=server.url, timeout=60) as http:
+        assert http.get("/v2/health/ready").status_code == 200
+        with ThreadPoolExecutor(1) as pool:
+            held = pool.submit(http.post, "/generate", json=body)
+            assert gated.entered.wait(30)
+            time.sleep(0.8)  # past the 0.5 s deadline
+            stuck = http.get("/v2/health/ready")
+            gated.gate.set()
+            held.result()
+        assert stuck.status_code == 503 and "deadline" in stuck.json()["detail"]
+        deadline = time.monotonic() + 30
+        while http.get("/v2/health/ready").status_code != 200:
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
