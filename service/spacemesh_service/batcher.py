@@ -404,14 +404,17 @@ class Batcher:
                     loop.call_soon_threadsafe(job.progress, done, total)
 
         def stage(name: str, done: int, total: int) -> None:  # in the inference thread
+            # every stage boundary is a place to stop: decode, geometry, report, more
+            # seeds, untangling and tolerance tries, not only the sampler's steps
+            if all(job.cancelled for job in batch):
+                raise _AllCancelled
             for job in batch:
                 if job.stage is not None and not job.cancelled:
                     loop.call_soon_threadsafe(job.stage, name, done, total)
 
-        staged = stage if any(job.stage is not None for job in batch) else None
         try:
             requests = [j.request for j in batch if j.request is not None]  # no call here
-            results = await self._call(loop, requests, progress, staged)
+            results = await self._call(loop, requests, progress, stage)
         except _AllCancelled:
             log.info("stopped a batch of %d cancelled requests", len(batch))
             if self.metrics is not None:

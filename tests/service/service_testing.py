@@ -101,8 +101,8 @@ class WrappedGenerator:
         self.name = inner.name
         self.repository = inner.repository
 
-    def generate_batch(self, requests, *, progress=None):
-        return self.inner.generate_batch(requests, progress=progress)
+    def generate_batch(self, requests, *, progress=None, stage=None):
+        return self.inner.generate_batch(requests, progress=progress, stage=stage)
 
 
 class SlowGenerator(WrappedGenerator):
@@ -113,19 +113,19 @@ class SlowGenerator(WrappedGenerator):
         super().__init__(inner)
         self.step_seconds = step_seconds
 
-    def generate_batch(self, requests, *, progress=None):
+    def generate_batch(self, requests, *, progress=None, stage=None):
         def slow(done: int, total: int) -> None:
             time.sleep(self.step_seconds)
             if progress is not None:
                 progress(done, total)
 
-        return self.inner.generate_batch(requests, progress=slow)
+        return self.inner.generate_batch(requests, progress=slow, stage=stage)
 
 
 class FailingGenerator(WrappedGenerator):
     """A generator whose batches raise an unexpected error (a bug, not a bad input)."""
 
-    def generate_batch(self, requests, *, progress=None):
+    def generate_batch(self, requests, *, progress=None, stage=None):
         raise RuntimeError("a bug in the generator")
 
 
@@ -139,12 +139,12 @@ class GatedGenerator(WrappedGenerator):
         self.batches: list[int] = []
         self.errors: list[str] = []
 
-    def generate_batch(self, requests, *, progress=None):
+    def generate_batch(self, requests, *, progress=None, stage=None):
         self.entered.set()
         self.gate.wait(60)
         self.batches.append(len(requests))
         try:
-            return self.inner.generate_batch(requests, progress=progress)
+            return self.inner.generate_batch(requests, progress=progress, stage=stage)
         except Exception as error:
             self.errors.append(type(error).__name__)
             raise

@@ -26,7 +26,7 @@ class FakeGenerator:
         self.batches: list[list[int]] = []
         self.gate = gate
 
-    def generate_batch(self, requests, *, progress=None):
+    def generate_batch(self, requests, *, progress=None, stage=None):
         if self.gate is not None:
             self.gate.wait(30)
         self.batches.append([r.options.seed for r in requests])

@@ -18,7 +18,7 @@ import grpc
 import httpx
 import pytest
 from grpc_health.v1 import health_pb2, health_pb2_grpc
-from service_testing import FailingGenerator, GatedGenerator, SlowGenerator
+from service_testing import FailingGenerator, GatedGenerator, SlowGenerator, WrappedGenerator
 
 from spacemesh_service.pb import spacemesh_pb2 as pb
 from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
@@ -223,3 +223,38 @@ def test_readiness_turns_503_while_the_worker_is_stuck_and_back_after(generator,
         while http.get("/v2/health/ready").status_code != 200:
             assert time.monotonic() < deadline
             time.sleep(0.05)
+
+
+class SlowStages(WrappedGenerator):
+    """The real generator, ``seconds`` slower at the start of every ``geometry`` stage
+    (a default request has no sampler step at which to stop)."""
+
+    def __init__(self, inner, seconds: float) -> None:
+        super().__init__(inner)
+        self.seconds = seconds
+        self.geometry_stages = 0
+
+    def generate_batch(self, requests, *, progress=None, stage=None):
+        def slow(name: str, done: int, total: int) -> None:
+            if stage is not None:
+                stage(name, done, total)  # the batcher's stop comes first
+            if name == "geometry":
+                self.geometry_stages += 1
+                time.sleep(self.seconds)
+
+        return self.inner.generate_batch(requests, progress=progress, stage=slow)
+
+
+def test_work_nobody_waits_for_stops_at_the_next_stage(start_server, generator, case):
+    """A request past its deadline stops at the next stage boundary (here between the
+    geometry stages of its seeds), not only at a sampler step: 8 seeds at 1 s of geometry
+    each would hold the worker for 8 s."""
+    slow = SlowStages(generator, 1.0)
+    server = start_server(slow, warmup=False, max_batch_size=1, max_batch_delay_ms=0,
+                          request_timeout_s=0.5)
+    late = post(server.url, case, samples=8, start="points", start_time=0.0)
+    assert late.status_code == 504, late.text
+    wait_for(lambda: metric(server.url, "spacemesh_stopped_batches_total") == 1,
+             "the abandoned batch to stop")
+    assert slow.geometry_stages == 1  # stopped before the second seed's geometry
+    assert post(server.url, case, raw=True).status_code == 200  # the worker is free
