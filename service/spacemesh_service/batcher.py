@@ -28,6 +28,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
+from spacemesh.cancel import Cancelled, cancel_scope
 from spacemesh.runtime.request import GenerateRequest, GenerateResult
 from spacemesh.runtime.sampler import StageFn
 from spacemesh_service.metrics import BATCH_STAGES, Metrics
@@ -51,8 +52,10 @@ class ShuttingDown(Exception):
     """The batcher no longer accepts requests."""
 
 
-class _AllCancelled(Exception):
-    """Raised inside the inference thread to stop a batch nobody waits for."""
+class _AllCancelled(Cancelled):
+    """Raised inside the inference thread to stop a batch nobody waits for (at a sampler
+    step or a stage event; :func:`spacemesh.cancel.checkpoint` raises its base class
+    inside long stages)."""
 
 
 @dataclass(frozen=True)
@@ -369,9 +372,13 @@ class Batcher:
             if job.progress is not None:
                 loop.call_soon_threadsafe(job.progress, done, total)
 
+        def run() -> Any:  # in the inference thread
+            with cancel_scope(lambda: job.cancelled):
+                return call(progress)
+
         try:
-            result = await loop.run_in_executor(self._executor, lambda: call(progress))
-        except _AllCancelled:
+            result = await loop.run_in_executor(self._executor, run)
+        except Cancelled:
             log.info("stopped a cancelled call")
             if self.metrics is not None:
                 self.metrics.stopped_batches.inc()
@@ -414,8 +421,9 @@ class Batcher:
 
         try:
             requests = [j.request for j in batch if j.request is not None]  # no call here
-            results = await self._call(loop, requests, progress, stage)
-        except _AllCancelled:
+            results = await self._call(loop, requests, progress, stage,
+                                       lambda: all(job.cancelled for job in batch))
+        except Cancelled:
             log.info("stopped a batch of %d cancelled requests", len(batch))
             if self.metrics is not None:
                 self.metrics.stopped_batches.inc()
@@ -437,11 +445,16 @@ class Batcher:
             self._settle(job, Outcome(result, len(batch), job.queue_seconds))
 
     async def _call(self, loop: asyncio.AbstractEventLoop, requests: Sequence[GenerateRequest],
-                    progress: ProgressFn, stage: StageFn | None = None
+                    progress: ProgressFn, stage: StageFn | None = None,
+                    is_cancelled: Callable[[], bool] | None = None
                     ) -> list[GenerateResult]:
         extra = {} if stage is None else {"stage": stage}
-        return await loop.run_in_executor(
-            self._executor, lambda: self._run_batch(list(requests), progress=progress, **extra))
+
+        def run() -> list[GenerateResult]:  # in the inference thread
+            with cancel_scope(is_cancelled or (lambda: False)):
+                return self._run_batch(list(requests), progress=progress, **extra)
+
+        return await loop.run_in_executor(self._executor, run)
 
     @staticmethod
     def _settle(job: _Job, outcome: Outcome | None = None,

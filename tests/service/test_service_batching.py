@@ -258,3 +258,37 @@ def test_work_nobody_waits_for_stops_at_the_next_stage(start_server, generator, 
              "the abandoned batch to stop")
     assert slow.geometry_stages == 1  # stopped before the second seed's geometry
     assert post(server.url, case, raw=True).status_code == 200  # the worker is free
+
+
+class LongStage(WrappedGenerator):
+    """A request with ``samples=2`` spends up to 20 s in one stage, reaching a
+    :func:`spacemesh.cancel.checkpoint` every 50 ms as the geometry loops do."""
+
+    def __init__(self, inner) -> None:
+        super().__init__(inner)
+        self.rounds = 0
+
+    def generate_batch(self, requests, *, progress=None, stage=None):
+        from spacemesh.cancel import checkpoint
+
+        if any(r.options.samples == 2 for r in requests):
+            for _ in range(400):
+                checkpoint()
+                self.rounds += 1
+                time.sleep(0.05)
+        return self.inner.generate_batch(requests, progress=progress, stage=stage)
+
+
+def test_work_nobody_waits_for_stops_inside_a_long_stage(start_server, generator, case):
+    """The batcher runs each batch in a cancellation scope: past the deadline the work
+    stops at the next checkpoint inside the stage (the vertex fit's iterations, the
+    collapses...), not at the end of the stage."""
+    long = LongStage(generator)
+    server = start_server(long, warmup=False, max_batch_size=1, max_batch_delay_ms=0,
+                          request_timeout_s=0.5)
+    late = post(server.url, case, samples=2)
+    assert late.status_code == 504, late.text
+    wait_for(lambda: metric(server.url, "spacemesh_stopped_batches_total") == 1,
+             "the abandoned batch to stop")
+    assert long.rounds < 200  # 400 rounds (20 s) if nothing stopped it
+    assert post(server.url, case).status_code == 200

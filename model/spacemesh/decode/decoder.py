@@ -33,6 +33,7 @@ from typing import Literal
 import numpy as np
 
 from spacemesh.angular import oriented_angular_cycles
+from spacemesh.cancel import checkpoint
 from spacemesh.connectivity import Connectivity, csr_from_edges
 from spacemesh.decode.crossing import uncrossed
 from spacemesh.decode.refinement import flip_diagonals, reinsert_vertices
@@ -472,6 +473,7 @@ def decode_connectivity(
     old_local = np.zeros(0, dtype=np.int64)
     dirty = np.ones(n, dtype=bool)
     while True:
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         edges, alive, pruned = _prune_low_degree(edges, alive)
         stats["n_pruned"] += pruned
         offsets, neighbours = csr_from_edges(edges, n)

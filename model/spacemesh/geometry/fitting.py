@@ -40,6 +40,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
+from spacemesh.cancel import checkpoint
 from spacemesh.primitives import triangle_areas
 from spacemesh.primitives.closest import (
     _subtriangle_centroids,
@@ -366,6 +367,7 @@ def fit_vertices(
     unknown = np.repeat(free, 3)  # (3N,) coordinates that the solve moves
     energies = []
     for _ in range(options.iterations if free.any() else 0):
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         matrix, rhs, energy = fit_energy_terms(positions, triangles, points, normals, tree,
                                                options)
         energies.append(energy)

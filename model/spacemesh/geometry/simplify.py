@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
+from spacemesh.cancel import checkpoint
 from spacemesh.geometry.fitting import plane_fits
 from spacemesh.geometry.intersections import pairs_cross
 from spacemesh.mesh import PolygonMesh
@@ -42,6 +43,8 @@ from spacemesh.primitives import triangle_normals
 from spacemesh.topology import edge_connected_faces, surface_topology
 from spacemesh.typed import FloatArray, IntArray
 
+#: Collapses between two cancellation checkpoints (spacemesh.cancel).
+CHECK_EVERY = 32
 #: A quadric's 3x3 block is solved for its minimum only when its determinant exceeds this
 #: share of its trace cubed (else the ends and the midpoint are compared).
 WELL_POSED = 1e-9
@@ -370,6 +373,8 @@ def simplify(mesh: PolygonMesh, points: FloatArray, normals: FloatArray | None =
         state.push(int(a), int(b))
     alive = mesh.n_vertices
     while alive > target_vertices and state.heap:
+        if stats["collapsed"] % CHECK_EVERY == 0:
+            checkpoint()  # abandoned work stops here (spacemesh.cancel)
         cost, a, b, version_a, version_b = heapq.heappop(state.heap)
         if (not state.vertex_alive[a] or not state.vertex_alive[b]
                 or state.version[a] != version_a or state.version[b] != version_b):

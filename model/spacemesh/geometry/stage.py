@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh.cancel import checkpoint
 from spacemesh.decode.refinement import flip_diagonals
 from spacemesh.encode import connectivity_from_faces
 from spacemesh.geometry.fitting import VertexFitOptions, fit_vertices, plane_fits
@@ -222,6 +223,7 @@ def _backtrack(mesh: PolygonMesh, positions: FloatArray, unfitted: FloatArray,
     guarded = np.zeros(len(positions), dtype=bool)
     share = limit
     for round_index in range(GUARD_ROUNDS + MAX_REVERT_ROUNDS):
+        checkpoint()
         corners = np.unique(tri[hit].reshape(-1))
         guarded[corners] = True
         weight = 0.5 if round_index < GUARD_ROUNDS else 1.0
@@ -293,6 +295,7 @@ def refine_geometry(
     normals = fitted if normals is None else normals
     energies: list[float] = []
     for round_index in range(max(options.rounds, 1)):
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         if edits and triangle_mesh and options.flips and round_index > 0:
             tri, count = _flip_toward(positions, tri, points, options.fit_gain)
             stats["n_flipped"] += count

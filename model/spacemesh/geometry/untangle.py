@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from spacemesh.cancel import checkpoint
 from spacemesh.geometry.intersections import self_intersecting_faces
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import uniform_adjacency
@@ -59,6 +60,7 @@ def untangle(mesh: PolygonMesh, *, max_rounds: int = MAX_ROUNDS
     positions = mesh.vertices.astype(np.float64).copy()  # (V, 3)
     best, best_share, rounds = mesh, before, 0
     for rounds in range(1, max_rounds + 1):
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         crossing = np.zeros(n, dtype=bool)
         crossing[mesh.face_indices[hit[face_of_corner]]] = True
         if rounds > RING_AFTER:

@@ -1,0 +1,56 @@
+"""Cooperative cancellation inside long stages: :func:`checkpoint` raises
+:class:`Cancelled` when the work running in this thread is no longer wanted.
+
+The service's batcher runs a batch in its inference thread inside :func:`cancel_scope`,
+whose check says whether anyone still waits for the batch (a deadline passed, a client
+went away, a gRPC call was cancelled). Long loops call :func:`checkpoint` on every
+round (the vertex fit's iterations, the geometry stage's rounds and guard, edge
+collapses, untangling), so abandoned work stops within one round instead of at the
+next stage. Outside a scope (the CLI, batch, tests) :func:`checkpoint` does nothing.
+The scope is per thread, so concurrent work in other threads is not affected.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+_local = threading.local()
+
+
+class Cancelled(Exception):
+    """The work of this thread's :func:`cancel_scope` is no longer wanted."""
+
+
+@contextmanager
+def cancel_scope(is_cancelled: Callable[[], bool]) -> Iterator[None]:
+    """Run the body with ``is_cancelled`` as this thread's cancellation check.
+
+    Parameters
+    ----------
+    is_cancelled : callable
+        ``is_cancelled() -> bool``, cheap (it is called on every round of long loops).
+    """
+    outer = getattr(_local, "check", None)
+    _local.check = is_cancelled
+    try:
+        yield
+    finally:
+        _local.check = outer
+
+
+def checkpoint() -> None:
+    """Raise :class:`Cancelled` if this thread's scope says the work is not wanted.
+
+    Raises
+    ------
+    Cancelled
+        Inside a :func:`cancel_scope` whose check returns True.
+    """
+    check = getattr(_local, "check", None)
+    if check is not None and check():
+        raise Cancelled
+
+
+__all__ = ["Cancelled", "cancel_scope", "checkpoint"]
