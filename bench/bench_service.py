@@ -284,7 +284,8 @@ def main() -> None:
     parser.add_argument("--clients", default="1,4,8")
     parser.add_argument("--per-client", type=int, default=3)
     parser.add_argument("--steps", type=int, default=None, help="default: the model's")
-    parser.add_argument("--threads", type=int, default=2, help="onnxruntime intra-op threads")
+    parser.add_argument("--threads", type=int, default=2,
+                        help="threads that run the networks' batch items (--ort-threads)")
     parser.add_argument("--torch", action=argparse.BooleanOptionalAction, default=True)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--steps-sweep", default="", help="e.g. 10,20,30,50")
