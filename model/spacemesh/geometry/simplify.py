@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import heapq
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -127,7 +127,7 @@ def point_quadrics(vertices: FloatArray, points: FloatArray,
 def face_quadrics(vertices: FloatArray, triangles: IntArray) -> FloatArray:
     """Area-weighted face-plane quadrics ``(V, 4, 4)`` summed at each face's corners."""
     corners = vertices[triangles]  # (T, 3, 3)
-    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    cross = triangle_normals(corners)  # (T, 3), twice the areas long
     double_area = np.linalg.norm(cross, axis=1)
     n = cross / np.maximum(double_area, 1e-300)[:, None]
     planes = np.concatenate([n, -np.einsum("td,td->t", n, corners[:, 0])[:, None]], axis=1)
@@ -159,6 +159,16 @@ def _placement(quadric: FloatArray, a: FloatArray, b: FloatArray
     return max(float(costs[best]), 0.0), h[best, :3]
 
 
+class _Collapse(NamedTuple):
+    """A collapse that passed its checks: where the merged vertex goes, the two faces
+    that go away, and the faces around it (indices) with their new corners."""
+
+    position: FloatArray  # (3,)
+    shared: set[int]
+    moved: list[int]
+    new: IntArray  # (K, 3)
+
+
 class _Collapser:
     """The mutable state of one simplification (see :func:`simplify`)."""
 
@@ -175,9 +185,7 @@ class _Collapser:
         for f, face in enumerate(triangles):
             for v in face:
                 self.faces_of[int(v)].add(f)
-        corners = vertices[triangles]
-        areas = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
-                                              corners[:, 2] - corners[:, 0]), axis=1)
+        areas = 0.5 * np.linalg.norm(triangle_normals(vertices[triangles]), axis=1)
         self.min_area = options.min_area_ratio * float(areas.mean()) if len(areas) else 0.0
         extent = float(np.ptp(vertices, axis=0).max()) if len(vertices) else 1.0
         self.eps = 1e-9 * (extent or 1.0)
@@ -191,7 +199,6 @@ class _Collapser:
         self.heap: list[tuple[float, int, int, int, int]] = []
         self.parked: list[set[int]] = [set() for _ in range(len(vertices))]
         self.merged_into = np.arange(len(vertices))
-        self._position: FloatArray = np.zeros(3)
 
     def neighbours(self, v: int) -> set[int]:
         """The vertices that share a face with ``v``."""
@@ -212,18 +219,16 @@ class _Collapser:
         """Collapse ``b`` into ``a`` if every check passes (module docstring); a refused
         edge is parked and queued again when a collapse next to it changes its
         surroundings."""
-        reason = self._refusal(a, b)
-        if reason is not None:
-            self.refused[reason] += 1
+        plan = self._plan(a, b)
+        if isinstance(plan, str):  # refused, and why
+            self.refused[plan] += 1
             self.parked[a].add(b)
             self.parked[b].add(a)
             return False
-        shared = self.faces_of[a] & self.faces_of[b]
-        moved = sorted((self.faces_of[a] | self.faces_of[b]) - shared)
-        self.positions[a] = self._position
+        self.positions[a] = plan.position
         self.quadrics[a] = self.quadrics[a] + self.quadrics[b]
-        self.triangles[moved] = np.where(self.triangles[moved] == b, a, self.triangles[moved])
-        for f in shared:
+        self.triangles[plan.moved] = plan.new
+        for f in plan.shared:
             self.face_alive[f] = False
             for u in self.triangles[f]:
                 self.faces_of[int(u)].discard(f)
@@ -244,9 +249,9 @@ class _Collapser:
             self.parked[u] = set()
         return True
 
-    def _refusal(self, a: int, b: int) -> str | None:
-        """Why the collapse of ``b`` into ``a`` is refused (None: it passes; its
-        position is then in ``self._position``)."""
+    def _plan(self, a: int, b: int) -> str | _Collapse:
+        """The collapse of ``b`` into ``a`` if it passes every check, else why not
+        (``link``, ``piece``, ``flip`` or ``crossing``)."""
         shared = self.faces_of[a] & self.faces_of[b]
         if len(shared) != 2:
             return "link"
@@ -267,8 +272,7 @@ class _Collapser:
             return "flip"
         if self._crosses(moved, new, a, position, shared):
             return "crossing"
-        self._position = position
-        return None
+        return _Collapse(position, shared, moved, new)
 
     def _keeps_orientation(self, old: FloatArray, new: FloatArray) -> bool:
         """Whether no face of the fan turns by more than the options allow or shrinks
@@ -362,14 +366,12 @@ def simplify(mesh: PolygonMesh, points: FloatArray, normals: FloatArray | None =
     vertices = mesh.vertices.astype(np.float64)
     triangles = mesh.face_indices.reshape(-1, 3).astype(np.int64)
     quadrics = point_quadrics(vertices, points, normals)
+    faces = face_quadrics(vertices, triangles)
     mean_weight = float(np.trace(quadrics[:, :3, :3], axis1=1, axis2=2).sum()) / max(
-        float(np.trace(face_quadrics(vertices, triangles)[:, :3, :3], axis1=1,
-                       axis2=2).sum()), 1e-300)
-    quadrics += options.face_weight * mean_weight * face_quadrics(vertices, triangles)
+        float(np.trace(faces[:, :3, :3], axis1=1, axis2=2).sum()), 1e-300)
+    quadrics += options.face_weight * mean_weight * faces
     state = _Collapser(vertices, triangles, quadrics, options)
-    edges = np.unique(np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]],
-                                              triangles[:, [2, 0]]]), axis=1), axis=0)
-    for a, b in edges:
+    for a, b in mesh.edges:
         state.push(int(a), int(b))
     alive = mesh.n_vertices
     while alive > target_vertices and state.heap:
