@@ -118,6 +118,17 @@ def decode_item(spec: ModelSpec, positions: np.ndarray, emb: ConnectivityOutputs
                   alive=alive, points=prepared.cloud[:, :3])
 
 
+def _decode_prefix(backend: Backend, spec: ModelSpec, positions: np.ndarray,
+                   alive: np.ndarray, volumes: list[np.ndarray], b: int, count: int,
+                   prepared: PreparedInput) -> DecodeResult:
+    """Decode job ``b``'s first ``count`` tokens alone (the connectivity network run
+    again on them): farthest-point sampling is greedy, so they are the tokens a request
+    for ``count`` vertices gets (positions ``(B, N, 3)``, alive ``(B, N)``)."""
+    emb = backend.connect(positions[b:b + 1, :count], alive[b:b + 1, :count],
+                          [v[b:b + 1] for v in volumes])
+    return decode_item(spec, positions[b, :count], emb, 0, alive[b, :count], prepared)
+
+
 def _genus(mesh: PolygonMesh) -> int:
     """The genus of a decode without its fragments (what the geometry stage keeps)."""
     return surface_topology(drop_fragments(mesh)[0]).genus
@@ -180,19 +191,15 @@ def run_group(backend: Backend, spec: ModelSpec,
                 and needs_split(int(alive[b].sum()), decoded.mesh.n_vertices, m)):
             # the full-token graph fell apart: the model's own token count instead
             alive[b, m:] = False
-            prefix = backend.connect(positions[b:b + 1, :m], alive[b:b + 1, :m],
-                                     [v[b:b + 1] for v in volumes])
-            decoded = decode_item(spec, positions[b, :m], prefix, 0, alive[b, :m], prepared)
+            decoded = _decode_prefix(backend, spec, positions, alive, volumes, b, m, prepared)
             decoded.stats["large_meshes"] = "split"
         wanted = vertex_count(spec, options)
         if (start == "points" and not options.raw and decode_count(spec, options) > wanted
                 and decoded.stats.get("large_meshes") != "split"):
             # a dense decode: kept only if it has no more handles than the decode of the
             # count asked for (its farthest-point prefix), which a denser graph can add
-            plain_emb = backend.connect(positions[b:b + 1, :wanted], alive[b:b + 1, :wanted],
-                                        [v[b:b + 1] for v in volumes])
-            plain = decode_item(spec, positions[b, :wanted], plain_emb, 0, alive[b, :wanted],
-                                prepared)
+            plain = _decode_prefix(backend, spec, positions, alive, volumes, b, wanted,
+                                   prepared)
             dense_genus, plain_genus = _genus(decoded.mesh), _genus(plain.mesh)
             if plain_genus < dense_genus:
                 decoded = plain
@@ -205,7 +212,7 @@ def run_group(backend: Backend, spec: ModelSpec,
             unit, normals = prepared.fit_points()
             mesh, geometry_stats = finish_geometry(
                 mesh, unit, normals, spec.geometry,
-                target_vertices=vertex_count(spec, options) if start == "points" else None,
+                target_vertices=wanted if start == "points" else None,
             )
         mesh = mesh.with_vertices(mesh.vertices * prepared.scale + prepared.centre)
         e2 = time.perf_counter()

@@ -199,10 +199,10 @@ class MeshGenerator:
         ``tolerance``): the best fit of each request's seeds, in request order.
 
         With a model whose :attr:`ModelSpec.retry_seeds` is set, a mesh with as many
-        pieces as the points (:func:`point_pieces`) is preferred to any without, then
-        one whose faces do not cross; when none of a request's seeds has both, that many
-        more seeds run (stage ``pieces``; not with ``retry`` False) before choosing
-        (:func:`_best_fit`).
+        pieces as the points (:func:`spacemesh.geometry.pieces.point_pieces`) is
+        preferred to any without, then one whose faces do not cross; when none of a
+        request's seeds has both, that many more seeds run (stage ``pieces``; not with
+        ``retry`` False) before choosing (:func:`spacemesh.runtime.choice.best_fit`).
         """
         results = []
         for (prepared, options), tried in zip(items, self._seed_results(items, progress,
