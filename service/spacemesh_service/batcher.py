@@ -403,8 +403,11 @@ class Batcher:
             self.metrics.batch_size.observe(len(batch))
             self.metrics.batches.inc()
 
+        def abandoned() -> bool:
+            return all(job.cancelled for job in batch)
+
         def progress(done: int, total: int) -> None:  # in the inference thread
-            if all(job.cancelled for job in batch):
+            if abandoned():
                 raise _AllCancelled
             for job in batch:
                 if job.progress is not None and not job.cancelled:
@@ -413,7 +416,7 @@ class Batcher:
         def stage(name: str, done: int, total: int) -> None:  # in the inference thread
             # every stage boundary is a place to stop: decode, geometry, report, more
             # seeds, untangling and tolerance tries, not only the sampler's steps
-            if all(job.cancelled for job in batch):
+            if abandoned():
                 raise _AllCancelled
             for job in batch:
                 if job.stage is not None and not job.cancelled:
@@ -421,8 +424,7 @@ class Batcher:
 
         try:
             requests = [j.request for j in batch if j.request is not None]  # no call here
-            results = await self._call(loop, requests, progress, stage,
-                                       lambda: all(job.cancelled for job in batch))
+            results = await self._call(loop, requests, progress, stage, abandoned)
         except Cancelled:
             log.info("stopped a batch of %d cancelled requests", len(batch))
             if self.metrics is not None:
@@ -445,14 +447,11 @@ class Batcher:
             self._settle(job, Outcome(result, len(batch), job.queue_seconds))
 
     async def _call(self, loop: asyncio.AbstractEventLoop, requests: Sequence[GenerateRequest],
-                    progress: ProgressFn, stage: StageFn | None = None,
-                    is_cancelled: Callable[[], bool] | None = None
+                    progress: ProgressFn, stage: StageFn, is_cancelled: Callable[[], bool]
                     ) -> list[GenerateResult]:
-        extra = {} if stage is None else {"stage": stage}
-
         def run() -> list[GenerateResult]:  # in the inference thread
-            with cancel_scope(is_cancelled or (lambda: False)):
-                return self._run_batch(list(requests), progress=progress, **extra)
+            with cancel_scope(is_cancelled):
+                return self._run_batch(list(requests), progress=progress, stage=stage)
 
         return await loop.run_in_executor(self._executor, run)
 
