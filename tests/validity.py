@@ -14,14 +14,19 @@ from spacemesh.mesh import PolygonMesh
 from spacemesh.topology import TopologyReport, check_topology
 
 
-def assert_valid_mesh(mesh: PolygonMesh, *, unreferenced: bool = False) -> TopologyReport:
-    """Assert that ``mesh`` has faces and vertices and is a closed oriented manifold.
+def assert_valid_mesh(mesh: PolygonMesh, *, unreferenced: bool = False,
+                      open_surface: bool = False) -> TopologyReport:
+    """Assert that ``mesh`` has faces and vertices and is a closed oriented manifold
+    (with ``open_surface``, boundary edges allowed: an oriented edge- and
+    vertex-manifold, :meth:`TopologyReport.is_valid`).
 
     Parameters
     ----------
     mesh : PolygonMesh
     unreferenced : bool
         Allow vertices that no face uses (a decode's or a file's extra rows).
+    open_surface : bool
+        The mesh may have a boundary (``surface=open``).
 
     Returns
     -------
@@ -32,7 +37,7 @@ def assert_valid_mesh(mesh: PolygonMesh, *, unreferenced: bool = False) -> Topol
     assert mesh.n_vertices > 0, "the mesh has no vertices"
     assert np.isfinite(mesh.vertices).all(), "the mesh has non-finite vertices"
     report = check_topology(mesh)
-    assert report.is_closed_oriented_manifold, report.defects()
+    assert report.is_valid(open_surface), report.defects(open_surface)
     assert int(mesh.face_sizes.min()) >= 3, "a face has fewer than three corners"
     if not unreferenced:
         assert report.n_unreferenced_vertices == 0, report.defects()

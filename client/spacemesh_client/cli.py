@@ -190,6 +190,10 @@ def _fit_line(mesh: Mesh) -> str:
         line += (f"; {pieces} piece{'' if pieces == 1 else 's'}{points}, "
                  f"genus {int(fit['genus'])}")
         line += f", {loops} boundary loop{'' if loops == 1 else 's'}" if loops else ""
+    if fit.get("open_surface") is not None:  # servers from 2026-12-06 on
+        kind = "open: trimmed to the points" if fit["open_surface"] else "closed"
+        line += (f"; {kind} ({100 * float(fit.get('unsupported_area') or 0.0):.0f}% of "
+                 "the closed mesh unsupported)")
     if fit.get("points_noise") is not None:  # servers from 2026-12-04 on
         line += f"; the points: noise {100 * fit['points_noise']:.2g}% of the diagonal"
         share = float(fit.get("points_outliers") or 0.0)

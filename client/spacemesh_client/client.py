@@ -141,7 +141,8 @@ class Client(_Options):
                  start: str | None = None, start_time: float | None = None,
                  target_vertices: int | None = None, tolerance: float | None = None,
                  samples: int | None = None,
-                 raw: bool | None = None, filename: str | None = None,
+                 raw: bool | None = None, surface: str | None = None,
+                 filename: str | None = None,
                  progress: ProgressFn | None = None, stage: StageFn | None = None) -> Mesh:
         """Point cloud in, oriented manifold polygon mesh out.
 
@@ -182,6 +183,11 @@ class Client(_Options):
             every seed's score).
         raw : bool, optional
             The networks' mesh without the geometry stage.
+        surface : {"auto", "closed", "open"}, optional
+            ``closed``: watertight; ``open``: trimmed to where the points are (a scan
+            seen from some sides only); ``auto`` (the server's default): open when the
+            points leave a large part of the closed mesh unsupported.
+            ``Mesh.stats.fit["open_surface"]`` says what was made.
         filename : str, optional
             Name sent with bytes (its extension picks the format).
         progress : callable, optional
@@ -209,7 +215,8 @@ class Client(_Options):
         source = points_input(points, normals, filename)
         options = chosen(seed=seed, steps=steps, sampler=sampler, start=start,
                          start_time=start_time, target_vertices=target_vertices,
-                         tolerance=tolerance, samples=samples, raw=raw)
+                         tolerance=tolerance, samples=samples, raw=raw,
+                         surface=surface)
         return self._retrying(
             lambda: self._transport.generate(source, format, options,
                                              reporter(progress, stage)))
@@ -370,14 +377,16 @@ class AsyncClient(_Options):
                        start: str | None = None, start_time: float | None = None,
                        target_vertices: int | None = None, tolerance: float | None = None,
                        samples: int | None = None,
-                       raw: bool | None = None, filename: str | None = None,
+                       raw: bool | None = None, surface: str | None = None,
+                       filename: str | None = None,
                        progress: ProgressFn | None = None,
                        stage: StageFn | None = None) -> Mesh:
         """See :meth:`Client.generate`."""
         source = points_input(points, normals, filename)
         options = chosen(seed=seed, steps=steps, sampler=sampler, start=start,
                          start_time=start_time, target_vertices=target_vertices,
-                         tolerance=tolerance, samples=samples, raw=raw)
+                         tolerance=tolerance, samples=samples, raw=raw,
+                         surface=surface)
         return await self._retrying(
             lambda: self._transport.generate(source, format, options,
                                              reporter(progress, stage)))

@@ -109,6 +109,9 @@ GENERATE_OPTIONS: tuple[Option, ...] = (
            "at most this fraction of their diagonal, 1e-4..0.5; not with --target-vertices"),
     Option("samples", int, "try this many seeds (1..16) and keep the mesh that fits best"),
     Option("raw", bool, "the networks' mesh without the geometry stage"),
+    Option("surface", str, "auto, closed or open: closed is watertight, open is trimmed to "
+           "where the points are (scans seen from some sides only); auto (default) opens "
+           "when the points leave a large part of the closed mesh unsupported"),
 )
 #: Names of :data:`GENERATE_OPTIONS`.
 OPTION_NAMES: tuple[str, ...] = tuple(o.name for o in GENERATE_OPTIONS)

@@ -62,6 +62,22 @@ class TopologyReport:
         """Closed, manifold and consistently oriented: what SpaceMesh can encode."""
         return self.is_manifold and self.is_closed and self.is_oriented and self.n_faces > 0
 
+    def is_valid(self, open_surface: bool = False) -> bool:
+        """What every output must be: edge- and vertex-manifold, oriented, with faces,
+        and closed unless it is an open surface (``surface=open``: boundary allowed).
+
+        Parameters
+        ----------
+        open_surface : bool
+            Whether boundary edges are allowed.
+
+        Returns
+        -------
+        bool
+        """
+        return (self.is_manifold and self.is_oriented and self.n_faces > 0
+                and (open_surface or self.is_closed))
+
     @property
     def genus(self) -> int | None:
         """Genus summed over components, for closed oriented manifolds (else None)."""
@@ -69,8 +85,9 @@ class TopologyReport:
             return None
         return (2 * self.n_components - self.euler_characteristic) // 2
 
-    def defects(self) -> list[str]:
-        """Human-readable list of what is wrong (empty for a closed oriented manifold)."""
+    def defects(self, open_surface: bool = False) -> list[str]:
+        """Human-readable list of what is wrong (empty for a closed oriented manifold;
+        with ``open_surface``, boundary edges are not wrong)."""
         names = {
             "n_small_faces": "faces with fewer than 3 sides",
             "n_repeated_vertex_faces": "faces that repeat a vertex",
@@ -79,6 +96,8 @@ class TopologyReport:
             "n_misoriented_edges": "inconsistently oriented edges",
             "n_nonmanifold_vertices": "non-manifold vertices (pinched fans)",
         }
+        if open_surface:
+            del names["n_boundary_edges"]
         out = [f"{getattr(self, key)} {text}" for key, text in names.items() if getattr(self, key)]
         if self.n_faces == 0:
             out.append("no faces")
@@ -100,13 +119,34 @@ def count_vertex_fans(mesh: PolygonMesh) -> IntArray:
     """(V,) number of edge-connected fans of faces around each vertex (0 if unused).
 
     Corners (face, vertex) at the same vertex are joined when their faces share an
-    edge incident to that vertex through exactly two face sides.
+    edge incident to that vertex through exactly two face sides (:func:`corner_fans`).
+    """
+    fan = corner_fans(mesh)  # (S,)
+    if len(fan) == 0:
+        return np.zeros(mesh.n_vertices, dtype=np.int64)
+    fan_vertex = np.zeros(int(fan.max()) + 1, dtype=np.int64)
+    fan_vertex[fan] = mesh.face_indices
+    return np.bincount(fan_vertex, minlength=mesh.n_vertices).astype(np.int64)
+
+
+def corner_fans(mesh: PolygonMesh) -> IntArray:
+    """(S,) the fan of each corner: corners at one vertex whose faces are joined through
+    edges at that vertex with exactly two face sides share a fan.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+
+    Returns
+    -------
+    (S,) int64
+        Fan labels numbered from 0; a vertex with more than one label is pinched.
     """
     halfedges = mesh.halfedges  # (S, 2)
     nxt = mesh.next_corner  # (S,)
     n_corners = len(halfedges)
     if n_corners == 0:
-        return np.zeros(mesh.n_vertices, dtype=np.int64)
+        return np.zeros(0, dtype=np.int64)
     keys = edge_keys(halfedges, mesh.n_vertices)
     order = np.argsort(keys, kind="stable")
     sorted_keys = keys[order]
@@ -122,9 +162,7 @@ def count_vertex_fans(mesh: PolygonMesh) -> IntArray:
     b2 = np.where(same_dir, nxt[c2], c2)  # ... at the target of c1
     pairs = np.stack([np.concatenate([a1, a2]), np.concatenate([b1, b2])], axis=1)  # (E, 2)
     _, label = component_labels(n_corners, pairs)  # (S,)
-    vertex = halfedges[:, 0]
-    fan_ids = np.unique(np.stack([vertex, label], axis=1), axis=0)
-    return np.bincount(fan_ids[:, 0], minlength=mesh.n_vertices).astype(np.int64)
+    return label
 
 
 def edge_connected_faces(mesh: PolygonMesh) -> tuple[int, IntArray]:
@@ -143,14 +181,28 @@ def edge_connected_faces(mesh: PolygonMesh) -> tuple[int, IntArray]:
     """
     if mesh.n_faces == 0:
         return 0, np.zeros(0, dtype=np.int64)
-    halfedges = mesh.halfedges
+    return component_labels(mesh.n_faces, face_adjacency(mesh))
+
+
+def face_adjacency(mesh: PolygonMesh) -> IntArray:
+    """Pairs of faces that share an edge.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+
+    Returns
+    -------
+    (E, 2) int64
+        One row per two sides of an edge that follow each other in edge order (one row
+        per interior edge of a manifold mesh).
+    """
     face = mesh.face_of_corner
-    keys = edge_keys(halfedges, mesh.n_vertices)
+    keys = edge_keys(mesh.halfedges, mesh.n_vertices)
     order = np.argsort(keys, kind="stable")
     sk = keys[order]
     same = sk[1:] == sk[:-1]
-    pairs = np.stack([face[order[:-1][same]], face[order[1:][same]]], axis=1)  # (E, 2)
-    return component_labels(mesh.n_faces, pairs)
+    return np.stack([face[order[:-1][same]], face[order[1:][same]]], axis=1)  # (E, 2)
 
 
 def vertex_connected_faces(mesh: PolygonMesh, faces: BoolArray | None = None

@@ -20,7 +20,7 @@ from typing import Any
 
 from spacemesh.io import export_mesh
 from spacemesh.mesh import PolygonMesh
-from spacemesh.topology import check_topology
+from spacemesh.topology import check_topology, surface_topology
 from spacemesh_service import problems as P
 from spacemesh_service.problems import Problem
 
@@ -84,12 +84,16 @@ class EncodedMesh:
     stats: MeshStats
 
 
-def validate_mesh(mesh: PolygonMesh) -> tuple[PolygonMesh, MeshStats]:
+def validate_mesh(mesh: PolygonMesh, open_surface: bool = False
+                  ) -> tuple[PolygonMesh, MeshStats]:
     """Check a generated mesh before it is sent.
 
     Parameters
     ----------
     mesh : PolygonMesh
+    open_surface : bool
+        The fit report says the surface is open: boundary edges are allowed
+        (:meth:`spacemesh.topology.TopologyReport.is_valid`).
 
     Returns
     -------
@@ -101,7 +105,7 @@ def validate_mesh(mesh: PolygonMesh) -> tuple[PolygonMesh, MeshStats]:
     ------
     Problem
         ``no-surface`` (422) for an empty mesh, ``invalid-output`` (500) when the mesh is
-        not a closed oriented manifold.
+        not valid: an oriented manifold, closed unless ``open_surface``.
     """
     if mesh.n_faces == 0:
         raise Problem(P.NO_SURFACE, "the model produced no faces for this input and seed; "
@@ -110,14 +114,15 @@ def validate_mesh(mesh: PolygonMesh) -> tuple[PolygonMesh, MeshStats]:
     if report.n_unreferenced_vertices:
         mesh, _ = mesh.remove_unreferenced_vertices()
         report = check_topology(mesh)
-    if not report.is_closed_oriented_manifold:
+    if not report.is_valid(open_surface):
         raise Problem(P.INVALID_OUTPUT, "the generated mesh has "
-                      + ", ".join(report.defects()))
+                      + ", ".join(report.defects(open_surface)))
+    genus = report.genus if report.is_closed else surface_topology(mesh).genus
     stats = MeshStats(
         vertices=mesh.n_vertices, faces=mesh.n_faces, edges=report.n_edges,
         face_degrees=mesh.degree_histogram(), manifold=report.is_manifold,
         closed=report.is_closed, oriented=report.is_oriented,
-        components=report.n_components, genus=int(report.genus or 0),
+        components=report.n_components, genus=int(genus or 0),
     )
     return mesh, stats
 
@@ -158,7 +163,7 @@ def encode_mesh(mesh: PolygonMesh, fmt: str, info: dict[str, Any],
     -------
     EncodedMesh
     """
-    mesh, stats = validate_mesh(mesh)
+    mesh, stats = validate_mesh(mesh, open_surface=bool(fit and fit.get("open_surface")))
     stats = replace(stats, fit=fit)
     body = mesh_json(mesh, stats, info) if fmt == "json" else export_mesh(mesh, fmt)
     return EncodedMesh(body, fmt, MEDIA_TYPES[fmt], stats)

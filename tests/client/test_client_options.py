@@ -103,10 +103,11 @@ def test_sdk_sends_every_option_and_reads_the_report(client, case):
     cloud = case.points[::2]
     mesh = client.generate(cloud, seed=3, steps=4, sampler="ddim", start="points",
                            start_time=0.0, target_vertices=60, samples=2, raw=False,
-                           format="obj")
+                           surface="closed", format="obj")
     assert mesh.options == {"seed": mesh.seed, "steps": 4, "sampler": "ddim",
                             "start": "points", "start_time": 0.0, "target_vertices": 60,
-                            "samples": 2, "raw": False}
+                            "samples": 2, "raw": False, "surface": "closed"}
+    assert mesh.stats.fit["open_surface"] is False and mesh.stats.closed
     assert mesh.seed in (3, 4) and [s for s, _ in mesh.sample_scores] == [3, 4]
     assert set(mesh.stats.fit) == set(FitReport.__dataclass_fields__) - TOLERANCE_FIELDS
     assert mesh.stats.fit["n_points"] == len(cloud)
@@ -175,7 +176,9 @@ def test_the_cli_sends_the_options_and_prints_the_fit(url, case, tmp_path):
     assert summary["options"]["start"] == "points" and summary["options"]["raw"] is True
     assert summary["options"]["target_vertices"] == 60 and summary["options"]["samples"] == 2
     assert [s for s, _ in summary["sample_scores"]] == [2, 3]
-    assert set(summary["fit"]) == set(FitReport.__dataclass_fields__) - TOLERANCE_FIELDS
+    assert summary["options"]["surface"] == "closed"  # raw: the closed decode, no decision
+    assert set(summary["fit"]) == (set(FitReport.__dataclass_fields__) - TOLERANCE_FIELDS
+                                   - {"open_surface", "unsupported_area"})
     done = subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert "; fit: points->mesh " in done.stdout and "best of 2 seeds" in done.stdout

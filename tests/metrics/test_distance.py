@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from spacemesh.examples import cube_quads, icosphere
-from spacemesh.geometry.finishing import flip_faces
 from spacemesh.metrics import (
     Reference,
     apply_normalisation,
@@ -18,6 +17,7 @@ from spacemesh.metrics import (
     sample_mesh,
     score_mesh,
 )
+from spacemesh.primitives import flip_faces
 
 
 def unit_cube():

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from spacemesh.examples import cube_quads, icosphere, prism, torus_grid
-from spacemesh.geometry.finishing import flip_faces
 from spacemesh.mesh import PolygonMesh
 from spacemesh.metrics import (
     corner_angles,
@@ -16,6 +15,7 @@ from spacemesh.metrics import (
     topology_flags,
 )
 from spacemesh.metrics.quality import self_intersecting_faces
+from spacemesh.primitives import flip_faces
 
 pytest.importorskip("pymeshlab")
 

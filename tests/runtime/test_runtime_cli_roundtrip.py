@@ -69,7 +69,9 @@ def test_generate_options_and_fit_report(toy_model, tmp_path):
             summary["samples"], summary["raw"]) == ("points", 0.0, 60, 2, True)
     assert [seed for seed, _ in summary["sample_scores"]] == [3, 4]
     assert summary["seed"] in (3, 4)
-    assert set(summary["fit"]) == set(FitReport.__dataclass_fields__) - TOLERANCE_FIELDS
+    assert summary["surface"] == "closed"  # raw: the closed decode, no decision
+    assert set(summary["fit"]) == (set(FitReport.__dataclass_fields__) - TOLERANCE_FIELDS
+                                   - {"open_surface", "unsupported_area"})
     assert summary["fit"]["n_points"] == 150
     fit = summary["fit"]
     plain = subprocess.run([*CLI, "generate", str(points), "-o", str(out), "--model",

@@ -14,6 +14,7 @@ pytest.importorskip("onnxruntime")
 
 from spacemesh.runtime import MeshGenerator, ModelSpec
 from spacemesh.topology import check_topology
+from tests.validity import assert_valid_mesh
 
 
 def test_network_vertices_by_mode():
@@ -69,12 +70,16 @@ def test_split_mode_gives_the_network_its_token_count(shipped):
 def test_a_graph_that_falls_apart_falls_back_to_split(shipped):
     """A flat sheet of points has no closed surface through 1,024 tokens (the decode keeps
     under 90% of them): the pipeline decodes the first 256 tokens instead, and the mesh
-    is still valid with the target count."""
+    is still valid with the target count: closed with ``surface=closed``, and by default
+    (``auto``) open, since a sheet is seen from one side only."""
     generator = MeshGenerator(shipped.backend, ModelSpec.from_manifest(shipped.manifest))
     rng = np.random.default_rng(0)
     sheet = np.c_[rng.uniform(-1, 1, (4096, 2)), np.zeros(4096)]
-    result = generator.generate(sheet, seed=0, target_vertices=1024)
-    assert result.decode_stats.get("large_meshes") == "split"
-    assert result.n_sampled_vertices <= generator.spec.max_vertices
-    assert check_topology(result.mesh).is_closed_oriented_manifold
-    assert abs(result.mesh.n_vertices - 1024) <= 0.1 * 1024
+    for surface in ("closed", "auto"):
+        result = generator.generate(sheet, seed=0, target_vertices=1024, surface=surface)
+        assert result.decode_stats.get("large_meshes") == "split"
+        assert result.n_sampled_vertices <= generator.spec.max_vertices
+        assert result.fit is not None and result.fit.open_surface is (surface == "auto")
+        report = assert_valid_mesh(result.mesh, open_surface=result.fit.open_surface)
+        assert report.is_closed is (surface == "closed")
+        assert abs(result.mesh.n_vertices - 1024) <= 0.1 * 1024

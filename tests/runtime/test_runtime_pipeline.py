@@ -7,9 +7,8 @@ import pytest
 
 pytest.importorskip("onnxruntime")
 
-from spacemesh.geometry.finishing import flip_faces
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import signed_volume
+from spacemesh.primitives import flip_faces, signed_volume
 from spacemesh.runtime import GenerateRequest, MeshGenerator
 from spacemesh.runtime.network import drop_duplicates
 from spacemesh.runtime.options import GenerateOptions, OptionError

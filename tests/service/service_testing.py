@@ -272,6 +272,8 @@ BAD_OPTIONS = [
     ({"start": "points", "tolerance": 0.9}, "tolerance"),
     ({"start": "points", "tolerance": 0.01, "target_vertices": 60}, "tolerance"),
     ({"start": "noise", "tolerance": 0.01}, "tolerance"),
+    ({"surface": "half"}, "surface"),
+    ({"raw": True, "surface": "open"}, "surface"),
 ]
 
 

@@ -13,10 +13,13 @@ import numpy as np
 import pytest
 from service_testing import BAD_OPTIONS
 
+from spacemesh.geometry.surface import AUTO_OPEN_SHARE
 from spacemesh.io import load_mesh
-from spacemesh.runtime.options import GenerateOptions
+from spacemesh.mesh import PolygonMesh
+from spacemesh.runtime.options import GENERATE_ONLY, GenerateOptions
 from spacemesh_service.pb import spacemesh_pb2 as pb
 from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
+from tests.validity import assert_valid_mesh
 
 pytestmark = pytest.mark.slow
 
@@ -30,6 +33,8 @@ GOOD_OPTIONS = [
     {"start": "points", "samples": 3},
     {"start": "points", "tolerance": 0.05},
     {"start": "noise", "sampler": "ddpm", "steps": 4},
+    {"start": "points", "surface": "open"},
+    {"start": "points", "surface": "closed"},
 ]
 
 
@@ -106,7 +111,7 @@ def test_generate_only_options_are_not_options_of_repair(http):
     assert body["option"] == "raw" and body["unknown"] == ["raw", "samples", "start"]
     response = http.post("/repair", params={"steps": 4, "seed": 1}, files=files, data=region)
     assert response.status_code == 200, response.text
-    for name in ("start", "start_time", "target_vertices", "tolerance", "samples", "raw"):
+    for name in GENERATE_ONLY:
         assert name not in pb.RepairRequest.DESCRIPTOR.fields_by_name
         assert f"x-spacemesh-{name.replace('_', '-')}" not in response.headers
     assert "x-spacemesh-fit-coverage" not in response.headers  # no points: no fit report
@@ -122,7 +127,7 @@ def test_rest_options_reach_the_generator(http, generator, cloud, options):
     h, body = response.headers, response.json()
     resolved = result.options
     assert h["x-spacemesh-seed"] == str(resolved.seed) == str(body["seed"])
-    for name in ("steps", "sampler", "start", "start_time", "samples"):
+    for name in ("steps", "sampler", "start", "start_time", "samples", "surface"):
         header = f"x-spacemesh-{name.replace('_', '-')}"
         if getattr(resolved, name) is None:  # start_time with start=noise
             assert header not in h and body[name] is None
@@ -155,7 +160,8 @@ def test_grpc_options_reach_the_generator(stub, generator, cloud, options):
                                  format="obj", **options)
     reply = stub.Generate(request)
     resolved = result.options
-    for name in ("seed", "steps", "sampler", "start", "start_time", "samples", "raw"):
+    for name in ("seed", "steps", "sampler", "start", "start_time", "samples", "raw",
+                 "surface"):
         if getattr(resolved, name) is None:  # start_time with start=noise: unset
             assert not reply.HasField(name), name
             continue
@@ -225,3 +231,50 @@ def test_every_generated_mesh_reports_its_fit(http, stub, case):
         "points_outliers")
     assert (reply.stats.fit.points_noise, reply.stats.fit.points_outliers) == (
         fit["points_noise"], fit["points_outliers"])
+
+
+# ---------------------------------------------------------------------- surface=open
+@pytest.fixture(scope="module")
+def one_sided(case):
+    """The test cloud seen from +z only (its upper half)."""
+    return case.points[case.points[:, 2] > np.median(case.points[:, 2])]
+
+
+@pytest.mark.parametrize("fmt", ["glb", "obj", "ply", "off", "json"])
+def test_an_open_surface_is_valid_with_its_rims_in_every_format(http, generator, one_sided,
+                                                                 fmt):
+    seed, result = expected(generator, one_sided, {"start": "points", "surface": "open"})
+    assert result.fit.open_surface is True
+    response = http.post("/generate", json={"points": one_sided.tolist(), "seed": seed,
+                                            "start": "points", "surface": "open",
+                                            "format": fmt})
+    assert response.status_code == 200, response.text
+    h = response.headers
+    assert h["x-spacemesh-surface"] == "open" and h["x-spacemesh-fit-open-surface"] == "true"
+    assert h["x-spacemesh-closed"] == str(result.fit.boundary_loops == 0).lower()
+    if fmt == "json":
+        body = response.json()
+        mesh = PolygonMesh.from_faces(np.asarray(body["vertices"]),
+                                      [np.asarray(f) for f in body["faces"]])
+    else:
+        mesh = load_mesh(response.content, file_type=fmt)
+    assert_valid_mesh(mesh, open_surface=True)
+    assert int(h["x-spacemesh-fit-boundary-loops"]) == result.fit.boundary_loops
+
+
+def test_auto_tells_why_it_decided_over_rest_and_grpc(http, stub, case, one_sided):
+    for points, opened in ((case.points, False), (one_sided, True)):
+        response = http.post("/generate", json={"points": points.tolist(), "seed": 0,
+                                                "start": "points", "format": "json"})
+        assert response.status_code == 200, response.text
+        body = response.json()
+        fit = body["stats"]["fit"]
+        assert body["surface"] == "auto"
+        assert fit["open_surface"] is opened
+        assert (fit["unsupported_area"] >= AUTO_OPEN_SHARE) is opened
+        assert body["stats"]["closed"] is (not opened or fit["boundary_loops"] == 0)
+        reply = stub.Generate(pb.GenerateRequest(points=pb.Points(xyz=points.ravel().tolist()),
+                                                 seed=0, start="points", format="obj"))
+        assert reply.surface == "auto"
+        assert reply.stats.fit.open_surface is opened
+        assert reply.stats.fit.unsupported_area == fit["unsupported_area"]

@@ -267,8 +267,9 @@ def test_openapi(http):
     assert body["application/json"]["examples"]
     assert [p["name"] for p in generate["parameters"]] == [
         "format", "seed", "steps", "sampler", "start", "start_time", "target_vertices",
-        "tolerance", "samples", "raw"]
+        "tolerance", "samples", "raw", "surface"]
     schemas = {p["name"]: p["schema"] for p in generate["parameters"]}
+    assert schemas["surface"]["enum"] == ["auto", "closed", "open"]
     assert schemas["tolerance"] == {**schemas["tolerance"], "type": "number",
                                     "minimum": 1e-4, "maximum": 0.5}
     assert schemas["samples"] == {**schemas["samples"], "type": "integer", "minimum": 1,

@@ -221,7 +221,7 @@ def test_the_option_table_is_generate_options():
     kinds = {o.name: o.kind for o in GENERATE_OPTIONS}
     assert kinds == {"seed": int, "steps": int, "sampler": str, "start": str,
                      "start_time": float, "target_vertices": int, "tolerance": float,
-                     "samples": int, "raw": bool}
+                     "samples": int, "raw": bool, "surface": str}
     assert all(o.description for o in GENERATE_OPTIONS)
     assert "farthest-point" in {o.name: o.description for o in GENERATE_OPTIONS}["start"]
 
@@ -330,9 +330,11 @@ def test_the_fit_report_becomes_headers_json_and_grpc_by_its_field_names():
     mesh = cube_quads()
     plain = fit_report(mesh, mesh.vertices)
     fit = replace(plain, tolerance=0.01, tolerance_met=True, points_pieces=1,
-                  points_outliers=0.05, points_noise=0.004).to_dict()
+                  points_outliers=0.05, points_noise=0.004, open_surface=False,
+                  unsupported_area=0.02).to_dict()
     assert set(fit) - set(plain.to_dict()) == {"tolerance", "tolerance_met", "points_pieces",
-                                               "points_outliers", "points_noise"}
+                                               "points_outliers", "points_noise",
+                                               "open_surface", "unsupported_area"}
     encoded = encode_mesh(mesh, "json", {"seed": 1}, fit)
     assert json.loads(encoded.body)["stats"]["fit"] == fit
     headers = stats_headers(encoded.stats)
@@ -346,6 +348,8 @@ def test_the_fit_report_becomes_headers_json_and_grpc_by_its_field_names():
     assert headers["X-SpaceMesh-Fit-Points-Pieces"] == "1"
     assert headers["X-SpaceMesh-Fit-Points-Outliers"] == "0.05"
     assert headers["X-SpaceMesh-Fit-Points-Noise"] == "0.004"
+    assert headers["X-SpaceMesh-Fit-Open-Surface"] == "false"
+    assert headers["X-SpaceMesh-Fit-Unsupported-Area"] == "0.02"
     message = stats_to_pb(encoded.stats)
     assert {f.name: getattr(message.fit, f.name) for f in message.fit.DESCRIPTOR.fields} == fit
     without = stats_to_pb(replace(encoded.stats, fit=plain.to_dict())).fit

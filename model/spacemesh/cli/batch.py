@@ -25,6 +25,7 @@ from spacemesh.cli.common import (
     StartFlag,
     StartTimeFlag,
     StepsFlag,
+    SurfaceFlag,
     TargetVerticesFlag,
     ToleranceFlag,
     app,
@@ -33,9 +34,6 @@ from spacemesh.cli.common import (
     option_flag,
     require_extra,
 )
-
-#: Generate options that ``--repair`` does not take (it reads seed, steps and sampler).
-GENERATE_ONLY = ("start", "start_time", "target_vertices", "tolerance", "samples", "raw")
 
 
 def _progress_line(row: dict[str, Any], done: int, total: int) -> str:
@@ -81,6 +79,7 @@ def batch(
     tolerance: ToleranceFlag = None,
     samples: SamplesFlag = None,
     raw: RawFlag = False,
+    surface: SurfaceFlag = None,
     retry_errors: Annotated[bool, typer.Option(
         "--retry-errors", help="Run inputs with an error row again (by default a rerun "
         "retries only unreadable-input and internal-error rows).")] = False,
@@ -94,11 +93,11 @@ def batch(
     from spacemesh.batch.ray_job import run_batch
     from spacemesh.batch.work import OUTPUT_FORMATS, REPAIR_MODES, BatchSettings
     from spacemesh.runtime import MeshGenerator, ModelRepositoryError
-    from spacemesh.runtime.options import OptionError
+    from spacemesh.runtime.options import GENERATE_ONLY, OptionError
 
     values = {"seed": seed, "steps": steps, "sampler": sampler, "start": start,
               "start_time": start_time, "target_vertices": target_vertices,
-              "tolerance": tolerance, "samples": samples, "raw": raw}
+              "tolerance": tolerance, "samples": samples, "raw": raw, "surface": surface}
     options = generate_options(**values)
     file_format = file_format.lower().lstrip(".")
     if file_format not in OUTPUT_FORMATS:

@@ -61,6 +61,10 @@ SamplesFlag = Annotated[str | None, typer.Option(
     "keep the mesh that fits the points best (default 1).")]
 RawFlag = Annotated[bool, typer.Option(
     "--raw", help="The networks' mesh without the geometry stage.")]
+SurfaceFlag = Annotated[str | None, typer.Option(
+    "--surface", metavar="auto|closed|open", help="closed: watertight; open: trimmed to "
+    "where the points are (scans seen from some sides only); auto (default): open when the "
+    "points leave a large part of the closed mesh unsupported.")]
 
 P = ParamSpec("P")
 R = TypeVar("R")

@@ -32,6 +32,7 @@ from spacemesh.cli.common import (
     StartFlag,
     StartTimeFlag,
     StepsFlag,
+    SurfaceFlag,
     TargetVerticesFlag,
     Threads,
     ToleranceFlag,
@@ -69,6 +70,7 @@ def generate(
     tolerance: ToleranceFlag = None,
     samples: SamplesFlag = None,
     raw: RawFlag = False,
+    surface: SurfaceFlag = None,
     threads: Threads = 0,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
     progress: Annotated[
@@ -84,7 +86,8 @@ def generate(
 
     options = generate_options(seed=seed, steps=steps, sampler=sampler, start=start,
                                start_time=start_time, target_vertices=target_vertices,
-                               tolerance=tolerance, samples=samples, raw=raw)
+                               tolerance=tolerance, samples=samples, raw=raw,
+                               surface=surface)
     if output.suffix.lower() not in MESH_SUFFIXES:
         fail(f"{output}: the output must end in one of {', '.join(MESH_SUFFIXES)}")
     if not output.parent.exists():
@@ -138,7 +141,8 @@ def generate(
                    f"{fit.get('points_to_mesh_mean_rel', float('nan')):.4g}, mesh->points "
                    f"{fit.get('mesh_to_points_mean_rel', float('nan')):.4g} of the diagonal, "
                    f"coverage {100 * fit.get('coverage', float('nan')):.0f}%"
-                   f"{_tolerance_text(fit)}{_topology_text(fit)}{_points_text(fit)}")
+                   f"{_tolerance_text(fit)}{_topology_text(fit)}{_surface_text(fit)}"
+                   f"{_points_text(fit)}")
 
 
 def _tolerance_text(fit: dict) -> str:
@@ -146,6 +150,16 @@ def _tolerance_text(fit: dict) -> str:
     if fit.get("tolerance") is None:
         return ""
     return f", tolerance {fit['tolerance']:g} {'met' if fit.get('tolerance_met') else 'not met'}"
+
+
+def _surface_text(fit: dict) -> str:
+    """``; open: trimmed to the points (31% of the closed mesh unsupported)`` (or
+    ``closed``) from a fit report ("" without the decision: ``--raw``)."""
+    if fit.get("open_surface") is None:
+        return ""
+    share = 100 * float(fit.get("unsupported_area") or 0.0)
+    kind = "open: trimmed to the points" if fit["open_surface"] else "closed"
+    return f"; {kind} ({share:.0f}% of the closed mesh unsupported)"
 
 
 def _points_text(fit: dict) -> str:

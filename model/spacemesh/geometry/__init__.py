@@ -5,13 +5,14 @@
 * :mod:`~spacemesh.geometry.fitting`: the vertex fit (one energy, one sparse solve);
 * :mod:`~spacemesh.geometry.stage`: the stage itself (splits, fit, flips, guard);
 * :mod:`~spacemesh.geometry.intersections`: self-intersecting faces (numpy + scipy);
+* :mod:`~spacemesh.geometry.surface`: open surfaces, a closed mesh trimmed to its points;
 * :mod:`~spacemesh.geometry.report`: the fit report of every response.
 
 numpy and scipy only: the service uses all of it without torch, trimesh or pymeshlab.
 """
 
 from spacemesh.geometry.fitting import VertexFitOptions, fit_vertices
-from spacemesh.geometry.report import FitReport, PointFacts, fit_report, fit_score
+from spacemesh.geometry.report import FitReport, PointFacts, SurfaceFacts, fit_report, fit_score
 from spacemesh.geometry.sampling import farthest_point_sampling, feature_weights
 from spacemesh.geometry.stage import GeometryOptions, GeometryResult, refine_geometry
 
@@ -20,6 +21,7 @@ __all__ = [
     "GeometryOptions",
     "GeometryResult",
     "PointFacts",
+    "SurfaceFacts",
     "VertexFitOptions",
     "farthest_point_sampling",
     "feature_weights",

@@ -23,17 +23,8 @@ from spacemesh.geometry.report import fit_score
 from spacemesh.geometry.simplify import simplify
 from spacemesh.geometry.stage import GeometryOptions, refine_geometry
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import signed_volume
+from spacemesh.primitives import flip_faces, signed_volume
 from spacemesh.typed import FloatArray
-
-
-def flip_faces(mesh: PolygonMesh) -> PolygonMesh:
-    """The same mesh with every face's orientation reversed."""
-    start = np.repeat(mesh.face_offsets[:-1], mesh.face_sizes)
-    end = np.repeat(mesh.face_offsets[1:], mesh.face_sizes)
-    position = np.arange(mesh.face_indices.size)
-    reversed_indices = mesh.face_indices[start + end - 1 - position]
-    return PolygonMesh(mesh.vertices, reversed_indices, mesh.face_offsets)
 
 
 def outward(mesh: PolygonMesh) -> PolygonMesh:

@@ -27,7 +27,12 @@ lines and ``samples=K`` (which keeps the seed with the lowest :attr:`FitReport.s
   points set aside as outliers before anything else ran, and the noise of the rest
   along the surface normal as a fraction of their diagonal
   (:func:`spacemesh.geometry.cleaning.assess_points`). The distances above are measured
-  from the kept points.
+  from the kept points;
+* ``open_surface`` and ``unsupported_area``: from a generate (not ``raw``), whether the
+  mesh was trimmed to its points (``surface=open``, or ``auto`` deciding so) and the
+  share of the closed mesh's area that no point supports and no point lies in front
+  of, the evidence ``auto`` decides on (:mod:`spacemesh.geometry.surface`,
+  :class:`SurfaceFacts`).
 """
 
 from __future__ import annotations
@@ -56,7 +61,8 @@ REPORT_SEED = 0
 
 
 #: Fields of :class:`FitReport` that only some responses have (left out when None).
-_OPTIONAL = ("tolerance", "tolerance_met", "points_pieces", "points_outliers", "points_noise")
+_OPTIONAL = ("tolerance", "tolerance_met", "points_pieces", "points_outliers", "points_noise",
+             "open_surface", "unsupported_area")
 
 
 @dataclass(frozen=True)
@@ -87,6 +93,8 @@ class FitReport:
     points_pieces: int | None = None
     points_outliers: float | None = None
     points_noise: float | None = None
+    open_surface: bool | None = None
+    unsupported_area: float | None = None
 
     @property
     def pieces_agree(self) -> bool | None:
@@ -102,7 +110,8 @@ class FitReport:
 
     def to_dict(self) -> dict[str, float | int]:
         """Every field by name (``tolerance``, ``tolerance_met``, ``points_pieces``,
-        ``points_outliers`` and ``points_noise`` only when set)."""
+        ``points_outliers``, ``points_noise``, ``open_surface`` and
+        ``unsupported_area`` only when set)."""
         return {k: v for k, v in asdict(self).items() if v is not None or k not in _OPTIONAL}
 
 
@@ -178,8 +187,26 @@ class PointFacts:
     noise: float
 
 
+@dataclass(frozen=True)
+class SurfaceFacts:
+    """What a generate decided about its surface (:mod:`spacemesh.geometry.surface`).
+
+    Attributes
+    ----------
+    open : bool
+        Whether the mesh was trimmed to its points.
+    unsupported_area : float
+        The share of the closed mesh's area that no point supports and no point lies in
+        front of (:attr:`spacemesh.geometry.surface.SurfaceSupport.unsupported_area`).
+    """
+
+    open: bool
+    unsupported_area: float
+
+
 def fit_report(mesh: PolygonMesh, points: FloatArray, facts: PointFacts | None = None,
-               tolerance: float | None = None) -> FitReport:
+               tolerance: float | None = None, surface: SurfaceFacts | None = None
+               ) -> FitReport:
     """The fit report of ``mesh`` against the finite rows of ``points``, made once with
     everything a response says.
 
@@ -194,6 +221,8 @@ def fit_report(mesh: PolygonMesh, points: FloatArray, facts: PointFacts | None =
     tolerance : float, optional
         A tolerance request's tolerance (``tolerance``; ``tolerance_met`` when
         ``points_to_mesh_mean_rel`` is within it).
+    surface : SurfaceFacts, optional
+        A generate's surface decision (``open_surface``, ``unsupported_area``).
 
     Returns
     -------
@@ -207,11 +236,12 @@ def fit_report(mesh: PolygonMesh, points: FloatArray, facts: PointFacts | None =
     components, _ = vertex_connected_faces(mesh)  # faces sharing a vertex are connected
     known = (None, None, None) if facts is None else (facts.pieces, facts.outliers,
                                                       facts.noise)
+    decided = (None, None) if surface is None else (surface.open, surface.unsupported_area)
     if mesh.n_faces == 0 or len(points) == 0:
         return FitReport(nan, nan, nan, nan, nan, nan, nan, nan, 0.0, components,
                          0.0, diagonal, len(points), topology.pieces, topology.genus,
                          topology.boundary_loops, tolerance,
-                         None if tolerance is None else False, *known)
+                         None if tolerance is None else False, *known, *decided)
     to_mesh, to_points = _distances(mesh, points)
     to_mesh_mean, to_mesh_p95 = float(to_mesh.mean()), float(np.percentile(to_mesh, 95))
     to_points_mean = float(to_points.mean())
@@ -231,4 +261,5 @@ def fit_report(mesh: PolygonMesh, points: FloatArray, facts: PointFacts | None =
         tolerance=tolerance,
         tolerance_met=None if tolerance is None else to_mesh_mean / relative <= tolerance,
         points_pieces=known[0], points_outliers=known[1], points_noise=known[2],
+        open_surface=decided[0], unsupported_area=decided[1],
     )

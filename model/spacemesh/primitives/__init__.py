@@ -7,7 +7,7 @@
   signed volume (also per corner), surface area;
 * :mod:`~spacemesh.primitives.closest`: closest points on triangles, nearest triangles;
 * :mod:`~spacemesh.primitives.masks`: faces touching vertices, vertices of faces, a
-  mesh restricted to some faces;
+  mesh restricted to some faces, some faces flipped;
 * :mod:`~spacemesh.primitives.sampling`: points sampled on a surface;
 * :mod:`~spacemesh.primitives.frame`: the unit frame of a mesh;
 * :mod:`~spacemesh.primitives.decimation`: quadric-error decimation;
@@ -21,7 +21,7 @@ from spacemesh.primitives.decimation import decimate
 from spacemesh.primitives.frame import normalize
 from spacemesh.primitives.graph import component_labels, uniform_adjacency
 from spacemesh.primitives.keys import edge_keys
-from spacemesh.primitives.masks import faces_subset, faces_touching, vertices_of
+from spacemesh.primitives.masks import faces_subset, faces_touching, flip_faces, vertices_of
 from spacemesh.primitives.sampling import sample_surface
 from spacemesh.primitives.triangles import (
     fan_volumes,
@@ -45,6 +45,7 @@ __all__ = [
     "faces_subset",
     "faces_touching",
     "fan_volumes",
+    "flip_faces",
     "newell_normal",
     "normalize",
     "sample_surface",

@@ -117,11 +117,40 @@ def _subtriangle_centroids(level: int) -> FloatArray:
     return np.column_stack([1.0 - uv.sum(axis=1), uv])
 
 
+def candidate_triangles(points: FloatArray, positions: FloatArray, triangles: IntArray,
+                        k: int = NEAREST_SAMPLES) -> tuple[IntArray, FloatArray]:
+    """The triangles of each point's ``k`` nearest surface samples (the centroids of a
+    :data:`SAMPLE_LEVEL` subdivision of every triangle), with their exact squared
+    distances.
+
+    Parameters
+    ----------
+    points : (P, 3) float
+    positions : (N, 3) float
+    triangles : (T, 3) int
+    k : int
+
+    Returns
+    -------
+    near : (P, k) int
+        Rows of ``triangles`` (repeats possible); ``k`` at most the samples.
+    gap : (P, k) float
+        Squared distance from each point to each of them.
+    """
+    corners = positions[triangles]  # (T, 3, 3)
+    weights = _subtriangle_centroids(SAMPLE_LEVEL)  # (S, 3)
+    samples = np.einsum("sk,tkd->tsd", weights, corners).reshape(-1, 3)  # (T S, 3)
+    k = min(k, len(samples))
+    _, near = cKDTree(samples).query(points, k=k)
+    near = np.asarray(near, dtype=np.int64).reshape(len(points), k) // len(weights)  # (P, k)
+    gap = squared_distances(np.repeat(points, k, axis=0), corners[near.reshape(-1)])
+    return near, gap.reshape(-1, k)
+
+
 def nearest_triangles(points: FloatArray, positions: FloatArray, triangles: IntArray
                       ) -> tuple[IntArray, FloatArray]:
-    """The triangle nearest to each point, measured exactly among the triangles of its
-    :data:`NEAREST_SAMPLES` nearest surface samples (the centroids of a
-    :data:`SAMPLE_LEVEL` subdivision of every triangle).
+    """The triangle nearest to each point, measured exactly among its
+    :func:`candidate_triangles`.
 
     Parameters
     ----------
@@ -136,13 +165,7 @@ def nearest_triangles(points: FloatArray, positions: FloatArray, triangles: IntA
     gap : (P,) float
         Squared distance from each point to its triangle.
     """
-    corners = positions[triangles]  # (T, 3, 3)
-    weights = _subtriangle_centroids(SAMPLE_LEVEL)  # (S, 3)
-    samples = np.einsum("sk,tkd->tsd", weights, corners).reshape(-1, 3)  # (T S, 3)
-    k = min(NEAREST_SAMPLES, len(samples))
-    _, near = cKDTree(samples).query(points, k=k)
-    near = np.asarray(near, dtype=np.int64).reshape(len(points), k) // len(weights)  # (P, k)
-    gap = squared_distances(np.repeat(points, k, axis=0), corners[near.reshape(-1)])
-    best = np.argmin(gap.reshape(-1, k), axis=1)
+    near, gap = candidate_triangles(points, positions, triangles)  # (P, k) each
+    best = np.argmin(gap, axis=1)
     rows = np.arange(len(points))
-    return near[rows, best], gap.reshape(-1, k)[rows, best]
+    return near[rows, best], gap[rows, best]

@@ -1,5 +1,5 @@
 """Face and vertex masks of a polygon mesh: faces touching vertices, vertices of faces,
-the mesh restricted to some faces."""
+the mesh restricted to some faces, some faces flipped."""
 
 from __future__ import annotations
 
@@ -58,3 +58,26 @@ def faces_subset(mesh: PolygonMesh, faces: BoolArray) -> PolygonMesh:
     sizes = mesh.face_sizes[faces]
     offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
     return PolygonMesh(mesh.vertices, mesh.face_indices[faces[mesh.face_of_corner]], offsets)
+
+
+def flip_faces(mesh: PolygonMesh, faces: BoolArray | None = None) -> PolygonMesh:
+    """``mesh`` with the orientation of ``faces`` (all by default) reversed.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+    faces : (F,) bool, optional
+
+    Returns
+    -------
+    PolygonMesh
+        Same vertices and face order; each chosen face's corners in reverse order.
+    """
+    start = np.repeat(mesh.face_offsets[:-1], mesh.face_sizes)  # (S,)
+    end = np.repeat(mesh.face_offsets[1:], mesh.face_sizes)
+    position = np.arange(mesh.face_indices.size)
+    reversed_indices = mesh.face_indices[start + end - 1 - position]
+    if faces is not None:
+        reversed_indices = np.where(faces[mesh.face_of_corner], reversed_indices,
+                                    mesh.face_indices)
+    return PolygonMesh(mesh.vertices, reversed_indices, mesh.face_offsets)

@@ -18,6 +18,7 @@ from spacemesh.decode import DecodeResult, Embeddings, decode
 from spacemesh.geometry import farthest_point_sampling
 from spacemesh.geometry.finishing import finish_geometry, outward
 from spacemesh.geometry.pieces import drop_fragments
+from spacemesh.geometry.surface import shape_surface
 from spacemesh.mesh import PolygonMesh
 from spacemesh.runtime.backend import Backend, ConnectivityOutputs, denoiser_fn
 from spacemesh.runtime.large import needs_split, network_vertices
@@ -207,6 +208,7 @@ def run_group(backend: Backend, spec: ModelSpec,
         mesh = outward(decoded.mesh)
         e1 = time.perf_counter()
         geometry_stats: dict[str, Any] = {}
+        surface = None  # raw: the closed decode, no decision
         if not options.raw:
             stage("geometry", b + 1, len(jobs))
             unit, normals = prepared.fit_points()
@@ -214,10 +216,14 @@ def run_group(backend: Backend, spec: ModelSpec,
                 mesh, unit, normals, spec.geometry,
                 target_vertices=wanted if start == "points" else None,
             )
+            # last: trimming only removes faces, and the seeds' checks see the result
+            mesh, surface, trimmed = shape_surface(mesh, unit, normals, str(options.surface),
+                                                   spec.geometry)
+            geometry_stats.update(trimmed)
         mesh = mesh.with_vertices(mesh.vertices * prepared.scale + prepared.centre)
         e2 = time.perf_counter()
         stage("report", b + 1, len(jobs))
-        report = prepared.report(mesh)
+        report = prepared.report(mesh, surface)
         share = len(jobs)  # the group's network calls count a share for each job
         timings = {"encoder": (t1 - t0) / share, "sampler": (t2 - t1) / share,
                    "connectivity": (t3 - t2) / share, "extraction": e1 - e0,

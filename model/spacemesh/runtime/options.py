@@ -21,7 +21,7 @@ The parsing rule, by type:
   ``nan`` and ``inf`` are not numbers here;
 - **boolean** (``raw``): true or false, or one of :data:`TRUE_WORDS` /
   :data:`FALSE_WORDS` (any case);
-- **text** (``sampler``, ``start``): text only.
+- **text** (``sampler``, ``start``, ``surface``): text only.
 
 Surrounding whitespace of text is ignored; empty text is "not given".
 """
@@ -37,11 +37,16 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
+from spacemesh.geometry.surface import SURFACE_MODES
 from spacemesh.runtime.schedule import METHODS
 from spacemesh.runtime.spec import MAX_RETRY_SEEDS, ModelSpec
 
 #: Where the vertices start: pure noise (the paper) or points chosen on the input.
 START_MODES = ("noise", "points")
+#: Generate options that a repair does not take (it reads ``seed``, ``steps`` and
+#: ``sampler``).
+GENERATE_ONLY = ("start", "start_time", "target_vertices", "tolerance", "samples", "raw",
+                 "surface")
 #: Most seeds one ``samples`` request may try.
 MAX_SAMPLES = 16
 #: Fewest vertices a mesh may be asked for (a tetrahedron).
@@ -126,6 +131,11 @@ class GenerateOptions:
     raw : bool
         Return the networks' mesh as the model's own decode gives it, without the
         geometry stage (:mod:`spacemesh.geometry`).
+    surface : {"auto", "closed", "open"}, optional
+        ``closed``: a watertight mesh; ``open``: the closed mesh trimmed to where the
+        points are (:mod:`spacemesh.geometry.surface`); ``auto`` (the default): open
+        when the points leave a large part of the closed mesh unsupported (a one-sided
+        scan). With ``raw`` only ``closed`` (its default there).
     """
 
     seed: int = 0
@@ -137,6 +147,7 @@ class GenerateOptions:
     tolerance: float | None = None
     samples: int = 1
     raw: bool = False
+    surface: str | None = None
 
     def resolve(self, spec: ModelSpec) -> GenerateOptions:
         """These options with the model's defaults filled in, every range checked.
@@ -196,9 +207,10 @@ class GenerateOptions:
                                                "network picks the count)")
         samples = _integer("samples", self.samples, 1, MAX_SAMPLES)
         raw = parse_boolean("raw", self.raw)
+        surface = _surface(self.surface, raw)
         return replace(self, seed=seed, steps=steps, sampler=sampler, start=start,
                        start_time=start_time, target_vertices=target_vertices,
-                       tolerance=tolerance, samples=samples, raw=raw)
+                       tolerance=tolerance, samples=samples, raw=raw, surface=surface)
 
     @classmethod
     def parse(cls, values: Mapping[str, Any]) -> GenerateOptions:
@@ -231,6 +243,21 @@ class GenerateOptions:
     def to_dict(self) -> dict[str, Any]:
         """The options by public name."""
         return asdict(self)
+
+
+def _surface(value: Any, raw: bool) -> str:
+    """The resolved ``surface``: ``auto`` by default, ``closed`` with ``raw`` (the only
+    one it takes: trimming is part of the geometry stage that ``raw`` skips)."""
+    if value is None:
+        return "closed" if raw else "auto"
+    surface = parse_text("surface", value)
+    if surface not in SURFACE_MODES:
+        raise OptionError("surface", f"surface must be one of {', '.join(SURFACE_MODES)}, "
+                                     f"not {surface!r}")
+    if raw and surface != "closed":
+        raise OptionError("surface", f"surface={surface} needs the geometry stage, which raw "
+                                     "skips (a raw mesh is the closed decode)")
+    return surface
 
 
 def _kind(annotation: Any) -> type:

@@ -13,6 +13,10 @@ For each request:
    untangled (:mod:`spacemesh.geometry.untangle`);
 4. with ``tolerance``: a search over vertex counts (:mod:`spacemesh.runtime.tolerance`).
 
+Each seed's mesh gets its ``surface`` at the end of its geometry stage (trimmed to the
+points with ``surface=open``, or ``auto`` deciding so: :mod:`spacemesh.geometry.surface`),
+so the seeds' checks and the untangling see what the user gets.
+
 Requests of one :meth:`MeshGenerator.generate_batch` call share each network call;
 each keeps its own seed, and the backend runs every batch item alone, so batching never
 changes a result. This module uses numpy and onnxruntime only (never torch).
@@ -28,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh.geometry import SurfaceFacts
 from spacemesh.geometry.finishing import finish_geometry
 from spacemesh.geometry.untangle import untangle
 from spacemesh.runtime.backend import Backend
@@ -223,8 +228,9 @@ class MeshGenerator:
         chosen mesh's crossing faces smoothed apart (:func:`untangle`, stage
         ``untangle``), fitted to the points again (:func:`finish_geometry`, whose guard
         lets no face cross that the untangling freed; smoothing alone can pull a folded
-        mesh far from the points) and its fit report made for the new mesh; ``raw``
-        results are left alone."""
+        mesh far from the points; not an open surface, which has no outside to orient
+        by) and its fit report made for the new mesh, with the same surface decision;
+        ``raw`` results are left alone."""
         if (not self.spec.retry_seeds or result.options.raw or result.fit is None
                 or not crosses(result)):
             return result
@@ -235,14 +241,17 @@ class MeshGenerator:
         if stats["crossing_after"] >= stats["crossing_before"]:
             _add_geometry_time(result, time.perf_counter() - started)
             return result
-        unit = mesh.with_vertices((mesh.vertices - prepared.centre) / prepared.scale)
-        points, normals = prepared.fit_points()
-        refitted, refit_stats = finish_geometry(unit, points, normals, self.spec.geometry)
-        mesh = refitted.with_vertices(refitted.vertices * prepared.scale + prepared.centre)
-        stats["untangle_refit_kept"] = bool(refit_stats.get("kept", False))
+        surface = None if result.fit.open_surface is None else SurfaceFacts(
+            bool(result.fit.open_surface), float(result.fit.unsupported_area or 0.0))
+        if surface is None or not surface.open:  # an open mesh has no outside to refit to
+            unit = mesh.with_vertices((mesh.vertices - prepared.centre) / prepared.scale)
+            points, normals = prepared.fit_points()
+            refitted, refit_stats = finish_geometry(unit, points, normals, self.spec.geometry)
+            mesh = refitted.with_vertices(refitted.vertices * prepared.scale + prepared.centre)
+            stats["untangle_refit_kept"] = bool(refit_stats.get("kept", False))
         result.mesh = mesh
         result.geometry_stats = {**result.geometry_stats, **stats}
-        result.fit = prepared.report(mesh)
+        result.fit = prepared.report(mesh, surface)
         _add_geometry_time(result, time.perf_counter() - started)
         return result
 
@@ -344,7 +353,8 @@ class MeshGenerator:
 
 
 def _add_geometry_time(result: GenerateResult, seconds: float) -> None:
-    """Count ``seconds`` of geometry work (the untangling) in ``result``'s timings."""
+    """Count ``seconds`` of geometry work (the untangling, the surface) in ``result``'s
+    timings."""
     for name in ("geometry", "total"):
         result.timings[name] = result.timings.get(name, 0.0) + seconds
 

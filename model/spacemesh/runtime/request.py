@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from spacemesh.geometry import FitReport, PointFacts, feature_weights, fit_report
+from spacemesh.geometry import FitReport, PointFacts, SurfaceFacts, feature_weights, fit_report
 from spacemesh.geometry.cleaning import PointsQuality, assess_points
 from spacemesh.geometry.pieces import point_pieces
 from spacemesh.io.reduce import reduction_indices
@@ -147,12 +147,12 @@ class PreparedInput:
     quality: PointsQuality
     tolerance: float | None = None
 
-    def report(self, mesh: PolygonMesh) -> FitReport:
+    def report(self, mesh: PolygonMesh, surface: SurfaceFacts | None = None) -> FitReport:
         """The fit report of ``mesh`` (in the upload's frame) against these points, made
         once with everything the response says: the points' pieces, noise and outlier
-        share, and the request's tolerance."""
+        share, the request's tolerance and, once decided, its surface."""
         facts = PointFacts(self.pieces, self.quality.outliers, self.quality.noise)
-        return fit_report(mesh, self.points, facts, self.tolerance)
+        return fit_report(mesh, self.points, facts, self.tolerance, surface)
 
     @cached_property
     def pieces(self) -> int:
