@@ -95,7 +95,7 @@ class Budget:
                                  "mb": round(savings[x.name][1])} for x in ranked},
         }
         message = (f"this {what} is estimated at {estimate.seconds:.0f} s and "
-                   f"{estimate.memory_mb:.0f} MB, over this server's budget of "
+                   f"{estimate.memory_mb:.0f} MB, over the budget of "
                    f"{self.describe()} per request")
         if not ranked:
             raise CostError(TOO_EXPENSIVE, message + ", with every option at its default; "
