@@ -249,7 +249,7 @@ GENERATE_RESPONSES: dict[int | str, dict[str, Any]] = {
         "unknown": (P.INVALID_OPTION, "unknown option 'colour': this route takes format, "
                                       "seed, steps, sampler, start, start_time, "
                                       "target_vertices, tolerance, samples, raw"),
-        "expensive": (P.TOO_EXPENSIVE, "this generate is estimated at 111 s and 874 MB, over "
+        "expensive": (P.TOO_EXPENSIVE, "this generate is estimated at 111 s and 958 MB, over "
                       "the budget of 60 s and 2048 MB per request; lower "
                       "target_vertices: target_vertices=6374 fits. Each option at its "
                       "default would save: target_vertices 109 s"),
@@ -313,9 +313,10 @@ REPAIR_RESPONSES: dict[int | str, dict[str, Any]] = {
                           "option that is unknown, of the wrong type or out of range, or a "
                           "repair estimated over this server's budget", {
         "option": (P.INVALID_OPTION, "steps must be in 1..1024, not 0"),
-        "expensive": (P.TOO_EXPENSIVE, "this repair is estimated at 90 s and 50 MB, over "
+        "expensive": (P.TOO_EXPENSIVE, "this repair is estimated at 121 s and 50 MB, over "
                       "the budget of 60 s and 2048 MB per request; lower steps: "
-                      "steps=661 fits. Each option at its default would save: steps 87 s"),
+                      "steps=497 fits. Each option at its default would save: steps 112 s, "
+                      "region 91 s, mesh 0.1 s"),
         "weld": (P.INVALID_OPTION, "weld must be true or false, not 'maybe'"),
         "generate-only": (P.INVALID_OPTION, "unknown option target_vertices (an option of "
                                             "/generate only): this route takes format, seed, "

@@ -105,7 +105,7 @@ class Budget:
         if value is not None:
             details["suggestion"] = {lever.name: value}
         unit = "s" if over_time else "MB"
-        costs = ", ".join(f"{x.name} {savings[x.name][by]:.0f} {unit}" for x in ranked)
+        costs = ", ".join(f"{x.name} {_amount(savings[x.name][by])} {unit}" for x in ranked)
         raise CostError(TOO_EXPENSIVE, f"{message}; {_advice(lever, value)}. Each option at "
                         f"its default would save: {costs}", details)
 
@@ -139,6 +139,11 @@ def suggest(estimate: Estimate, lever: Lever, budget: Budget) -> float | None:
         return int(good)
     rounded = _round_cheap(good, lever.raise_to_save)
     return rounded if fits(rounded) else good
+
+
+def _amount(value: float) -> str:
+    """``4123``, ``12``, ``0.4``: whole numbers from 10 on."""
+    return f"{value:.0f}" if value >= 10 else f"{value:.1f}"
 
 
 def _round_cheap(value: float, up: bool) -> float:

@@ -16,7 +16,7 @@ core; ``bench/bench_cost_model.py`` times the real pipeline against it)::
              + f (3.2e-7 N^2 + 0.25 + 1.61e-3 V + 1.86e-7 V^2)   decode, geometry stage
              + 5.6e-6 min(P, 20000) + 4e-5 V             fit report
     seeds    = samples + retry_seeds * 0.5 ** samples
-    MB       = 3.5e-3 min(P, 20000) + 5.2e-4 P + 1.5e-4 (1 + 2 s) N^2 + 0.02 V + 0.006 N seeds
+    MB       = 3.5e-3 min(P, 20000) + 5.2e-4 P + 1.7e-4 (1 + 1.5 s) N^2 + 0.02 V + 0.006 N seeds
 
 ``P``: input points (after the reduction), ``V``: vertices asked for (``target_vertices``,
 else the model's count), ``N``: vertex tokens the networks place (``V``, at most 2,048
@@ -162,8 +162,8 @@ class CostModel:
     tolerance_scale: float = 0.5
     report_mb_per_point: float = 3.5e-3
     points_mb: float = 5.2e-4
-    tokens_mb: float = 1.5e-4
-    denoised_tokens_mb: float = 2.0
+    tokens_mb: float = 1.7e-4
+    denoised_tokens_mb: float = 1.5
     vertex_mb: float = 0.02
     seed_mb_per_token: float = 0.006
     repair_step_s: float = 0.0165
