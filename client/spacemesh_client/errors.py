@@ -130,6 +130,16 @@ class InvalidOption(InvalidRequest):
     slug = "invalid-option"
 
 
+class TooExpensive(InvalidRequest):
+    """The request is estimated to cost more than the server's budget (422), before any
+    work started; ``extra["option"]`` names the option to lower, ``extra["suggestion"]``
+    (when present) a value of it that fits, ``extra["estimated_seconds"]``,
+    ``extra["estimated_mb"]``, ``extra["budget_seconds"]`` and ``extra["budget_mb"]``
+    the figures."""
+
+    slug = "too-expensive"
+
+
 class NotFound(InvalidRequest):
     """No such resource (404)."""
 
@@ -464,6 +474,7 @@ __all__ = [
     "ShuttingDown",
     "SpaceMeshError",
     "Timeout",
+    "TooExpensive",
     "TooFewPoints",
     "TooManyPoints",
     "TransportError",

@@ -6,12 +6,15 @@
     decode input (thread) -> queue -> batch (inference thread) -> encode output (thread)
 
 and comes back as a :class:`Reply`, or raises a :class:`~spacemesh_service.problems.Problem`.
+Once the input is decoded, the request's cost is estimated (:mod:`spacemesh.runtime.cost`)
+and one over the settings' budget is refused (422 ``too-expensive``) before it is queued.
 Both servers are thin adapters around :meth:`Engine.generate`, which is why they accept
 the same inputs, raise the same errors and return the same bytes.
 
 :meth:`Engine.repair` is the same for a repair (:mod:`spacemesh.repair`):
 
-    read mesh + region, (weld,) cut and plan (thread; region errors: 422 before queueing)
+    read mesh + region, (weld,) cut and plan, estimate the cost (thread; region errors and
+      too-expensive: 422 before queueing)
       -> queue -> repair_mesh alone (inference thread) -> encode output (thread)
 """
 
@@ -38,6 +41,8 @@ from spacemesh.repair import (
     verify_repair,
 )
 from spacemesh.repair.region import Region
+from spacemesh.runtime.budget import CostError
+from spacemesh.runtime.cost import DEFAULT_COST_MODEL, Estimate
 from spacemesh.runtime.options import GenerateOptions, OptionError
 from spacemesh.runtime.pipeline import MeshGenerator
 from spacemesh.runtime.request import GenerateRequest
@@ -213,6 +218,9 @@ class Engine:
         self.read_limits = read_limits(settings)
         self.upload_rules = UploadRules.from_settings(settings)
         self.parsing = ParseSlots(settings.max_parallel_parses)
+        #: What one request may cost, and how its cost is estimated.
+        self.budget = settings.budget
+        self.cost_model = DEFAULT_COST_MODEL
 
     # ------------------------------------------------------------------ lifecycle
     @property
@@ -395,7 +403,18 @@ class Engine:
         cloud = validate_cloud(points, normals, self.settings, source=source,
                                needs_normals=self._generator.spec.normals,
                                points_read=points_read)
+        self._within_budget(self.cost_model.generate(self._generator.spec, opts.resolved,
+                                                     len(cloud.points)), "generate")
         return cloud, opts
+
+    def _within_budget(self, estimate: Estimate, route: str) -> None:
+        """Refuse a request whose estimated cost is over :attr:`budget` (422
+        ``too-expensive``, counted by route and the option it names)."""
+        try:
+            self.budget.check(estimate, what=route)
+        except CostError as error:
+            self.metrics.too_expensive.labels(route, error.option or "none").inc()
+            raise P.cost_problem(error) from None
 
     async def generate(self, parse: ParseFn, options: dict[str, Any], *,
                        progress: ProgressFn | None = None,
@@ -526,6 +545,11 @@ class Engine:
                                weld=opts.weld, max_growth=opts.max_growth)
         except RegionError as error:
             raise P.region_problem(error) from None
+        work = plan.mesh if isinstance(plan, AutoPlan) else plan.cut.mesh
+        self._within_budget(self.cost_model.repair(
+            self._generator.spec, steps=int(opts.resolved.steps or self.default_steps),
+            faces=work.n_faces, passes=len(plan.regions) if isinstance(plan, AutoPlan) else 1),
+            "repair")
         return _RepairJob(mesh, shape, plan, opts)
 
     async def repair(self, upload: MeshUpload, region: Any, options: dict[str, Any], *,

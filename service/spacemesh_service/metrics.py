@@ -25,6 +25,9 @@
     faces each re-generated (the region after growth).
 ``spacemesh_repair_rejected_total{kind}``
     Repair requests refused for their region (422), by kind (``empty-region``...).
+``spacemesh_too_expensive_total{route,option}``
+    Requests refused before any work for their estimated cost (422 ``too-expensive``), by
+    route (``generate``, ``repair``) and the option named to lower.
 """
 
 from __future__ import annotations
@@ -90,6 +93,9 @@ class Metrics:
         self.repair_rejected = Counter(
             "spacemesh_repair_rejected", "Repair requests refused for their region (422)",
             ["kind"], registry=r)
+        self.too_expensive = Counter(
+            "spacemesh_too_expensive", "Requests refused for their estimated cost (422)",
+            ["route", "option"], registry=r)
         for stage in STAGES:  # export every stage from the start
             self.stage_seconds.labels(stage)
         for stage in REPAIR_STAGES:

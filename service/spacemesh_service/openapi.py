@@ -44,6 +44,9 @@ Point cloud in, oriented manifold polygon mesh out (SpaceMesh).
 * Options parse one way everywhere: integer options take only integers (`1e3`, `1.0`
   are refused, not converted). Every option error (an unknown name, one the route does
   not take, a wrong type, a value out of range) is 422 `invalid-option` naming it.
+* Each generate and repair is costed before any work starts: one estimated over this
+  server's budget (seconds and MB per request) is 422 `too-expensive`, whose `option`
+  names the option to lower.
 * Every error is RFC 9457 `application/problem+json` with a stable `type`.
 """
 
@@ -235,7 +238,8 @@ GENERATE_RESPONSES: dict[int | str, dict[str, Any]] = {
         "format": (P.UNSUPPORTED_FORMAT, "cannot read '.docx' files; supported: ..."),
     }),
     422: problem_response("An option that is unknown, of the wrong type or out of range, "
-                          "or unusable geometry", {
+                          "a request estimated over this server's budget, or unusable "
+                          "geometry", {
         "option": (P.INVALID_OPTION, "target_vertices must be in 4..10000, not 20000"),
         "integer": (P.INVALID_OPTION, "seed must be an integer (digits only, no fraction or "
                                       "exponent), not '1e3'"),
@@ -245,6 +249,10 @@ GENERATE_RESPONSES: dict[int | str, dict[str, Any]] = {
         "unknown": (P.INVALID_OPTION, "unknown option 'colour': this route takes format, "
                                       "seed, steps, sampler, start, start_time, "
                                       "target_vertices, tolerance, samples, raw"),
+        "expensive": (P.TOO_EXPENSIVE, "this generate is estimated at 111 s and 958 MB, over "
+                      "the budget of 60 s and 2048 MB per request; lower "
+                      "target_vertices: target_vertices=6374 fits. Each option at its "
+                      "default would save: target_vertices 109 s"),
         "few": (P.TOO_FEW_POINTS, "3 points; this server needs at least 16"),
         "nan": (P.NON_FINITE, "point 12 has a NaN or infinite coordinate"),
         "flat": (P.DEGENERATE_GEOMETRY, "the points are coplanar; a surface needs a 3D "
@@ -301,9 +309,14 @@ REPAIR_RESPONSES: dict[int | str, dict[str, Any]] = {
         "format": (P.UNSUPPORTED_FORMAT, "cannot read '.docx' files as a mesh; supported: "
                                          "..."),
     }, instance="/repair"),
-    422: problem_response("A region the server cannot use (the kind is the type), or an "
-                          "option that is unknown, of the wrong type or out of range", {
+    422: problem_response("A region the server cannot use (the kind is the type), an "
+                          "option that is unknown, of the wrong type or out of range, or a "
+                          "repair estimated over this server's budget", {
         "option": (P.INVALID_OPTION, "steps must be in 1..1024, not 0"),
+        "expensive": (P.TOO_EXPENSIVE, "this repair is estimated at 121 s and 50 MB, over "
+                      "the budget of 60 s and 2048 MB per request; lower steps: "
+                      "steps=497 fits. Each option at its default would save: steps 112 s, "
+                      "region 91 s, mesh 0.1 s"),
         "weld": (P.INVALID_OPTION, "weld must be true or false, not 'maybe'"),
         "generate-only": (P.INVALID_OPTION, "unknown option target_vertices (an option of "
                                             "/generate only): this route takes format, seed, "

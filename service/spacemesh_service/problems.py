@@ -87,6 +87,10 @@ NORMALS_REQUIRED = _kind("normals-required", "This model needs normals", 422,
                          _C.INVALID_ARGUMENT)
 NO_SURFACE = _kind("no-surface", "No surface could be generated from this input", 422,
                    _C.FAILED_PRECONDITION)
+# The kind of spacemesh.runtime.budget.CostError (a request over the per-request budget),
+# an option error as invalid-option is: the detail names the option to lower.
+TOO_EXPENSIVE = _kind("too-expensive", "The request would cost more than this server's "
+                      "budget", 422, _C.INVALID_ARGUMENT)
 # The repair region kinds: the slugs are spacemesh.repair.region.ERROR_KINDS (a
 # RegionError's ``kind``), turned into problems by :func:`region_problem`.
 INVALID_REGION = _kind("invalid-region", "The repair region is invalid", 422,
@@ -119,7 +123,8 @@ KINDS: dict[str, ProblemKind] = {
         MALFORMED_INPUT, INVALID_PARAMETER, INVALID_OPTION, NOT_FOUND, MODEL_NOT_FOUND,
         METHOD_NOT_ALLOWED, UNAUTHORIZED, REQUEST_TIMEOUT, RATE_LIMITED,
         PAYLOAD_TOO_LARGE, TOO_MANY_POINTS, UNSUPPORTED_FORMAT, TOO_FEW_POINTS, NON_FINITE,
-        DEGENERATE_GEOMETRY, INVALID_NORMALS, NORMALS_REQUIRED, NO_SURFACE, INVALID_REGION,
+        DEGENERATE_GEOMETRY, INVALID_NORMALS, NORMALS_REQUIRED, NO_SURFACE, TOO_EXPENSIVE,
+        INVALID_REGION,
         EMPTY_REGION, WHOLE_MESH_REGION, DEFECTS_OUTSIDE_REGION, REGION_TOO_LARGE,
         REGION_GROWTH_EXCEEDED, NON_ORIENTABLE, INTERNAL,
         INVALID_OUTPUT, QUEUE_FULL, NOT_READY, SHUTTING_DOWN, TIMEOUT,
@@ -263,6 +268,13 @@ def read_problem(error: Any) -> Problem:
     if isinstance(error, TooLargeError):
         return too_large_problem(error)
     return Problem(KINDS[read_error_kind(error)], str(error))
+
+
+def cost_problem(error: Any) -> Problem:
+    """The problem (422 ``too-expensive``) of a :class:`spacemesh.runtime.budget.CostError`:
+    its ``details`` (``option``, ``estimated_seconds``, ``estimated_mb``, the budget,
+    ``savings``, ``suggestion``) are the extension members."""
+    return typed_problem(error, (TOO_EXPENSIVE,))
 
 
 def cloud_problem(error: Any) -> Problem:

@@ -16,11 +16,16 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator
 
 from spacemesh.io.reduce import DEFAULT_MAX_BINARY_POINTS, DEFAULT_WORKING_POINTS
+from spacemesh.runtime.budget import Budget
 from spacemesh.runtime.cloud import DEFAULT_MAX_POINTS, DEFAULT_MIN_POINTS
 from spacemesh_service.networks import parse_networks
 
 #: Prefix of every environment variable.
 ENV_PREFIX = "SPACEMESH_"
+#: The default time budget of a request, in request deadlines (``request_timeout_s``).
+BUDGET_DEADLINES = 2.0
+#: The default memory budget of a request (MB).
+DEFAULT_BUDGET_MB = 2048.0
 
 
 def _cpu_count() -> int:
@@ -50,6 +55,14 @@ class Settings(BaseModel):
     queue_size: int = Field(32, ge=1, description="Requests that may wait; beyond: 503.")
     request_timeout_s: float = Field(
         30.0, gt=0, description="Per-request limit (queue + inference) before a 504.")
+    request_budget_s: float | None = Field(
+        None, gt=0, description="Most seconds a generate or repair request is estimated "
+        "to take (spacemesh.runtime.cost, on the 2-core reference machine) before any work "
+        "starts; over it: 422 too-expensive naming the option to lower. Default: twice "
+        "request_timeout_s.")
+    request_budget_mb: float = Field(
+        DEFAULT_BUDGET_MB, gt=0, description="Most peak memory (MB) a generate or repair "
+        "request is estimated to take; over it: 422 too-expensive.")
     max_points: int = Field(
         DEFAULT_MAX_BINARY_POINTS, ge=1, description="Most points of a request (413 above): "
         "binary PLY, NPY and NPZ clouds, read as views over their bytes.")
@@ -203,6 +216,14 @@ class Settings(BaseModel):
             ) from None
 
     @property
+    def budget(self) -> Budget:
+        """What one generate or repair request may cost (its estimate, before any work):
+        ``request_budget_s`` (default: :data:`BUDGET_DEADLINES` request deadlines) and
+        ``request_budget_mb``."""
+        seconds = self.request_budget_s or BUDGET_DEADLINES * self.request_timeout_s
+        return Budget(seconds, self.request_budget_mb)
+
+    @property
     def network_threads(self) -> int:
         """The threads that run the networks' batch items, always explicit (never 0)."""
         return self.ort_threads or _cpu_count()
@@ -220,6 +241,8 @@ class Settings(BaseModel):
             "max_mesh_faces": self.max_mesh_faces,
             "max_steps": self.max_steps,
             "request_timeout_s": self.request_timeout_s,
+            "request_budget_s": self.budget.seconds,
+            "request_budget_mb": self.request_budget_mb,
             "max_batch_size": self.max_batch_size,
             "max_batch_delay_ms": self.max_batch_delay_ms,
             "queue_size": self.queue_size,

@@ -113,3 +113,17 @@ def test_local_mistakes_are_ordinary_python_errors(client, tmp_path):
         client.generate(object())
     with pytest.raises(ValueError, match="normals"):
         client.generate(tmp_path / "missing.ply", normals=[[0, 0, 1]])
+
+
+def test_too_expensive_names_the_option_over_both_transports(start_server, generator, case):
+    from spacemesh_client import Client, RetryPolicy
+
+    server = start_server(generator, warmup=False, request_budget_s=5)
+    for url in (server.url, "grpc://" + server.grpc_target):
+        with Client(url, retry=RetryPolicy(attempts=3)) as client:
+            error = expect(client, E.TooExpensive, case.points, start="points",
+                           target_vertices=10_000)
+        assert error.status == 422 and not error.retryable, url
+        assert isinstance(error, E.InvalidRequest)
+        assert error.extra["option"] == "target_vertices", (url, error.extra)
+        assert "lower target_vertices" in error.detail

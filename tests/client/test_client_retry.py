@@ -12,7 +12,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import httpx
 import pytest
-from service_testing import GatedGenerator, server_settings
+from service_testing import ADMIT_ALL, GatedGenerator, server_settings
 
 from spacemesh_client import AsyncClient, Client, RetryPolicy
 from spacemesh_client import errors as E
@@ -127,7 +127,8 @@ def test_client_timeout_is_not_retried(start_server, generator, case):
 
 def test_server_timeout_is_504(start_server, generator, case):
     gated = GatedGenerator(generator)
-    server = start_server(gated, warmup=False, request_timeout_s=0.3, drain_timeout_s=1)
+    server = start_server(gated, warmup=False, request_timeout_s=0.3, drain_timeout_s=1,
+                          **ADMIT_ALL)
     try:
         for url in (server.url, "grpc://" + server.grpc_target):
             with Client(url, retry=RetryPolicy(attempts=3)) as client:

@@ -213,3 +213,26 @@ def test_the_progress_line_names_the_stage_that_is_running(tmp_path):
     names = {part.split(" [")[0].split(" ")[0] for part in shown if part.endswith("]")}
     assert {"encoder", "connectivity", "decode", "geometry", "report"} <= names, shown
     assert "step" not in done.stderr.replace("sampler step", "")
+
+
+def test_generate_with_a_budget_refuses_what_the_service_would(toy_model, tmp_path):
+    """``--budget-s`` runs the service's cost check before any work: over it, one line
+    naming the option to lower (too-expensive) and exit code 2; within it, the mesh."""
+    from typer.testing import CliRunner
+
+    from spacemesh.cli import _register, app
+
+    _register()
+    cloud = tmp_path / "c.xyz"
+    np.savetxt(cloud, np.random.default_rng(0).normal(size=(300, 3)))
+    out = tmp_path / "m.obj"
+    base = ["generate", str(cloud), "-o", str(out), "--model", str(toy_model.repository),
+            "--no-progress", "--threads", "1", "--budget-s", "5"]
+    result = CliRunner().invoke(app, [*base, "--start", "points",
+                                      "--target-vertices", "10000"])
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("spacemesh: error: "), result.stderr
+    assert "lower target_vertices" in lines[0] and lines[0].endswith("(too-expensive)")
+    assert not out.exists()
+    assert CliRunner().invoke(app, base).exit_code == 0 and out.exists()

@@ -150,6 +150,12 @@ class GatedGenerator(WrappedGenerator):
             raise
 
 
+#: Settings of a server whose tiny deadline (``request_timeout_s``) is the point of a test:
+#: a budget that admits everything, since the default one (twice the deadline) would
+#: refuse the request as too expensive before it ran (tests/service/test_service_cost.py).
+ADMIT_ALL = {"request_budget_s": 3600.0}
+
+
 def server_settings(repository, **changes):
     from spacemesh_service.settings import Settings
 

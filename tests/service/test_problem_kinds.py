@@ -32,6 +32,7 @@ import httpx
 import numpy as np
 import pytest
 from service_testing import (
+    ADMIT_ALL,
     REPAIR_STEPS,
     FailingGenerator,
     GatedGenerator,
@@ -298,6 +299,15 @@ def normals_required(env: Env) -> Answers:
             lambda: stub.Generate(points_pb(env.case.points)))
 
 
+def too_expensive(env: Env) -> Answers:
+    server = env.start_server(env.generator, warmup=False, request_budget_s=5)
+    http, stub, channel = on_server(server)
+    with http, channel:
+        options = {"start": "points", "target_vertices": 10_000}  # estimated far over 5 s
+        return post_points(http, env.case.points, **options), rpc(
+            lambda: stub.Generate(points_pb(env.case.points, **options)))
+
+
 def no_surface(env: Env) -> Answers:
     return both_points(env, env.case.points, **env.case.no_surface)  # checked by `case`
 
@@ -412,7 +422,8 @@ def shutting_down(env: Env) -> Answers:
 def timeout(env: Env) -> Answers:
     gated = GatedGenerator(env.generator)
     server = env.start_server(gated, warmup=False, max_batch_size=1, queue_size=4,
-                              max_batch_delay_ms=0, request_timeout_s=0.5, drain_timeout_s=1)
+                              max_batch_delay_ms=0, request_timeout_s=0.5, drain_timeout_s=1,
+                              **ADMIT_ALL)
     http, stub, channel = on_server(server)
     try:
         with http, channel:
@@ -442,6 +453,7 @@ TRIGGERS: dict[str, Callable[[Env], Answers]] = {
     "invalid-normals": invalid_normals,
     "normals-required": normals_required,
     "no-surface": no_surface,
+    "too-expensive": too_expensive,
     "invalid-region": invalid_region,
     "empty-region": empty_region,
     "whole-mesh-region": whole_mesh_region,

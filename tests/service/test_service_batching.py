@@ -18,7 +18,13 @@ import grpc
 import httpx
 import pytest
 from grpc_health.v1 import health_pb2, health_pb2_grpc
-from service_testing import FailingGenerator, GatedGenerator, SlowGenerator, WrappedGenerator
+from service_testing import (
+    ADMIT_ALL,
+    FailingGenerator,
+    GatedGenerator,
+    SlowGenerator,
+    WrappedGenerator,
+)
 
 from spacemesh_service.pb import spacemesh_pb2 as pb
 from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
@@ -97,7 +103,8 @@ def test_full_queue_answers_503_with_retry_after(start_server, generator, case):
 def test_timeout_answers_504_and_cancels_the_work(start_server, generator, case):
     gated = GatedGenerator(generator)
     server = start_server(gated, warmup=False, max_batch_size=1, queue_size=4,
-                          max_batch_delay_ms=0, request_timeout_s=0.5, drain_timeout_s=1)
+                          max_batch_delay_ms=0, request_timeout_s=0.5, drain_timeout_s=1,
+                          **ADMIT_ALL)
     try:
         with ThreadPoolExecutor(2) as pool:
             running = pool.submit(post, server.url, case, start="noise")  # held at the gate
@@ -207,7 +214,8 @@ def test_readiness_turns_503_while_the_worker_is_stuck_and_back_after(generator,
     503 with a detail, so a balancer sends new work elsewhere; it is ready again after."""
     gated = GatedGenerator(generator)
     server = start_server(gated, warmup=False, max_batch_size=1, queue_size=4,
-                          max_batch_delay_ms=0, request_timeout_s=0.5, drain_timeout_s=1)
+                          max_batch_delay_ms=0, request_timeout_s=0.5, drain_timeout_s=1,
+                          **ADMIT_ALL)
     body = {"points": case.points.tolist(), "seed": case.good_seed}
     with httpx.Client(base_url=server.url, timeout=60) as http:
         assert http.get("/v2/health/ready").status_code == 200
@@ -251,7 +259,7 @@ def test_work_nobody_waits_for_stops_at_the_next_stage(start_server, generator, 
     each would hold the worker for 8 s."""
     slow = SlowStages(generator, 1.0)
     server = start_server(slow, warmup=False, max_batch_size=1, max_batch_delay_ms=0,
-                          request_timeout_s=0.5)
+                          request_timeout_s=0.5, **ADMIT_ALL)
     late = post(server.url, case, samples=8, start="points", start_time=0.0)
     assert late.status_code == 504, late.text
     wait_for(lambda: metric(server.url, "spacemesh_stopped_batches_total") == 1,
@@ -285,7 +293,7 @@ def test_work_nobody_waits_for_stops_inside_a_long_stage(start_server, generator
     collapses...), not at the end of the stage."""
     long = LongStage(generator)
     server = start_server(long, warmup=False, max_batch_size=1, max_batch_delay_ms=0,
-                          request_timeout_s=0.5)
+                          request_timeout_s=0.5, **ADMIT_ALL)
     late = post(server.url, case, samples=2)
     assert late.status_code == 504, late.text
     wait_for(lambda: metric(server.url, "spacemesh_stopped_batches_total") == 1,

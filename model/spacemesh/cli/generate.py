@@ -12,14 +12,17 @@ points are one line on stderr and exit code 2. A cloud of more than
 :data:`~spacemesh.io.reduce.DEFAULT_WORKING_POINTS` points is first reduced to that many
 (a seeded random subset, as the service does; ``points_reduced`` in the summary says from
 how many). The summary reports the resolved options, the fit report
-(:meth:`FitReport.to_dict`) and every seed's score.
+(:meth:`FitReport.to_dict`) and every seed's score. With ``--budget-s`` or ``--budget-mb``
+the request's cost is estimated first (:mod:`spacemesh.runtime.cost`, the service's check):
+one over the budget is one line naming the option to lower (``too-expensive``) and exit
+code 2, before any work.
 """
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -72,6 +75,13 @@ def generate(
     raw: RawFlag = False,
     surface: SurfaceFlag = None,
     threads: Threads = 0,
+    budget_s: Annotated[float | None, typer.Option(
+        "--budget-s", min=0, help="Refuse the request (exit 2) when its estimated time "
+        "(seconds on the 2-core reference machine) is over this, before any work; the "
+        "service's check (spacemesh serve --request-budget-s).")] = None,
+    budget_mb: Annotated[float | None, typer.Option(
+        "--budget-mb", min=0, help="Refuse the request (exit 2) when its estimated peak "
+        "memory (MB) is over this.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
     progress: Annotated[
         bool, typer.Option("--progress/--no-progress", help="Progress bar.")
@@ -106,6 +116,8 @@ def generate(
     except CloudError as error:
         fail(f"{points_path}: {error} ({error.kind})")
     points, normals = cloud.points, cloud.normals
+    if budget_s is not None or budget_mb is not None:
+        _check_budget(generator, options, len(points), budget_s, budget_mb, points_path)
     bar = StageBar(progress and not as_json)
     try:
         result = generator.generate(points, normals, options, progress=bar.progress,
@@ -143,6 +155,24 @@ def generate(
                    f"coverage {100 * fit.get('coverage', float('nan')):.0f}%"
                    f"{_tolerance_text(fit)}{_topology_text(fit)}{_surface_text(fit)}"
                    f"{_points_text(fit)}")
+
+
+def _check_budget(generator: Any, options: Any, points: int, seconds: float | None,
+                  memory_mb: float | None, path: Path) -> None:
+    """Exit 2 with one line when the request's estimated cost is over the budget."""
+    from spacemesh.runtime.budget import Budget, CostError
+    from spacemesh.runtime.cost import DEFAULT_COST_MODEL
+    from spacemesh.runtime.options import OptionError
+
+    try:
+        resolved = options.resolve(generator.spec)
+    except OptionError as error:
+        fail(f"{option_flag(error.option)}: {error}")
+    estimate = DEFAULT_COST_MODEL.generate(generator.spec, resolved, points)
+    try:
+        Budget(seconds, memory_mb).check(estimate, what="generate")
+    except CostError as error:
+        fail(f"{path}: {error} ({error.kind})")
 
 
 def _tolerance_text(fit: dict) -> str:

@@ -1,0 +1,329 @@
+"""What a request will cost, estimated before any work starts: seconds and peak memory.
+
+:class:`CostModel` turns what is known about a request once its input is read (the points
+after the service's reduction, the resolved options, the model's retry seeds; for a
+repair its steps, passes and mesh size) into an :class:`Estimate`: estimated seconds and
+peak memory (MB), and, per input the request can lower, what lowering it would save.
+:mod:`spacemesh.runtime.budget` refuses an estimate over a budget.
+
+The formula, in seconds on the reference machine (2 CPU cores, one onnxruntime thread per
+core; ``bench/bench_cost_model.py`` times the real pipeline against it)::
+
+    seconds  = 1.05e-5 P + seeds * per_seed(N, V)        (tolerance: a sum over its tries)
+    per_seed = 1.1e-8 P N                                farthest-point start
+             + D (7.8e-6 N + 3.67e-8 N^2)                the denoiser steps that run
+             + 1.3e-4 N                                  connectivity network
+             + f (3.2e-7 N^2 + 0.25 + 1.61e-3 V + 1.86e-7 V^2)   decode, geometry stage
+             + 5.6e-6 min(P, 20000) + 4e-5 V             fit report
+    seeds    = samples + retry_seeds * 0.5 ** samples
+    MB       = 3.5e-3 min(P, 20000) + 5.2e-4 P + 1.7e-4 (1 + 1.5 s) N^2 + 0.02 V + 0.006 N seeds
+
+``P``: input points (after the reduction), ``V``: vertices asked for (``target_vertices``,
+else the model's count), ``N``: vertex tokens the networks place (``V``, at most 2,048
+outside ``raw``, :mod:`spacemesh.runtime.large`), ``D``: denoiser steps that run (with
+``start=points`` only those below ``start_time``), ``s``: the start time (1 from noise),
+``f = 1 + 1.3 s``: denoised vertices lie less evenly than farthest points, and the decode
+and the geometry stage take about twice as long on them. The model's retry seeds run only
+when none of the request's seeds passes the topology check; the estimate counts them at
+an even chance per seed (``0.5 ** samples``). A ``tolerance`` search counts as 8 tries
+(:meth:`CostModel.tolerance_tries`): the doubling ladder from the model's count to the
+count whose mesh is expected within the tolerance (a mean distance of ``0.5 / V`` of the
+diagonal: twice the example torus's), the other tries at that count, each costing the
+request's seeds. A repair::
+
+    seconds = 1.75 passes (0.0165 D N / 256 + 0.35) + 2e-6 F     MB = 30 + 4e-4 F
+
+``D``: its sampler steps, ``N``: the model's tokens, ``F``: the mesh's faces, 1.75 the
+expected samplings of up to three (a fill that adds a handle is sampled again).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
+from typing import Any
+
+from spacemesh.runtime.large import network_vertices
+from spacemesh.runtime.network import decode_count, denoiser_steps, sampler_key, vertex_count
+from spacemesh.runtime.options import MAX_TOLERANCE, MIN_TARGET_VERTICES, GenerateOptions
+from spacemesh.runtime.spec import ModelSpec
+from spacemesh.runtime.tolerance import (
+    MAX_SEARCH_VERTICES,
+    MAX_TRIES,
+    MIN_SEARCH_VERTICES,
+    aim,
+)
+
+#: Points the fit report measures at most (a fixed subset of larger clouds).
+REPORT_POINTS = 20_000
+#: Samplings of a repair at most (a fill that adds a handle is sampled again).
+REPAIR_SAMPLINGS = 3
+
+#: ``estimate(values) -> (seconds, MB)`` of one request with some of its inputs changed.
+Formula = Callable[[Mapping[str, float | None]], tuple[float, float]]
+
+
+@dataclass(frozen=True)
+class Lever:
+    """An input of a request that costs less when lowered (``tolerance``: raised).
+
+    Attributes
+    ----------
+    name : str
+        The option's public name (``samples``, ``target_vertices`` ...), ``points``, or for
+        a repair ``region`` (its passes) and ``mesh`` (its faces).
+    value : float
+        The request's value.
+    reference : float or None
+        What its saving is measured against: the model's default (None: the option left
+        out, e.g. no ``tolerance``).
+    cheapest : float
+        The cheap end of the values a suggestion is searched in.
+    integer : bool
+    raise_to_save : bool
+        The request costs less as the value grows (``tolerance``).
+    """
+
+    name: str
+    value: float
+    reference: float | None
+    cheapest: float
+    integer: bool = True
+    raise_to_save: bool = False
+
+    @property
+    def costly(self) -> bool:
+        """Whether the request's value is beyond the cheap end."""
+        return self.value < self.cheapest if self.raise_to_save else self.value > self.cheapest
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A request's estimated cost, and what each of its levers would save.
+
+    Attributes
+    ----------
+    seconds : float
+    memory_mb : float
+        Peak memory over the server's before the request (MB).
+    levers : tuple of Lever
+        The inputs the request set above their reference.
+    formula : callable
+        ``formula(changes) -> (seconds, MB)``: the same request with ``changes``
+        (lever name -> value; None leaves an option out).
+    """
+
+    seconds: float
+    memory_mb: float
+    levers: tuple[Lever, ...]
+    formula: Formula
+
+    def with_changes(self, changes: Mapping[str, float | None]) -> tuple[float, float]:
+        """``(seconds, MB)`` of the same request with ``changes``."""
+        return self.formula(changes)
+
+    def savings(self) -> dict[str, tuple[float, float]]:
+        """Seconds and MB each lever saves at its reference, by name."""
+        saved = {}
+        for lever in self.levers:
+            seconds, memory = self.with_changes({lever.name: lever.reference})
+            saved[lever.name] = (max(0.0, self.seconds - seconds),
+                                 max(0.0, self.memory_mb - memory))
+        return saved
+
+    def to_dict(self) -> dict[str, float]:
+        """``{"seconds", "memory_mb"}``, rounded."""
+        return {"seconds": round(self.seconds, 2), "memory_mb": round(self.memory_mb, 1)}
+
+
+@dataclass(frozen=True)
+class CostModel:
+    """The calibrated coefficients (the module docstring's formula) and the estimates.
+
+    Seconds are on the reference machine (2 cores); memory is the peak RSS a request
+    adds to a warmed-up server. Calibrated by ``bench/bench_cost_model.py`` on the
+    example torus (``examples/points.ply``) and torus clouds of 20,000 to 200,000 points.
+    """
+
+    prepare_s_per_point: float = 1.05e-5
+    fps_s: float = 1.1e-8
+    step_s1: float = 7.8e-6
+    step_s2: float = 3.67e-8
+    connect_s: float = 1.3e-4
+    decode_s2: float = 3.2e-7
+    geometry_s0: float = 0.25
+    geometry_s1: float = 1.61e-3
+    geometry_s2: float = 1.86e-7
+    report_s_per_point: float = 5.6e-6
+    report_s_per_vertex: float = 4e-5
+    denoised_slowdown: float = 1.3
+    retry_chance: float = 0.5
+    tolerance_scale: float = 0.5
+    report_mb_per_point: float = 3.5e-3
+    points_mb: float = 5.2e-4
+    tokens_mb: float = 1.7e-4
+    denoised_tokens_mb: float = 1.5
+    vertex_mb: float = 0.02
+    seed_mb_per_token: float = 0.006
+    repair_step_s: float = 0.0165
+    repair_pass_s: float = 0.35
+    repair_s_per_face: float = 2e-6
+    repair_mb: float = 30.0
+    repair_mb_per_face: float = 4e-4
+
+    # ------------------------------------------------------------------ generate
+    def generate(self, spec: ModelSpec, options: GenerateOptions, points: int) -> Estimate:
+        """The estimate of a generate request.
+
+        Parameters
+        ----------
+        spec : ModelSpec
+        options : GenerateOptions
+            Resolved (:meth:`GenerateOptions.resolve`).
+        points : int
+            Points the pipeline gets (after the service's reduction of a big cloud).
+
+        Returns
+        -------
+        Estimate
+            Levers: ``points`` (reference: the encoder's count), ``samples`` (1),
+            ``steps`` (the model's), ``start_time`` (the model's), ``target_vertices``
+            (the model's count) and ``tolerance`` (none), those set above it.
+        """
+        def formula(changes: Mapping[str, float | None]) -> tuple[float, float]:
+            changed: dict[str, Any] = {k: v for k, v in changes.items() if k != "points"}
+            for name in ("samples", "steps", "target_vertices"):
+                if changed.get(name) is not None:
+                    changed[name] = int(changed[name])
+            varied = replace(options, **changed)
+            count = int(changes.get("points", points) or points)
+            return self._generate(spec, varied, count)
+
+        seconds, memory = formula({})
+        return Estimate(seconds, memory, _generate_levers(spec, options, points), formula)
+
+    def _generate(self, spec: ModelSpec, options: GenerateOptions, points: int
+                  ) -> tuple[float, float]:
+        retries = 0 if options.raw else spec.retry_seeds
+        expected_retries = retries * self.retry_chance ** options.samples
+        prepare = self.prepare_s_per_point * points
+        base_mb = (self.report_mb_per_point * min(points, REPORT_POINTS)
+                   + self.points_mb * points)
+        if options.tolerance is None or options.start != "points":
+            seconds, memory = self._seeds(spec, options, points,
+                                          options.samples + expected_retries)
+            return prepare + seconds, base_mb + memory
+        tries = self.tolerance_tries(spec, float(options.tolerance))
+        seconds, memory = 0.0, 0.0
+        for count in tries:
+            try_s, try_mb = self._seeds(spec, replace(options, tolerance=None,
+                                                      target_vertices=count),
+                                        points, options.samples)
+            seconds, memory = seconds + try_s, max(memory, try_mb)
+        found = replace(options, tolerance=None, target_vertices=tries[-1])
+        retry_s, retry_mb = self._seeds(spec, found, points, expected_retries)
+        return prepare + seconds + retry_s, base_mb + max(memory, retry_mb)
+
+    def _seeds(self, spec: ModelSpec, options: GenerateOptions, points: int, seeds: float
+               ) -> tuple[float, float]:
+        """Seconds and MB of ``seeds`` seeds with ``options`` (no tolerance)."""
+        if options.start == "points":
+            wanted = vertex_count(spec, options)
+            tokens = network_vertices(decode_count(spec, options), spec.max_vertices,
+                                      spec.large_meshes, raw=options.raw)
+            start = float(options.start_time or 0.0)
+        else:  # from noise the network places the model's tokens and picks the count
+            wanted = tokens = spec.max_vertices
+            start = 1.0
+        steps = denoiser_steps(spec, sampler_key(options))
+        n, v = float(tokens), float(wanted)
+        slower = 1 + self.denoised_slowdown * start
+        per_seed = (
+            (self.fps_s * points * n if options.start == "points" else 0.0)
+            + steps * (self.step_s1 * n + self.step_s2 * n * n)
+            + self.connect_s * n
+            + slower * (self.decode_s2 * n * n + self.geometry_s0 + self.geometry_s1 * v
+                        + self.geometry_s2 * v * v)
+            + self.report_s_per_point * min(points, REPORT_POINTS)
+            + self.report_s_per_vertex * v
+        )
+        memory = (self.tokens_mb * (1 + self.denoised_tokens_mb * start) * n * n
+                  + self.vertex_mb * v + self.seed_mb_per_token * n * seeds)
+        return seeds * per_seed, memory
+
+    def tolerance_tries(self, spec: ModelSpec, tolerance: float) -> list[int]:
+        """The vertex counts a ``tolerance`` search is counted as, the found count last.
+
+        At most :data:`~spacemesh.runtime.tolerance.MAX_TRIES` generates: the doubling
+        ladder of :func:`~spacemesh.runtime.tolerance.search_vertex_count` from the
+        model's count up to the first count whose mesh is expected within the aim (a mean
+        distance of ``tolerance_scale / count``), and the other tries at that count (the
+        search halves or bisects below it, so no try is larger). An upper bound that
+        grows as the tolerance shrinks.
+        """
+        start = min(max(spec.vertices, MIN_SEARCH_VERTICES), MAX_SEARCH_VERTICES)
+        wanted = min(math.ceil(self.tolerance_scale / aim(tolerance)), MAX_SEARCH_VERTICES)
+        counts = [start]
+        while counts[-1] < wanted:
+            counts.append(min(2 * counts[-1], MAX_SEARCH_VERTICES))
+        return counts + [counts[-1]] * (MAX_TRIES - len(counts))
+
+    # ------------------------------------------------------------------ repair
+    def repair(self, spec: ModelSpec, *, steps: int, faces: int, passes: int = 1
+               ) -> Estimate:
+        """The estimate of a repair.
+
+        Parameters
+        ----------
+        spec : ModelSpec
+        steps : int
+            Its sampler steps (resolved).
+        faces : int
+            Faces of the mesh (after a weld).
+        passes : int
+            Model passes: 1 for a marked region, the regions of an automatic one.
+
+        Returns
+        -------
+        Estimate
+            Levers: ``steps`` (the model's), ``region`` (one pass) and ``mesh`` (no face).
+        """
+        def formula(changes: Mapping[str, float | None]) -> tuple[float, float]:
+            d = float(changes.get("steps", steps) or steps)
+            p = float(changes.get("region", passes) or passes)
+            f = float(changes.get("mesh", faces) or 0)
+            samplings = sum(self.retry_chance ** k for k in range(REPAIR_SAMPLINGS))
+            per_pass = (self.repair_step_s * d * spec.max_vertices / 256
+                        + self.repair_pass_s)
+            return (samplings * p * per_pass + self.repair_s_per_face * f,
+                    self.repair_mb + self.repair_mb_per_face * f)
+
+        seconds, memory = formula({})
+        levers = [Lever("steps", steps, spec.steps, 1), Lever("region", passes, 1, 1),
+                  Lever("mesh", faces, 0, 0)]
+        return Estimate(seconds, memory, tuple(x for x in levers if x.costly), formula)
+
+
+def _generate_levers(spec: ModelSpec, options: GenerateOptions, points: int
+                     ) -> tuple[Lever, ...]:
+    """The levers of a generate request (those set above their reference)."""
+    levers = [Lever("points", points, min(points, spec.n_points), spec.n_points),
+              Lever("samples", options.samples, 1, 1),
+              Lever("steps", int(options.steps or spec.steps), spec.steps, 1)]
+    if options.start == "points":
+        levers.append(Lever("start_time", float(options.start_time or 0.0), spec.start_time,
+                            spec.start_time, integer=False))
+        if options.target_vertices is not None:
+            levers.append(Lever("target_vertices", options.target_vertices, None,
+                                MIN_TARGET_VERTICES))
+        if options.tolerance is not None:
+            levers.append(Lever("tolerance", float(options.tolerance), None, MAX_TOLERANCE,
+                                integer=False, raise_to_save=True))
+    return tuple(x for x in levers if x.costly)
+
+
+#: The calibrated model (``bench/bench_cost_model.py``).
+DEFAULT_COST_MODEL = CostModel()
+
+__all__ = ["DEFAULT_COST_MODEL", "CostModel", "Estimate", "Formula", "Lever"]
