@@ -147,3 +147,22 @@ def test_trimming_keeps_the_validity_report_honest(sphere_points):
     assert not report.is_closed and report.is_valid(open_surface=True)
     assert not report.is_valid() and "boundary" in " ".join(report.defects())
     assert "boundary" not in " ".join(report.defects(open_surface=True))
+
+
+def test_an_open_surface_loses_its_crossing_faces_and_keeps_its_guarantee():
+    from spacemesh.geometry.intersections import self_intersecting_faces
+    from spacemesh.geometry.surface import drop_crossing_faces
+
+    sphere = icosphere(2)
+    cap, _ = open_surface(sphere, support_of(sphere, sphere.face_normals()[:, 2] > 0.2))
+    turned = cap.vertices @ np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]).T
+    both = PolygonMesh(np.concatenate([cap.vertices, turned + [0.0, 0.0, 0.3]]),
+                       np.concatenate([cap.face_indices, cap.face_indices + cap.n_vertices]),
+                       np.concatenate([cap.face_offsets[:-1],
+                                       cap.face_offsets + cap.face_indices.size]))
+    assert self_intersecting_faces(both).any()
+    mended, dropped = drop_crossing_faces(both)
+    assert dropped > 0 and not self_intersecting_faces(mended).any()
+    assert_valid_mesh(mended, open_surface=True)
+    same, none = drop_crossing_faces(cap)
+    assert same is cap and none == 0

@@ -46,6 +46,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from spacemesh.geometry.fitting import estimate_point_normals
+from spacemesh.geometry.intersections import self_intersecting_faces
 from spacemesh.geometry.orientation import oriented_normals
 from spacemesh.geometry.report import SurfaceFacts
 from spacemesh.geometry.stage import GeometryOptions, refine_geometry
@@ -210,6 +211,34 @@ def open_surface(mesh: PolygonMesh, support: SurfaceSupport
     trimmed = faces_subset(flip_faces(mesh, flip), kept)
     result, _ = trimmed.remove_unreferenced_vertices()
     return result, stats
+
+
+def drop_crossing_faces(mesh: PolygonMesh) -> tuple[PolygonMesh, int]:
+    """An open surface without its faces that cross others (then, as in
+    :func:`open_surface`, without pinched vertices and specks).
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+        An oriented edge- and vertex-manifold mesh with boundary.
+
+    Returns
+    -------
+    mesh : PolygonMesh
+        Without crossing faces and unused vertices; ``mesh`` itself when none crosses or
+        every face does.
+    dropped : int
+        Faces removed.
+    """
+    crossing = self_intersecting_faces(mesh)  # (F,)
+    if not crossing.any() or crossing.all():
+        return mesh, 0
+    kept = _unpinched(mesh, ~crossing, _face_areas(mesh))
+    kept, _ = _without_specks(mesh, kept)
+    if not kept.any():
+        return mesh, 0
+    result, _ = faces_subset(mesh, kept).remove_unreferenced_vertices()
+    return result, int(mesh.n_faces - kept.sum())
 
 
 def shape_surface(mesh: PolygonMesh, points: FloatArray, normals: FloatArray | None,

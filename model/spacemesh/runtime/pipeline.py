@@ -34,6 +34,7 @@ import numpy as np
 
 from spacemesh.geometry import SurfaceFacts
 from spacemesh.geometry.finishing import finish_geometry
+from spacemesh.geometry.surface import drop_crossing_faces
 from spacemesh.geometry.untangle import untangle
 from spacemesh.runtime.backend import Backend
 from spacemesh.runtime.choice import acceptable, best_fit, crosses
@@ -229,7 +230,10 @@ class MeshGenerator:
         ``untangle``), fitted to the points again (:func:`finish_geometry`, whose guard
         lets no face cross that the untangling freed; smoothing alone can pull a folded
         mesh far from the points; not an open surface, which has no outside to orient
-        by) and its fit report made for the new mesh, with the same surface decision;
+        by) and its fit report made for the new mesh, with the same surface decision. An
+        open surface whose faces still cross loses them
+        (:func:`spacemesh.geometry.surface.drop_crossing_faces`: its faces are only where
+        points support them, and a crossing face is not a surface the points saw).
         ``raw`` results are left alone."""
         if (not self.spec.retry_seeds or result.options.raw or result.fit is None
                 or not crosses(result)):
@@ -237,18 +241,23 @@ class MeshGenerator:
         if stage is not None:
             stage("untangle", 1, 1)
         started = time.perf_counter()
-        mesh, stats = untangle(result.mesh)
-        if stats["crossing_after"] >= stats["crossing_before"]:
-            _add_geometry_time(result, time.perf_counter() - started)
-            return result
         surface = None if result.fit.open_surface is None else SurfaceFacts(
             bool(result.fit.open_surface), float(result.fit.unsupported_area or 0.0))
-        if surface is None or not surface.open:  # an open mesh has no outside to refit to
+        opened = surface is not None and surface.open
+        mesh, stats = untangle(result.mesh)
+        if stats["crossing_after"] >= stats["crossing_before"]:
+            mesh = result.mesh  # smoothing did not help
+        elif not opened:  # an open mesh has no outside to refit to
             unit = mesh.with_vertices((mesh.vertices - prepared.centre) / prepared.scale)
             points, normals = prepared.fit_points()
             refitted, refit_stats = finish_geometry(unit, points, normals, self.spec.geometry)
             mesh = refitted.with_vertices(refitted.vertices * prepared.scale + prepared.centre)
             stats["untangle_refit_kept"] = bool(refit_stats.get("kept", False))
+        if opened and stats["crossing_after"] > 0:
+            mesh, stats["crossing_faces_dropped"] = drop_crossing_faces(mesh)
+        if mesh is result.mesh:
+            _add_geometry_time(result, time.perf_counter() - started)
+            return result
         result.mesh = mesh
         result.geometry_stats = {**result.geometry_stats, **stats}
         result.fit = prepared.report(mesh, surface)
