@@ -142,7 +142,7 @@ class Client(_Options):
                  target_vertices: int | None = None, tolerance: float | None = None,
                  samples: int | None = None,
                  raw: bool | None = None, surface: str | None = None,
-                 filename: str | None = None,
+                 face_type: str | None = None, filename: str | None = None,
                  progress: ProgressFn | None = None, stage: StageFn | None = None) -> Mesh:
         """Point cloud in, oriented manifold polygon mesh out.
 
@@ -188,6 +188,10 @@ class Client(_Options):
             seen from some sides only); ``auto`` (the server's default): open when the
             points leave a large part of the closed mesh unsupported.
             ``Mesh.stats.fit["open_surface"]`` says what was made.
+        face_type : {"triangles", "polygons"}, optional
+            ``polygons``: flat regions merged into planar polygons
+            (``Mesh.stats.fit["face_planarity"]`` is the worst corner's distance from
+            its plane, a fraction of the diagonal; GLB and glTF hold triangles only).
         filename : str, optional
             Name sent with bytes (its extension picks the format).
         progress : callable, optional
@@ -216,7 +220,7 @@ class Client(_Options):
         options = chosen(seed=seed, steps=steps, sampler=sampler, start=start,
                          start_time=start_time, target_vertices=target_vertices,
                          tolerance=tolerance, samples=samples, raw=raw,
-                         surface=surface)
+                         surface=surface, face_type=face_type)
         return self._retrying(
             lambda: self._transport.generate(source, format, options,
                                              reporter(progress, stage)))
@@ -378,7 +382,7 @@ class AsyncClient(_Options):
                        target_vertices: int | None = None, tolerance: float | None = None,
                        samples: int | None = None,
                        raw: bool | None = None, surface: str | None = None,
-                       filename: str | None = None,
+                       face_type: str | None = None, filename: str | None = None,
                        progress: ProgressFn | None = None,
                        stage: StageFn | None = None) -> Mesh:
         """See :meth:`Client.generate`."""
@@ -386,7 +390,7 @@ class AsyncClient(_Options):
         options = chosen(seed=seed, steps=steps, sampler=sampler, start=start,
                          start_time=start_time, target_vertices=target_vertices,
                          tolerance=tolerance, samples=samples, raw=raw,
-                         surface=surface)
+                         surface=surface, face_type=face_type)
         return await self._retrying(
             lambda: self._transport.generate(source, format, options,
                                              reporter(progress, stage)))

@@ -112,6 +112,8 @@ GENERATE_OPTIONS: tuple[Option, ...] = (
     Option("surface", str, "auto, closed or open: closed is watertight, open is trimmed to "
            "where the points are (scans seen from some sides only); auto (default) opens "
            "when the points leave a large part of the closed mesh unsupported"),
+    Option("face_type", str, "triangles (default) or polygons: flat regions merged into "
+           "planar polygons (quads needs a model trained on quad meshes)"),
 )
 #: Names of :data:`GENERATE_OPTIONS`.
 OPTION_NAMES: tuple[str, ...] = tuple(o.name for o in GENERATE_OPTIONS)

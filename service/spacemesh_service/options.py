@@ -22,8 +22,8 @@ every name must be an option of the route, every value is parsed by the model's 
 ``format``, ``weld`` and ``max_growth`` included, is a 422 ``invalid-option`` naming the
 option (``option``); a name the route does not take is one too (``option``, and
 ``unknown``: every such name). Generate-only options (``start``, ``start_time``,
-``target_vertices``, ``tolerance``, ``samples``, ``raw``, ``surface``) are not options of
-``/repair``.
+``target_vertices``, ``tolerance``, ``samples``, ``raw``, ``surface``, ``face_type``) are
+not options of ``/repair``.
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ from typing import Any
 
 from spacemesh.geometry.surface import SURFACE_MODES
 from spacemesh.runtime.options import (
+    FACE_TYPES,
     GENERATE_ONLY,
     MAX_SAMPLES,
     MAX_SEED,
@@ -64,10 +65,13 @@ RANDOM_SEED_BITS = 31
 _NOTES = {"seed": "Picked at random (and reported) when absent.",
           "target_vertices": "Needs `start=points`.",
           "tolerance": "Needs `start=points`; not with `target_vertices`.",
-          "surface": "Default: auto (closed with `raw`)."}
+          "surface": "Default: auto (closed with `raw`).",
+          "face_type": "Default: what the model's decode makes (the shipped model's: "
+                       "triangles)."}
 #: Values an option may take, where they are a fixed set.
 _CHOICES: dict[str, tuple[str, ...]] = {"sampler": METHODS, "start": START_MODES,
-                                        "surface": SURFACE_MODES, "format": OUTPUT_FORMATS}
+                                        "surface": SURFACE_MODES, "face_type": FACE_TYPES,
+                                        "format": OUTPUT_FORMATS}
 #: Inclusive ranges of the numeric options (None: no bound here; the model's).
 _RANGES: dict[str, tuple[float | None, float | None]] = {
     "seed": (0, MAX_SEED), "steps": (1, None), "start_time": (0.0, 1.0),

@@ -47,7 +47,7 @@ def test_the_page_loads_without_console_errors(page, server):
         "css selector", "input, select")}
     # every generate option of the service's table but format (downloads pick it)
     assert labels == {"seed", "steps", "sampler", "start", "start_time", "target_vertices",
-                      "tolerance", "samples", "raw", "surface"}
+                      "tolerance", "samples", "raw", "surface", "face_type"}
     assert httpx.get(server.url + "/static/vendor/three/LICENSE").status_code == 200
 
 

@@ -103,10 +103,12 @@ def test_sdk_sends_every_option_and_reads_the_report(client, case):
     cloud = case.points[::2]
     mesh = client.generate(cloud, seed=3, steps=4, sampler="ddim", start="points",
                            start_time=0.0, target_vertices=60, samples=2, raw=False,
-                           surface="closed", format="obj")
+                           surface="closed", face_type="polygons", format="obj")
     assert mesh.options == {"seed": mesh.seed, "steps": 4, "sampler": "ddim",
                             "start": "points", "start_time": 0.0, "target_vertices": 60,
-                            "samples": 2, "raw": False, "surface": "closed"}
+                            "samples": 2, "raw": False, "surface": "closed",
+                            "face_type": "polygons"}
+    assert mesh.stats.fit["face_planarity"] >= 0.0  # the tiny model's own polygons as made
     assert mesh.stats.fit["open_surface"] is False and mesh.stats.closed
     assert mesh.seed in (3, 4) and [s for s, _ in mesh.sample_scores] == [3, 4]
     assert set(mesh.stats.fit) == set(FitReport.__dataclass_fields__) - TOLERANCE_FIELDS

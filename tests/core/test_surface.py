@@ -156,7 +156,7 @@ def test_an_open_surface_loses_its_crossing_faces_and_keeps_its_guarantee():
     sphere = icosphere(2)
     cap, _ = open_surface(sphere, support_of(sphere, sphere.face_normals()[:, 2] > 0.2))
     turned = cap.vertices @ np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]).T
-    both = PolygonMesh(np.concatenate([cap.vertices, turned + [0.0, 0.0, 0.3]]),
+    both = PolygonMesh(np.concatenate([cap.vertices, turned + np.array([0.0, 0.0, 0.3])]),
                        np.concatenate([cap.face_indices, cap.face_indices + cap.n_vertices]),
                        np.concatenate([cap.face_offsets[:-1],
                                        cap.face_offsets + cap.face_indices.size]))

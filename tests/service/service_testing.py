@@ -280,6 +280,9 @@ BAD_OPTIONS = [
     ({"start": "noise", "tolerance": 0.01}, "tolerance"),
     ({"surface": "half"}, "surface"),
     ({"raw": True, "surface": "open"}, "surface"),
+    ({"face_type": "hexagons"}, "face_type"),
+    ({"face_type": "quads"}, "face_type"),
+    ({"raw": True, "face_type": "triangles"}, "face_type"),  # the tiny model makes polygons
 ]
 
 

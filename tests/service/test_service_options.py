@@ -35,6 +35,7 @@ GOOD_OPTIONS = [
     {"start": "noise", "sampler": "ddpm", "steps": 4},
     {"start": "points", "surface": "open"},
     {"start": "points", "surface": "closed"},
+    {"start": "points", "face_type": "polygons"},
 ]
 
 
@@ -127,7 +128,8 @@ def test_rest_options_reach_the_generator(http, generator, cloud, options):
     h, body = response.headers, response.json()
     resolved = result.options
     assert h["x-spacemesh-seed"] == str(resolved.seed) == str(body["seed"])
-    for name in ("steps", "sampler", "start", "start_time", "samples", "surface"):
+    for name in ("steps", "sampler", "start", "start_time", "samples", "surface",
+                 "face_type"):
         header = f"x-spacemesh-{name.replace('_', '-')}"
         if getattr(resolved, name) is None:  # start_time with start=noise
             assert header not in h and body[name] is None
@@ -161,7 +163,7 @@ def test_grpc_options_reach_the_generator(stub, generator, cloud, options):
     reply = stub.Generate(request)
     resolved = result.options
     for name in ("seed", "steps", "sampler", "start", "start_time", "samples", "raw",
-                 "surface"):
+                 "surface", "face_type"):
         if getattr(resolved, name) is None:  # start_time with start=noise: unset
             assert not reply.HasField(name), name
             continue

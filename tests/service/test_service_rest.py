@@ -267,7 +267,7 @@ def test_openapi(http):
     assert body["application/json"]["examples"]
     assert [p["name"] for p in generate["parameters"]] == [
         "format", "seed", "steps", "sampler", "start", "start_time", "target_vertices",
-        "tolerance", "samples", "raw", "surface"]
+        "tolerance", "samples", "raw", "surface", "face_type"]
     schemas = {p["name"]: p["schema"] for p in generate["parameters"]}
     assert schemas["surface"]["enum"] == ["auto", "closed", "open"]
     assert schemas["tolerance"] == {**schemas["tolerance"], "type": "number",

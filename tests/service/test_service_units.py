@@ -221,7 +221,7 @@ def test_the_option_table_is_generate_options():
     kinds = {o.name: o.kind for o in GENERATE_OPTIONS}
     assert kinds == {"seed": int, "steps": int, "sampler": str, "start": str,
                      "start_time": float, "target_vertices": int, "tolerance": float,
-                     "samples": int, "raw": bool, "surface": str}
+                     "samples": int, "raw": bool, "surface": str, "face_type": str}
     assert all(o.description for o in GENERATE_OPTIONS)
     assert "farthest-point" in {o.name: o.description for o in GENERATE_OPTIONS}["start"]
 

@@ -18,6 +18,7 @@ from typing import Annotated, Any
 import typer
 
 from spacemesh.cli.common import (
+    FaceTypeFlag,
     RawFlag,
     SamplerFlag,
     SamplesFlag,
@@ -80,6 +81,7 @@ def batch(
     samples: SamplesFlag = None,
     raw: RawFlag = False,
     surface: SurfaceFlag = None,
+    face_type: FaceTypeFlag = None,
     retry_errors: Annotated[bool, typer.Option(
         "--retry-errors", help="Run inputs with an error row again (by default a rerun "
         "retries only unreadable-input and internal-error rows).")] = False,
@@ -97,7 +99,8 @@ def batch(
 
     values = {"seed": seed, "steps": steps, "sampler": sampler, "start": start,
               "start_time": start_time, "target_vertices": target_vertices,
-              "tolerance": tolerance, "samples": samples, "raw": raw, "surface": surface}
+              "tolerance": tolerance, "samples": samples, "raw": raw, "surface": surface,
+              "face_type": face_type}
     options = generate_options(**values)
     file_format = file_format.lower().lstrip(".")
     if file_format not in OUTPUT_FORMATS:

@@ -65,6 +65,10 @@ SurfaceFlag = Annotated[str | None, typer.Option(
     "--surface", metavar="auto|closed|open", help="closed: watertight; open: trimmed to "
     "where the points are (scans seen from some sides only); auto (default): open when the "
     "points leave a large part of the closed mesh unsupported.")]
+FaceTypeFlag = Annotated[str | None, typer.Option(
+    "--face-type", metavar="triangles|polygons", help="triangles (default), or polygons: "
+    "flat regions merged into planar polygons (OBJ, PLY, OFF keep them; GLB holds "
+    "triangles).")]
 
 P = ParamSpec("P")
 R = TypeVar("R")

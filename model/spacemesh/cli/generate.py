@@ -27,6 +27,7 @@ from typing import Annotated, Any
 import typer
 
 from spacemesh.cli.common import (
+    FaceTypeFlag,
     RawFlag,
     SamplerFlag,
     SamplesFlag,
@@ -74,6 +75,7 @@ def generate(
     samples: SamplesFlag = None,
     raw: RawFlag = False,
     surface: SurfaceFlag = None,
+    face_type: FaceTypeFlag = None,
     threads: Threads = 0,
     budget_s: Annotated[float | None, typer.Option(
         "--budget-s", min=0, help="Refuse the request (exit 2) when its estimated time "
@@ -97,7 +99,7 @@ def generate(
     options = generate_options(seed=seed, steps=steps, sampler=sampler, start=start,
                                start_time=start_time, target_vertices=target_vertices,
                                tolerance=tolerance, samples=samples, raw=raw,
-                               surface=surface)
+                               surface=surface, face_type=face_type)
     if output.suffix.lower() not in MESH_SUFFIXES:
         fail(f"{output}: the output must end in one of {', '.join(MESH_SUFFIXES)}")
     if not output.parent.exists():

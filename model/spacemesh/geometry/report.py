@@ -28,6 +28,9 @@ lines and ``samples=K`` (which keeps the seed with the lowest :attr:`FitReport.s
   along the surface normal as a fraction of their diagonal
   (:func:`spacemesh.geometry.cleaning.assess_points`). The distances above are measured
   from the kept points;
+* ``face_planarity``: the largest distance of a face's corner from the face's best-fit
+  plane, as a fraction of the diagonal (0 for triangles;
+  :func:`spacemesh.geometry.polygons.face_planarity`);
 * ``open_surface`` and ``unsupported_area``: from a generate (not ``raw``), whether the
   mesh was trimmed to its points (``surface=open``, or ``auto`` deciding so) and the
   share of the closed mesh's area that no point supports and no point lies in front
@@ -43,6 +46,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from spacemesh.geometry.intersections import self_intersection_fraction
+from spacemesh.geometry.polygons import face_planarity
 from spacemesh.io.reduce import reduction_indices
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangle_areas, triangles_of
@@ -95,6 +99,7 @@ class FitReport:
     points_noise: float | None = None
     open_surface: bool | None = None
     unsupported_area: float | None = None
+    face_planarity: float = 0.0
 
     @property
     def pieces_agree(self) -> bool | None:
@@ -241,7 +246,10 @@ def fit_report(mesh: PolygonMesh, points: FloatArray, facts: PointFacts | None =
         return FitReport(nan, nan, nan, nan, nan, nan, nan, nan, 0.0, components,
                          0.0, diagonal, len(points), topology.pieces, topology.genus,
                          topology.boundary_loops, tolerance,
-                         None if tolerance is None else False, *known, *decided)
+                         None if tolerance is None else False, points_pieces=known[0],
+                         points_outliers=known[1], points_noise=known[2],
+                         open_surface=decided[0], unsupported_area=decided[1],
+                         face_planarity=face_planarity(mesh) / relative)
     to_mesh, to_points = _distances(mesh, points)
     to_mesh_mean, to_mesh_p95 = float(to_mesh.mean()), float(np.percentile(to_mesh, 95))
     to_points_mean = float(to_points.mean())
@@ -262,4 +270,5 @@ def fit_report(mesh: PolygonMesh, points: FloatArray, facts: PointFacts | None =
         tolerance_met=None if tolerance is None else to_mesh_mean / relative <= tolerance,
         points_pieces=known[0], points_outliers=known[1], points_noise=known[2],
         open_surface=decided[0], unsupported_area=decided[1],
+        face_planarity=face_planarity(mesh) / relative,
     )

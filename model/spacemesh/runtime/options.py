@@ -21,7 +21,7 @@ The parsing rule, by type:
   ``nan`` and ``inf`` are not numbers here;
 - **boolean** (``raw``): true or false, or one of :data:`TRUE_WORDS` /
   :data:`FALSE_WORDS` (any case);
-- **text** (``sampler``, ``start``, ``surface``): text only.
+- **text** (``sampler``, ``start``, ``surface``, ``face_type``): text only.
 
 Surrounding whitespace of text is ignored; empty text is "not given".
 """
@@ -46,7 +46,10 @@ START_MODES = ("noise", "points")
 #: Generate options that a repair does not take (it reads ``seed``, ``steps`` and
 #: ``sampler``).
 GENERATE_ONLY = ("start", "start_time", "target_vertices", "tolerance", "samples", "raw",
-                 "surface")
+                 "surface", "face_type")
+#: What ``face_type`` may ask for (``quads`` needs a connectivity network trained on
+#: quad-dominant meshes, which the shipped model is not).
+FACE_TYPES = ("triangles", "polygons", "quads")
 #: Most seeds one ``samples`` request may try.
 MAX_SAMPLES = 16
 #: Fewest vertices a mesh may be asked for (a tetrahedron).
@@ -136,6 +139,15 @@ class GenerateOptions:
         points are (:mod:`spacemesh.geometry.surface`); ``auto`` (the default): open
         when the points leave a large part of the closed mesh unsupported (a one-sided
         scan). With ``raw`` only ``closed`` (its default there).
+    face_type : {"triangles", "polygons", "quads"}, optional
+        ``triangles``: a triangle mesh (a model whose decode makes polygons has them
+        triangulated); ``polygons``: flat regions merged into planar polygons
+        (:mod:`spacemesh.geometry.polygons`; every merged face's corners within 0.1% of
+        the diagonal of its plane; a decode's own polygons are kept as they are);
+        ``quads`` needs a model trained on quad-dominant meshes (refused otherwise).
+        Default: what the model's decode makes (``triangles`` for a decode with
+        ``max_sides`` 3, the shipped model's; ``polygons`` otherwise). With ``raw``
+        only that default.
     """
 
     seed: int = 0
@@ -148,6 +160,7 @@ class GenerateOptions:
     samples: int = 1
     raw: bool = False
     surface: str | None = None
+    face_type: str | None = None
 
     def resolve(self, spec: ModelSpec) -> GenerateOptions:
         """These options with the model's defaults filled in, every range checked.
@@ -208,9 +221,11 @@ class GenerateOptions:
         samples = _integer("samples", self.samples, 1, MAX_SAMPLES)
         raw = parse_boolean("raw", self.raw)
         surface = _surface(self.surface, raw)
+        face_type = _face_type(self.face_type, raw, spec)
         return replace(self, seed=seed, steps=steps, sampler=sampler, start=start,
                        start_time=start_time, target_vertices=target_vertices,
-                       tolerance=tolerance, samples=samples, raw=raw, surface=surface)
+                       tolerance=tolerance, samples=samples, raw=raw, surface=surface,
+                       face_type=face_type)
 
     @classmethod
     def parse(cls, values: Mapping[str, Any]) -> GenerateOptions:
@@ -258,6 +273,30 @@ def _surface(value: Any, raw: bool) -> str:
         raise OptionError("surface", f"surface={surface} needs the geometry stage, which raw "
                                      "skips (a raw mesh is the closed decode)")
     return surface
+
+
+def _face_type(value: Any, raw: bool, spec: ModelSpec) -> str:
+    """The resolved ``face_type``: by default what the model's decode makes; another
+    one changes the faces after the geometry stage (so not with ``raw``); ``quads``
+    needs a model whose decode makes quad-dominant meshes, which no shipped model
+    does."""
+    native = "triangles" if spec.decode.max_sides == 3 else "polygons"
+    if value is None:
+        return native
+    face_type = parse_text("face_type", value)
+    if face_type not in FACE_TYPES:
+        raise OptionError("face_type", f"face_type must be one of {', '.join(FACE_TYPES)}, "
+                                       f"not {face_type!r}")
+    if face_type == "quads":
+        raise OptionError("face_type", "face_type=quads needs a connectivity network "
+                                       "trained on quad-dominant meshes, which this model "
+                                       "does not have (polygons merges flat regions into "
+                                       "planar polygons)")
+    if raw and face_type != native:
+        raise OptionError("face_type", f"face_type={face_type} needs the geometry stage, "
+                                       f"which raw skips (this model's decode makes "
+                                       f"{native})")
+    return face_type
 
 
 def _kind(annotation: Any) -> type:

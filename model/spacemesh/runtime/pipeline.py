@@ -15,7 +15,9 @@ For each request:
 
 Each seed's mesh gets its ``surface`` at the end of its geometry stage (trimmed to the
 points with ``surface=open``, or ``auto`` deciding so: :mod:`spacemesh.geometry.surface`),
-so the seeds' checks and the untangling see what the user gets.
+so the seeds' checks and the untangling see what the user gets; with
+``face_type=polygons`` the chosen mesh's flat regions are merged into planar polygons
+last (:mod:`spacemesh.geometry.polygons`).
 
 Requests of one :meth:`MeshGenerator.generate_batch` call share each network call;
 each keeps its own seed, and the backend runs every batch item alone, so batching never
@@ -32,10 +34,13 @@ from typing import Any
 
 import numpy as np
 
-from spacemesh.geometry import SurfaceFacts
+from spacemesh.geometry import FitReport, SurfaceFacts
 from spacemesh.geometry.finishing import finish_geometry
+from spacemesh.geometry.polygons import merge_coplanar
 from spacemesh.geometry.surface import drop_crossing_faces
 from spacemesh.geometry.untangle import untangle
+from spacemesh.mesh import PolygonMesh
+from spacemesh.primitives import triangulate_manifold
 from spacemesh.runtime.backend import Backend
 from spacemesh.runtime.choice import acceptable, best_fit, crosses
 from spacemesh.runtime.network import (
@@ -58,6 +63,10 @@ from spacemesh.runtime.sampler import ProgressFn, StageFn
 from spacemesh.runtime.spec import ModelSpec
 from spacemesh.runtime.tolerance import aim, attempt_options, distance_of, search_vertex_count
 from spacemesh.typed import FloatArray
+
+#: ``face_type=polygons``: the largest distance of a polygon's corner from its plane, a
+#: fraction of the points' diagonal (the promise is 0.1%; a margin for rounding).
+POLYGON_PLANARITY = 0.0009
 
 
 class MeshGenerator:
@@ -220,7 +229,7 @@ class MeshGenerator:
             spent = summed_timings(tried)  # every seed ran: the request spent them all
             chosen = best_fit(tried, options, expected, check=self.spec.retry_seeds > 0)
             chosen.timings = spent
-            results.append(self._untangled(chosen, prepared, stage))
+            results.append(self._faced(self._untangled(chosen, prepared, stage), prepared))
         return results
 
     def _untangled(self, result: GenerateResult, prepared: PreparedInput,
@@ -241,8 +250,7 @@ class MeshGenerator:
         if stage is not None:
             stage("untangle", 1, 1)
         started = time.perf_counter()
-        surface = None if result.fit.open_surface is None else SurfaceFacts(
-            bool(result.fit.open_surface), float(result.fit.unsupported_area or 0.0))
+        surface = _decided(result.fit)
         opened = surface is not None and surface.open
         mesh, stats = untangle(result.mesh)
         if stats["crossing_after"] >= stats["crossing_before"]:
@@ -261,6 +269,33 @@ class MeshGenerator:
         result.mesh = mesh
         result.geometry_stats = {**result.geometry_stats, **stats}
         result.fit = prepared.report(mesh, surface)
+        _add_geometry_time(result, time.perf_counter() - started)
+        return result
+
+    def _faced(self, result: GenerateResult, prepared: PreparedInput) -> GenerateResult:
+        """The chosen mesh's faces as ``face_type`` asks, last (nothing after it moves a
+        vertex): with ``polygons`` its flat regions merged into planar polygons
+        (:func:`spacemesh.geometry.polygons.merge_coplanar`, every merged face's corners
+        within :data:`POLYGON_PLANARITY` of the diagonal of its plane); with
+        ``triangles`` a decode's polygons triangulated
+        (:func:`spacemesh.primitives.triangulate_manifold`, as manifold as the
+        polygons); its fit report made again when the faces changed."""
+        if result.fit is None or result.options.raw:
+            return result
+        started = time.perf_counter()
+        stats: dict[str, int | float] = {}
+        merged = result.mesh
+        if result.options.face_type == "polygons":
+            merged, stats = merge_coplanar(result.mesh, POLYGON_PLANARITY * result.fit.diagonal)
+        elif not result.mesh.is_triangle_mesh():
+            vertices, triangles, _ = triangulate_manifold(result.mesh)
+            merged = PolygonMesh(vertices, triangles.reshape(-1),
+                                 np.arange(0, triangles.size + 1, 3))
+            stats = {"faces_triangulated": result.mesh.n_faces}
+        if merged is not result.mesh:
+            result.mesh = merged
+            result.fit = prepared.report(merged, _decided(result.fit))
+        result.geometry_stats = {**result.geometry_stats, **stats}
         _add_geometry_time(result, time.perf_counter() - started)
         return result
 
@@ -337,7 +372,7 @@ class MeshGenerator:
             extra = [r for r in retried if distance_of(r) <= tolerance or not keep_met]
             found = best_fit([found, *extra], found.options, expected)
         found.timings = summed_timings(ran)
-        found = self._untangled(found, prepared, stage)
+        found = self._faced(self._untangled(found, prepared, stage), prepared)
         # the fit reports carry the tolerance and whether it is met (PreparedInput)
         found.options = replace(found.options, tolerance=tolerance, target_vertices=None)
         found.tolerance_tries = tried
@@ -359,6 +394,14 @@ class MeshGenerator:
     def vertex_count(self, options: GenerateOptions) -> int:
         """Vertices ``start=points`` chooses: the target, else the model's default."""
         return vertex_count(self.spec, options)
+
+
+def _decided(fit: FitReport) -> SurfaceFacts | None:
+    """The surface decision a fit report carries (None for ``raw``), for the report of
+    the same request's mended mesh."""
+    if fit.open_surface is None:
+        return None
+    return SurfaceFacts(bool(fit.open_surface), float(fit.unsupported_area or 0.0))
 
 
 def _add_geometry_time(result: GenerateResult, seconds: float) -> None:

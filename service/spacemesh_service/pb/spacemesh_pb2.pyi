@@ -23,7 +23,7 @@ class Points(_message.Message):
     def __init__(self, xyz: _Optional[_Iterable[float]] = ..., normals: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class GenerateRequest(_message.Message):
-    __slots__ = ("file", "points", "format", "seed", "steps", "sampler", "start", "start_time", "target_vertices", "samples", "raw", "tolerance", "surface", "stages")
+    __slots__ = ("file", "points", "format", "seed", "steps", "sampler", "start", "start_time", "target_vertices", "samples", "raw", "tolerance", "surface", "face_type", "stages")
     FILE_FIELD_NUMBER: _ClassVar[int]
     POINTS_FIELD_NUMBER: _ClassVar[int]
     FORMAT_FIELD_NUMBER: _ClassVar[int]
@@ -37,6 +37,7 @@ class GenerateRequest(_message.Message):
     RAW_FIELD_NUMBER: _ClassVar[int]
     TOLERANCE_FIELD_NUMBER: _ClassVar[int]
     SURFACE_FIELD_NUMBER: _ClassVar[int]
+    FACE_TYPE_FIELD_NUMBER: _ClassVar[int]
     STAGES_FIELD_NUMBER: _ClassVar[int]
     file: PointCloudFile
     points: Points
@@ -51,11 +52,12 @@ class GenerateRequest(_message.Message):
     raw: bool
     tolerance: float
     surface: str
+    face_type: str
     stages: bool
-    def __init__(self, file: _Optional[_Union[PointCloudFile, _Mapping]] = ..., points: _Optional[_Union[Points, _Mapping]] = ..., format: _Optional[str] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., start: _Optional[str] = ..., start_time: _Optional[float] = ..., target_vertices: _Optional[int] = ..., samples: _Optional[int] = ..., raw: _Optional[bool] = ..., tolerance: _Optional[float] = ..., surface: _Optional[str] = ..., stages: _Optional[bool] = ...) -> None: ...
+    def __init__(self, file: _Optional[_Union[PointCloudFile, _Mapping]] = ..., points: _Optional[_Union[Points, _Mapping]] = ..., format: _Optional[str] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., start: _Optional[str] = ..., start_time: _Optional[float] = ..., target_vertices: _Optional[int] = ..., samples: _Optional[int] = ..., raw: _Optional[bool] = ..., tolerance: _Optional[float] = ..., surface: _Optional[str] = ..., face_type: _Optional[str] = ..., stages: _Optional[bool] = ...) -> None: ...
 
 class FitReport(_message.Message):
-    __slots__ = ("points_to_mesh_mean", "points_to_mesh_p95", "mesh_to_points_mean", "mesh_to_points_p95", "points_to_mesh_mean_rel", "points_to_mesh_p95_rel", "mesh_to_points_mean_rel", "mesh_to_points_p95_rel", "coverage", "components", "self_intersections", "diagonal", "n_points", "pieces", "genus", "boundary_loops", "tolerance", "tolerance_met", "points_pieces", "points_outliers", "points_noise", "open_surface", "unsupported_area")
+    __slots__ = ("points_to_mesh_mean", "points_to_mesh_p95", "mesh_to_points_mean", "mesh_to_points_p95", "points_to_mesh_mean_rel", "points_to_mesh_p95_rel", "mesh_to_points_mean_rel", "mesh_to_points_p95_rel", "coverage", "components", "self_intersections", "diagonal", "n_points", "pieces", "genus", "boundary_loops", "tolerance", "tolerance_met", "points_pieces", "points_outliers", "points_noise", "open_surface", "unsupported_area", "face_planarity")
     POINTS_TO_MESH_MEAN_FIELD_NUMBER: _ClassVar[int]
     POINTS_TO_MESH_P95_FIELD_NUMBER: _ClassVar[int]
     MESH_TO_POINTS_MEAN_FIELD_NUMBER: _ClassVar[int]
@@ -79,6 +81,7 @@ class FitReport(_message.Message):
     POINTS_NOISE_FIELD_NUMBER: _ClassVar[int]
     OPEN_SURFACE_FIELD_NUMBER: _ClassVar[int]
     UNSUPPORTED_AREA_FIELD_NUMBER: _ClassVar[int]
+    FACE_PLANARITY_FIELD_NUMBER: _ClassVar[int]
     points_to_mesh_mean: float
     points_to_mesh_p95: float
     mesh_to_points_mean: float
@@ -102,7 +105,8 @@ class FitReport(_message.Message):
     points_noise: float
     open_surface: bool
     unsupported_area: float
-    def __init__(self, points_to_mesh_mean: _Optional[float] = ..., points_to_mesh_p95: _Optional[float] = ..., mesh_to_points_mean: _Optional[float] = ..., mesh_to_points_p95: _Optional[float] = ..., points_to_mesh_mean_rel: _Optional[float] = ..., points_to_mesh_p95_rel: _Optional[float] = ..., mesh_to_points_mean_rel: _Optional[float] = ..., mesh_to_points_p95_rel: _Optional[float] = ..., coverage: _Optional[float] = ..., components: _Optional[int] = ..., self_intersections: _Optional[float] = ..., diagonal: _Optional[float] = ..., n_points: _Optional[int] = ..., pieces: _Optional[int] = ..., genus: _Optional[int] = ..., boundary_loops: _Optional[int] = ..., tolerance: _Optional[float] = ..., tolerance_met: _Optional[bool] = ..., points_pieces: _Optional[int] = ..., points_outliers: _Optional[float] = ..., points_noise: _Optional[float] = ..., open_surface: _Optional[bool] = ..., unsupported_area: _Optional[float] = ...) -> None: ...
+    face_planarity: float
+    def __init__(self, points_to_mesh_mean: _Optional[float] = ..., points_to_mesh_p95: _Optional[float] = ..., mesh_to_points_mean: _Optional[float] = ..., mesh_to_points_p95: _Optional[float] = ..., points_to_mesh_mean_rel: _Optional[float] = ..., points_to_mesh_p95_rel: _Optional[float] = ..., mesh_to_points_mean_rel: _Optional[float] = ..., mesh_to_points_p95_rel: _Optional[float] = ..., coverage: _Optional[float] = ..., components: _Optional[int] = ..., self_intersections: _Optional[float] = ..., diagonal: _Optional[float] = ..., n_points: _Optional[int] = ..., pieces: _Optional[int] = ..., genus: _Optional[int] = ..., boundary_loops: _Optional[int] = ..., tolerance: _Optional[float] = ..., tolerance_met: _Optional[bool] = ..., points_pieces: _Optional[int] = ..., points_outliers: _Optional[float] = ..., points_noise: _Optional[float] = ..., open_surface: _Optional[bool] = ..., unsupported_area: _Optional[float] = ..., face_planarity: _Optional[float] = ...) -> None: ...
 
 class SampleScore(_message.Message):
     __slots__ = ("seed", "score")
@@ -144,7 +148,7 @@ class MeshStats(_message.Message):
     def __init__(self, vertices: _Optional[int] = ..., faces: _Optional[int] = ..., edges: _Optional[int] = ..., face_degrees: _Optional[_Mapping[int, int]] = ..., manifold: _Optional[bool] = ..., closed: _Optional[bool] = ..., oriented: _Optional[bool] = ..., components: _Optional[int] = ..., genus: _Optional[int] = ..., fit: _Optional[_Union[FitReport, _Mapping]] = ...) -> None: ...
 
 class MeshReply(_message.Message):
-    __slots__ = ("mesh", "format", "media_type", "stats", "seed", "steps", "sampler", "model_name", "model_version", "timings", "batch_size", "repair", "start", "start_time", "target_vertices", "samples", "raw", "sample_scores", "input_kind", "tolerance", "points_read", "points_used", "surface")
+    __slots__ = ("mesh", "format", "media_type", "stats", "seed", "steps", "sampler", "model_name", "model_version", "timings", "batch_size", "repair", "start", "start_time", "target_vertices", "samples", "raw", "sample_scores", "input_kind", "tolerance", "points_read", "points_used", "surface", "face_type")
     class TimingsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -175,6 +179,7 @@ class MeshReply(_message.Message):
     POINTS_READ_FIELD_NUMBER: _ClassVar[int]
     POINTS_USED_FIELD_NUMBER: _ClassVar[int]
     SURFACE_FIELD_NUMBER: _ClassVar[int]
+    FACE_TYPE_FIELD_NUMBER: _ClassVar[int]
     mesh: bytes
     format: str
     media_type: str
@@ -198,7 +203,8 @@ class MeshReply(_message.Message):
     points_read: int
     points_used: int
     surface: str
-    def __init__(self, mesh: _Optional[bytes] = ..., format: _Optional[str] = ..., media_type: _Optional[str] = ..., stats: _Optional[_Union[MeshStats, _Mapping]] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., model_name: _Optional[str] = ..., model_version: _Optional[str] = ..., timings: _Optional[_Mapping[str, float]] = ..., batch_size: _Optional[int] = ..., repair: _Optional[_Union[RepairStats, _Mapping]] = ..., start: _Optional[str] = ..., start_time: _Optional[float] = ..., target_vertices: _Optional[int] = ..., samples: _Optional[int] = ..., raw: _Optional[bool] = ..., sample_scores: _Optional[_Iterable[_Union[SampleScore, _Mapping]]] = ..., input_kind: _Optional[str] = ..., tolerance: _Optional[float] = ..., points_read: _Optional[int] = ..., points_used: _Optional[int] = ..., surface: _Optional[str] = ...) -> None: ...
+    face_type: str
+    def __init__(self, mesh: _Optional[bytes] = ..., format: _Optional[str] = ..., media_type: _Optional[str] = ..., stats: _Optional[_Union[MeshStats, _Mapping]] = ..., seed: _Optional[int] = ..., steps: _Optional[int] = ..., sampler: _Optional[str] = ..., model_name: _Optional[str] = ..., model_version: _Optional[str] = ..., timings: _Optional[_Mapping[str, float]] = ..., batch_size: _Optional[int] = ..., repair: _Optional[_Union[RepairStats, _Mapping]] = ..., start: _Optional[str] = ..., start_time: _Optional[float] = ..., target_vertices: _Optional[int] = ..., samples: _Optional[int] = ..., raw: _Optional[bool] = ..., sample_scores: _Optional[_Iterable[_Union[SampleScore, _Mapping]]] = ..., input_kind: _Optional[str] = ..., tolerance: _Optional[float] = ..., points_read: _Optional[int] = ..., points_used: _Optional[int] = ..., surface: _Optional[str] = ..., face_type: _Optional[str] = ...) -> None: ...
 
 class RepairStats(_message.Message):
     __slots__ = ("requested_faces", "region_faces", "grown_faces", "removed_vertices", "boundary_vertices", "loops", "new_vertices", "new_faces", "new_face_degrees", "patch_faces", "patch_rings", "known_vertices", "tokens", "candidates", "fallback", "fill", "inpaint", "flipped_orientation", "welded_vertices", "region_share", "auto_region", "passes", "reversed_faces", "flipped_mesh", "samplings", "handles_added", "findings", "findings_total", "regions")
