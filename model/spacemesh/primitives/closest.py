@@ -143,8 +143,12 @@ def candidate_triangles(points: FloatArray, positions: FloatArray, triangles: In
     k = min(k, len(samples))
     _, near = cKDTree(samples).query(points, k=k)
     near = np.asarray(near, dtype=np.int64).reshape(len(points), k) // len(weights)  # (P, k)
-    gap = squared_distances(np.repeat(points, k, axis=0), corners[near.reshape(-1)])
-    return near, gap.reshape(-1, k)
+    # a triangle's samples lie together: measure each (point, triangle) pair once
+    keys = np.arange(len(points))[:, None] * len(triangles) + near  # (P, k)
+    unique, inverse = np.unique(keys, return_inverse=True)
+    gap = squared_distances(np.asarray(points)[unique // len(triangles)],
+                            corners[unique % len(triangles)])
+    return near, gap[inverse.reshape(-1)].reshape(-1, k)
 
 
 def nearest_triangles(points: FloatArray, positions: FloatArray, triangles: IntArray
