@@ -11,11 +11,14 @@ estimate counts those at an even chance per seed).
 
 With ``--server``, ``spacemesh serve`` (default settings: 30 s deadline, the default
 budget) answers issue 37's reproductions and the request the default budget must admit
-(``target_vertices=2048&samples=4`` on 200,000 points), and the time each answer took.
+(``target_vertices=2048&samples=4`` on 200,000 points), and the time each answer took
+(``--admitted``: that request only; ``--only 200k-tv2048-samples4 --server --admitted``
+times it in-process and through the server).
 
 Usage::
 
-    python bench/bench_cost_model.py [--full] [--server] [--only NAME] [--json OUT]
+    python bench/bench_cost_model.py [--full] [--server [--admitted]] [--only NAME ...]
+                                     [--json OUT]
 """
 
 from __future__ import annotations
@@ -162,8 +165,9 @@ def calibrate(cases: dict[str, tuple[str, Any, dict[str, Any]]]) -> list[dict[st
     return rows
 
 
-def against_server() -> list[dict[str, Any]]:
-    """Issue 37's reproductions and the admitted request on ``spacemesh serve``."""
+def against_server(admitted_only: bool = False) -> list[dict[str, Any]]:
+    """Issue 37's reproductions and the admitted request on ``spacemesh serve`` (the
+    latter only with ``admitted_only``)."""
     import httpx
 
     from bench.bench_big_cloud import binary_ply
@@ -178,6 +182,8 @@ def against_server() -> list[dict[str, Any]]:
                 ("200k, " + HEAVY, HEAVY, big),
                 ("200k, target_vertices=2048&samples=4", "target_vertices=2048&samples=4",
                  big)]
+    if admitted_only:
+        requests = requests[-1:]
     rows = []
     try:
         for name, query, data in requests:
@@ -203,7 +209,10 @@ def main() -> None:
     parser.add_argument("--full", action="store_true", help="also the cases of minutes")
     parser.add_argument("--server", action="store_true",
                         help="also issue 37's requests on spacemesh serve (defaults)")
-    parser.add_argument("--only", nargs="+", help="these cases only")
+    parser.add_argument("--admitted", action="store_true",
+                        help="with --server: only the request the default budget admits")
+    parser.add_argument("--only", nargs="*", help="these cases only (none: no "
+                        "calibration)")
     parser.add_argument("--json", type=Path, help="write the rows here")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -212,11 +221,11 @@ def main() -> None:
         return
     sys.path.insert(0, str(ROOT))
     cases = {**CASES, **(LONG_CASES if args.full else {})}
-    if args.only:
+    if args.only is not None:
         cases = {k: v for k, v in {**CASES, **LONG_CASES}.items() if k in args.only}
     result: dict[str, Any] = {"calibration": calibrate(cases)}
     if args.server:
-        result["server"] = against_server()
+        result["server"] = against_server(args.admitted)
     if args.json:
         args.json.write_text(json.dumps(result, indent=1))
 

@@ -14,6 +14,9 @@ been cancelled the batch stops at the next sampler step.
 :meth:`Batcher.submit_call` queues work that does not batch (a repair): it waits in the
 same queue, counts against the same ``queue_size`` and runs alone in the same inference
 thread, so generation and repair never compete for the cores.
+
+The service runs two batchers, the lanes of :class:`spacemesh_service.lanes.Lanes`; each
+is named by its ``lane`` in the metrics.
 """
 
 from __future__ import annotations
@@ -115,11 +118,16 @@ class Batcher:
     queue_size : int
         Most requests waiting (not counting the running batch).
     metrics : Metrics, optional
+    lane : str
+        The lane's name in the metrics (``spacemesh_lane_*{lane}``) and the name of its
+        inference thread.
     """
 
     def __init__(self, run: RunBatch, *, max_batch_size: int, max_delay_s: float,
-                 queue_size: int, metrics: Metrics | None = None) -> None:
+                 queue_size: int, metrics: Metrics | None = None,
+                 lane: str = "main") -> None:
         self._run_batch = run
+        self.lane = lane
         self.max_batch_size = max_batch_size
         self.max_delay_s = max_delay_s
         self.queue_size = queue_size
@@ -129,7 +137,7 @@ class Batcher:
         self._arrived = asyncio.Event()
         self._closing = False
         self._worker: asyncio.Task | None = None
-        self._executor = ThreadPoolExecutor(1, thread_name_prefix="spacemesh-inference")
+        self._executor = ThreadPoolExecutor(1, thread_name_prefix=f"spacemesh-{lane}")
         self._batch_seconds = 0.0  # moving average, for Retry-After
         self._running_since: float | None = None  # monotonic start of the running batch
 
@@ -302,7 +310,11 @@ class Batcher:
     # ------------------------------------------------------------------ worker
     def _set_depth(self) -> None:
         if self.metrics is not None:
-            self.metrics.queue_depth.set(len(self._pending))
+            self.metrics.set_queue_depth(self.lane, len(self._pending))
+
+    def _set_running(self, count: int) -> None:
+        if self.metrics is not None:
+            self.metrics.lane_running.labels(self.lane).set(count)
 
     def _pop_first(self) -> _Job | None:
         while self._pending:
@@ -350,12 +362,14 @@ class Batcher:
         while True:
             batch = await self._collect()
             self._running_since = time.monotonic()
+            self._set_running(len(batch))
             try:
                 await self._run(batch)
             except Exception:  # pragma: no cover - _run settles every future
                 log.exception("batch failed")
             finally:
                 self._running_since = None
+                self._set_running(0)
 
     def _record_duration(self, elapsed: float) -> None:
         self._batch_seconds = elapsed if not self._batch_seconds else (

@@ -1,13 +1,16 @@
 """The service's one implementation of "generate", shared by REST and gRPC.
 
 :class:`Engine` owns the model (a :class:`~spacemesh.runtime.MeshGenerator`), the
-:class:`~spacemesh_service.batcher.Batcher` and the metrics. A request goes through
+:class:`~spacemesh_service.lanes.Lanes` (two batchers) and the metrics. A request goes
+through
 
-    decode input (thread) -> queue -> batch (inference thread) -> encode output (thread)
+    decode input (thread) -> cost -> a lane's queue -> batch (the lane's inference thread)
+      -> encode output (thread)
 
 and comes back as a :class:`Reply`, or raises a :class:`~spacemesh_service.problems.Problem`.
 Once the input is decoded, the request's cost is estimated (:mod:`spacemesh.runtime.cost`)
-and one over the settings' budget is refused (422 ``too-expensive``) before it is queued.
+and one over the settings' budget is refused (422 ``too-expensive``) before it is queued;
+the estimate also picks its lane (light or main).
 Both servers are thin adapters around :meth:`Engine.generate`, which is why they accept
 the same inputs, raise the same errors and return the same bytes.
 
@@ -15,7 +18,7 @@ the same inputs, raise the same errors and return the same bytes.
 
     read mesh + region, (weld,) cut and plan, estimate the cost (thread; region errors and
       too-expensive: 422 before queueing)
-      -> queue -> repair_mesh alone (inference thread) -> encode output (thread)
+      -> a lane's queue -> repair_mesh alone (its inference thread) -> encode output (thread)
 """
 
 from __future__ import annotations
@@ -59,6 +62,7 @@ from spacemesh_service.inputs import (
     read_region,
     validate_cloud,
 )
+from spacemesh_service.lanes import Lanes
 from spacemesh_service.metrics import Metrics
 from spacemesh_service.options import (
     GENERATE_ROUTE_OPTIONS,
@@ -185,6 +189,7 @@ class _RepairJob:
     region: Region
     plan: RepairPlan | AutoPlan
     options: RequestOptions
+    estimate: Estimate
 
 
 def fibonacci_sphere(count: int) -> np.ndarray:
@@ -197,7 +202,7 @@ def fibonacci_sphere(count: int) -> np.ndarray:
 
 
 class Engine:
-    """Model, batcher and metrics of one server process.
+    """Model, lanes and metrics of one server process.
 
     Parameters
     ----------
@@ -210,7 +215,7 @@ class Engine:
         self.settings = settings
         self.metrics = Metrics()
         self.generator = generator
-        self.batcher: Batcher | None = None
+        self.lanes: Lanes | None = None
         self.state = "loading"  # loading -> ready -> draining; or failed
         self.error: str | None = None
         self._inflight = 0  # requests inside generate()
@@ -234,17 +239,17 @@ class Engine:
         Returns
         -------
         ready : bool
-            :attr:`ready`, and the inference worker neither stuck nor saturated
-            (:meth:`~spacemesh_service.batcher.Batcher.overload` against the request
+            :attr:`ready`, and no lane's inference worker stuck or saturated
+            (:meth:`~spacemesh_service.lanes.Lanes.overload` against the request
             deadline), so that a balancer sends the work elsewhere.
         detail : str or None
-            Why not: the model failed to load, or the worker's overload.
+            Why not: the model failed to load, or a lane's overload.
         """
         if self.error:
             return False, f"the model failed to load: {self.error}"
         if not self.ready:
             return False, None
-        busy = None if self.batcher is None else self.batcher.overload(
+        busy = None if self.lanes is None else self.lanes.overload(
             self.settings.request_timeout_s)
         return busy is None, busy
 
@@ -256,22 +261,22 @@ class Engine:
             raise RuntimeError("the model is not loaded (Engine.start)")
         return self.generator
 
-    @property
-    def _batcher(self) -> Batcher:
-        """:attr:`batcher`, once :meth:`start` made it (requests are admitted after)."""
-        if self.batcher is None:  # pragma: no cover - admit() refuses requests before
+    def _lane(self, estimate: Estimate) -> Batcher:
+        """The lane of a request estimated at ``estimate`` (:attr:`lanes` exist once
+        :meth:`start` made them; requests are admitted after)."""
+        if self.lanes is None:  # pragma: no cover - admit() refuses requests before
             raise RuntimeError("the engine is not started (Engine.start)")
-        return self.batcher
+        return self.lanes.for_cost(estimate)
 
     async def start(self) -> None:
-        """Load the model (unless given), run the warm-up, start the batcher.
+        """Load the model (unless given), run the warm-up, start the lanes.
 
         Raises
         ------
         Exception
             Whatever loading raised (``state`` becomes ``failed``).
         """
-        if self.batcher is not None:
+        if self.lanes is not None:
             return
         try:
             if self.generator is None:
@@ -284,10 +289,11 @@ class Engine:
         if self.state != "loading":  # drained while loading
             return
         s = self.settings
-        self.batcher = Batcher(self._generator.generate_batch, max_batch_size=s.max_batch_size,
-                               max_delay_s=s.max_batch_delay_ms / 1000, queue_size=s.queue_size,
-                               metrics=self.metrics)
-        self.batcher.start()
+        self.lanes = Lanes(self._generator.generate_batch, light=s.light_lane,
+                           max_batch_size=s.max_batch_size,
+                           max_delay_s=s.max_batch_delay_ms / 1000, queue_size=s.queue_size,
+                           metrics=self.metrics)
+        self.lanes.start()
         self.metrics.model_info.labels(self.model_name, self.model_version).set(1)
         self.state = "ready"
         self.metrics.ready.set(1)
@@ -314,7 +320,7 @@ class Engine:
 
     async def stop(self, timeout: float) -> bool:
         """Drain: refuse new requests, let those already inside finish (up to
-        ``timeout`` s), then stop the batcher.
+        ``timeout`` s), then stop the lanes.
 
         Returns
         -------
@@ -326,8 +332,8 @@ class Engine:
         while self._inflight and time.monotonic() < deadline:
             await asyncio.sleep(0.02)
         drained = not self._inflight
-        if self.batcher is not None:
-            drained = await self.batcher.close(max(0.0, deadline - time.monotonic())) and drained
+        if self.lanes is not None:
+            drained = await self.lanes.close(max(0.0, deadline - time.monotonic())) and drained
         return drained
 
     # ------------------------------------------------------------------ model facts
@@ -394,7 +400,7 @@ class Engine:
             raise Problem(P.NOT_READY, detail, retry_after=1)
 
     def _decode(self, parse: ParseFn, options: dict[str, Any]
-                ) -> tuple[Any, RequestOptions]:
+                ) -> tuple[Any, RequestOptions, Estimate]:
         points, normals, source, body_options, points_read = parse(
             self.read_limits, self.upload_rules)
         merged = {**{k: v for k, v in options.items() if v is not None}, **body_options}
@@ -403,9 +409,10 @@ class Engine:
         cloud = validate_cloud(points, normals, self.settings, source=source,
                                needs_normals=self._generator.spec.normals,
                                points_read=points_read)
-        self._within_budget(self.cost_model.generate(self._generator.spec, opts.resolved,
-                                                     len(cloud.points)), "generate")
-        return cloud, opts
+        estimate = self.cost_model.generate(self._generator.spec, opts.resolved,
+                                            len(cloud.points))
+        self._within_budget(estimate, "generate")
+        return cloud, opts, estimate
 
     def _within_budget(self, estimate: Estimate, route: str) -> None:
         """Refuse a request whose estimated cost is over :attr:`budget` (422
@@ -470,13 +477,14 @@ class Engine:
     async def _generate(self, parse: ParseFn, options: dict[str, Any],
                         progress: ProgressFn | None, stage: StageFn | None = None) -> Reply:
         started = time.perf_counter()
-        cloud, opts = await self.parsing.run(self._decode, parse, options)
+        cloud, opts, estimate = await self.parsing.run(self._decode, parse, options)
         decode_s = time.perf_counter() - started
         self.metrics.observe_stage("decode_input", decode_s)
         request = GenerateRequest(cloud.points, cloud.normals, opts.resolved)
+        lane = self._lane(estimate)
         outcome = await self._queued(
-            self._batcher.submit(request, key=opts.batch_key, progress=progress, stage=stage),
-            decode_s)
+            lane.submit(request, key=opts.batch_key, progress=progress, stage=stage),
+            decode_s, lane)
         result = outcome.result
         self.metrics.observe_stage("queue", outcome.queue_seconds)
         self.metrics.observe_stage("extraction", result.timings.get("extraction", 0.0))
@@ -506,8 +514,8 @@ class Engine:
                      outcome.batch_size, sample_scores=scores, input_kind=cloud.input_kind,
                      reduction=cloud.reduction)
 
-    async def _queued(self, work: Any, spent: float) -> Any:
-        """Await the batcher (``submit`` or ``submit_call``) within what is left of the
+    async def _queued(self, work: Any, spent: float, lane: Batcher) -> Any:
+        """Await ``lane`` (its ``submit`` or ``submit_call``) within what is left of the
         request timeout; its exceptions become problems."""
         remaining = self.settings.request_timeout_s - spent
         try:
@@ -520,8 +528,8 @@ class Engine:
                           "the work was cancelled",
                           timeout_s=self.settings.request_timeout_s) from None
         except QueueFull:
-            raise Problem(P.QUEUE_FULL, f"{self._batcher.depth} requests are waiting already",
-                          retry_after=self._batcher.retry_after()) from None
+            raise Problem(P.QUEUE_FULL, f"{lane.depth} requests are waiting already",
+                          retry_after=lane.retry_after()) from None
         except ShuttingDown:
             raise Problem(P.SHUTTING_DOWN, "the server is draining before it exits",
                           retry_after=1) from None
@@ -546,11 +554,11 @@ class Engine:
         except RegionError as error:
             raise P.region_problem(error) from None
         work = plan.mesh if isinstance(plan, AutoPlan) else plan.cut.mesh
-        self._within_budget(self.cost_model.repair(
+        estimate = self.cost_model.repair(
             self._generator.spec, steps=int(opts.resolved.steps or self.default_steps),
-            faces=work.n_faces, passes=len(plan.regions) if isinstance(plan, AutoPlan) else 1),
-            "repair")
-        return _RepairJob(mesh, shape, plan, opts)
+            faces=work.n_faces, passes=len(plan.regions) if isinstance(plan, AutoPlan) else 1)
+        self._within_budget(estimate, "repair")
+        return _RepairJob(mesh, shape, plan, opts, estimate)
 
     async def repair(self, upload: MeshUpload, region: Any, options: dict[str, Any], *,
                      progress: ProgressFn | None = None,
@@ -559,7 +567,7 @@ class Engine:
 
         The mesh and region are read, and the region cut and planned, in a worker
         thread, so every region error answers 422 before the request is queued; the
-        repair then waits in the generation queue and runs alone in the inference thread.
+        repair then waits in the queue of its lane and runs alone in its inference thread.
 
         Parameters
         ----------
@@ -612,8 +620,9 @@ class Engine:
                                steps=chosen.steps, method=chosen.sampler, progress=report,
                                plan=job.plan, weld=opts.weld)
 
+        lane = self._lane(job.estimate)
         outcome = await self._queued(
-            self._batcher.submit_call(run, progress=progress, stage=stage), decode_s)
+            lane.submit_call(run, progress=progress, stage=stage), decode_s, lane)
         result = outcome.result
         issues = verify_repair(job.plan, result)
         if issues:  # a faulty repair is refused, never returned

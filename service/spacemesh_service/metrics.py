@@ -9,7 +9,12 @@
     ``extraction``, ``encode_output``. The network stages (encoder, sampler,
     connectivity) are observed once per batch; the others once per request.
 ``spacemesh_queue_depth``, ``spacemesh_inflight_requests``
-    Requests waiting for a batch; requests inside the engine (waiting or running).
+    Requests waiting for a batch (in both lanes); requests inside the engine (waiting or
+    running).
+``spacemesh_lane_queue_depth{lane}``, ``spacemesh_lane_running_requests{lane}``,
+``spacemesh_lane_requests_total{lane}``
+    Per lane (``light``, ``main``): requests waiting, requests in its running batch, and
+    requests routed to it by their estimated cost.
 ``spacemesh_batch_size``, ``spacemesh_batches_total``
     Requests per onnxruntime batch, and batches run.
 ``spacemesh_cancelled_requests_total``, ``spacemesh_stopped_batches_total``
@@ -42,6 +47,8 @@ STAGES = ("decode_input", "queue", "encoder", "sampler", "connectivity", "extrac
           "encode_output")
 #: Network stages, timed once per batch.
 BATCH_STAGES = ("encoder", "sampler", "connectivity")
+#: The lanes (:mod:`spacemesh_service.lanes`).
+LANES = ("light", "main")
 #: Stages of a repair request, in order.
 REPAIR_STAGES = ("decode_input", "queue", "cut", "patch", "encoder", "sampler", "connectivity",
                  "splice", "encode_output")
@@ -69,6 +76,16 @@ class Metrics:
                                        ["stage"], buckets=_LATENCY_BUCKETS, registry=r)
         self.queue_depth = Gauge("spacemesh_queue_depth", "Requests waiting for a batch",
                                  registry=r)
+        self.lane_queue_depth = Gauge("spacemesh_lane_queue_depth",
+                                      "Requests waiting for a batch, per lane", ["lane"],
+                                      registry=r)
+        self.lane_running = Gauge("spacemesh_lane_running_requests",
+                                  "Requests in the running batch, per lane", ["lane"],
+                                  registry=r)
+        self.lane_requests = Counter("spacemesh_lane_requests",
+                                     "Requests routed to each lane by their estimated cost",
+                                     ["lane"], registry=r)
+        self._depths: dict[str, int] = {}
         self.inflight = Gauge("spacemesh_inflight_requests",
                               "Generate and repair requests inside the engine", registry=r)
         self.batch_size = Histogram("spacemesh_batch_size", "Requests per onnxruntime batch",
@@ -96,6 +113,10 @@ class Metrics:
         self.too_expensive = Counter(
             "spacemesh_too_expensive", "Requests refused for their estimated cost (422)",
             ["route", "option"], registry=r)
+        for lane in LANES:
+            self.set_queue_depth(lane, 0)
+            self.lane_running.labels(lane).set(0)
+            self.lane_requests.labels(lane)
         for stage in STAGES:  # export every stage from the start
             self.stage_seconds.labels(stage)
         for stage in REPAIR_STAGES:
@@ -104,6 +125,12 @@ class Metrics:
             self.repairs.labels(fallback)
         for kind in REGION_KINDS:
             self.repair_rejected.labels(kind.slug)
+
+    def set_queue_depth(self, lane: str, depth: int) -> None:
+        """Requests waiting in ``lane``, and in all lanes (``spacemesh_queue_depth``)."""
+        self._depths[lane] = depth
+        self.lane_queue_depth.labels(lane).set(depth)
+        self.queue_depth.set(sum(self._depths.values()))
 
     def observe_request(self, protocol: str, route: str, status: str, seconds: float) -> None:
         """Count one finished request."""
@@ -123,5 +150,5 @@ class Metrics:
         return generate_latest(self.registry)
 
 
-__all__ = ["BATCH_STAGES", "CONTENT_TYPE", "REPAIR_FALLBACKS", "REPAIR_STAGES", "STAGES",
+__all__ = ["BATCH_STAGES", "CONTENT_TYPE", "LANES", "REPAIR_FALLBACKS", "REPAIR_STAGES", "STAGES",
            "Metrics"]

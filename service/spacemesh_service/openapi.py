@@ -251,7 +251,7 @@ GENERATE_RESPONSES: dict[int | str, dict[str, Any]] = {
                                       "target_vertices, tolerance, samples, raw"),
         "expensive": (P.TOO_EXPENSIVE, "this generate is estimated at 111 s and 958 MB, over "
                       "the budget of 60 s and 2048 MB per request; lower "
-                      "target_vertices: target_vertices=6374 fits. Each option at its "
+                      "target_vertices: target_vertices=6357 fits. Each option at its "
                       "default would save: target_vertices 109 s"),
         "few": (P.TOO_FEW_POINTS, "3 points; this server needs at least 16"),
         "nan": (P.NON_FINITE, "point 12 has a NaN or infinite coordinate"),

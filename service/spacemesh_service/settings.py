@@ -26,6 +26,10 @@ ENV_PREFIX = "SPACEMESH_"
 BUDGET_DEADLINES = 2.0
 #: The default memory budget of a request (MB).
 DEFAULT_BUDGET_MB = 2048.0
+#: The default light lane: requests estimated within this share of the request deadline.
+LIGHT_LANE_DEADLINES = 0.25
+#: The default light lane's memory: requests estimated at most this many MB.
+DEFAULT_LIGHT_LANE_MB = 512.0
 
 
 def _cpu_count() -> int:
@@ -63,6 +67,14 @@ class Settings(BaseModel):
     request_budget_mb: float = Field(
         DEFAULT_BUDGET_MB, gt=0, description="Most peak memory (MB) a generate or repair "
         "request is estimated to take; over it: 422 too-expensive.")
+    light_lane_s: float | None = Field(
+        None, ge=0, description="Requests estimated at most this many seconds (and "
+        "light_lane_mb) wait and run in the light lane, a queue and inference thread of "
+        "their own, so that a heavy request never holds them up; the others go to the "
+        "main lane (0: one lane for everything). Default: a quarter of request_timeout_s.")
+    light_lane_mb: float = Field(
+        DEFAULT_LIGHT_LANE_MB, gt=0, description="Most peak memory (MB) a request of the "
+        "light lane is estimated to take.")
     max_points: int = Field(
         DEFAULT_MAX_BINARY_POINTS, ge=1, description="Most points of a request (413 above): "
         "binary PLY, NPY and NPZ clouds, read as views over their bytes.")
@@ -224,6 +236,15 @@ class Settings(BaseModel):
         return Budget(seconds, self.request_budget_mb)
 
     @property
+    def light_lane(self) -> Budget | None:
+        """What a request of the light lane may cost (its estimate): ``light_lane_s``
+        (default: :data:`LIGHT_LANE_DEADLINES` of the request deadline) and
+        ``light_lane_mb``; None when ``light_lane_s`` is 0 (one lane)."""
+        seconds = (LIGHT_LANE_DEADLINES * self.request_timeout_s
+                   if self.light_lane_s is None else self.light_lane_s)
+        return Budget(seconds, self.light_lane_mb) if seconds > 0 else None
+
+    @property
     def network_threads(self) -> int:
         """The threads that run the networks' batch items, always explicit (never 0)."""
         return self.ort_threads or _cpu_count()
@@ -243,6 +264,8 @@ class Settings(BaseModel):
             "request_timeout_s": self.request_timeout_s,
             "request_budget_s": self.budget.seconds,
             "request_budget_mb": self.request_budget_mb,
+            "light_lane_s": 0.0 if self.light_lane is None else self.light_lane.seconds,
+            "light_lane_mb": self.light_lane_mb,
             "max_batch_size": self.max_batch_size,
             "max_batch_delay_ms": self.max_batch_delay_ms,
             "queue_size": self.queue_size,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from spacemesh.examples import cube_quads, icosphere
+from spacemesh.examples import cube_quads, icosphere, torus_grid
 from spacemesh.geometry import (
     GeometryOptions,
     VertexFitOptions,
@@ -49,6 +49,40 @@ def test_farthest_points_are_distinct_spread_and_seeded():
     assert gap(a) > 2 * gap(random)  # spread: the closest pair is far apart
     assert len(farthest_point_sampling(points[:5], 100)) == 5
     assert len(farthest_point_sampling(points, 0)) == 0
+
+
+def _plain_farthest_points(points, count, seed, weights=None):
+    """The plain O(P count) loop: the oracle of the blocked sampling."""
+    count = min(count, len(points))
+    scale = np.ones(len(points)) if weights is None else np.asarray(weights, float) ** 2
+    chosen = [int(np.random.default_rng(seed).integers(len(points)))]
+    nearest = np.full(len(points), np.inf)
+    for _ in range(1, count):
+        gap = points - points[chosen[-1]]
+        np.minimum(nearest, np.einsum("pd,pd->p", gap, gap) * scale, out=nearest)
+        nearest[chosen[-1]] = -1.0
+        chosen.append(int(np.argmax(nearest)))
+    return np.array(chosen[:count], dtype=np.int64)
+
+
+def test_blocked_farthest_points_are_the_plain_loops():
+    """The blocks only skip work: the same indices as the plain loop for every block
+    size, with weights, duplicates, exact ties (a grid), flat and tiny clouds."""
+    rng = np.random.default_rng(3)
+    grid = torus_grid(12, 6).vertices
+    clouds = {"random": rng.random((1500, 3)), "one": rng.random((1, 3)),
+              "duplicates": np.concatenate([grid, grid, grid[:20]]),
+              "flat": np.c_[rng.random((800, 2)), np.zeros(800)],
+              "lattice": rng.integers(0, 4, (600, 3)).astype(float)}
+    for name, points in clouds.items():
+        boosted = 1 + 2.0 * (rng.random(len(points)) < 0.2)
+        for seed, weights in [(0, None), (1, boosted), (2, rng.random(len(points)))]:
+            for count in (1, 9, len(points) // 3, len(points)):
+                want = _plain_farthest_points(points, count, seed, weights)
+                for block in (1, 7, 256):
+                    got = farthest_point_sampling(points, count, seed=seed,
+                                                  weights=weights, block=block)
+                    assert np.array_equal(got, want), (name, seed, count, block)
 
 
 def test_barycentric_coordinates_rebuild_the_point():

@@ -150,4 +150,4 @@ def test_the_cost_model_is_a_frozen_option_object(spec):
     assert isinstance(slower, CostModel)
     assert estimate(spec, model=slower).seconds > estimate(spec).seconds
     with pytest.raises(AttributeError):
-        DEFAULT_COST_MODEL.fps_s = 0.0  # type: ignore[misc]
+        DEFAULT_COST_MODEL.fps_s_per_point = 0.0  # type: ignore[misc]

@@ -29,6 +29,7 @@ nor the process.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -98,7 +99,8 @@ class OnnxBackend:
         (:func:`spacemesh.runtime.repository.create_session`), so that an item's outputs
         are the same in every run.
     workers : int
-        Threads that run the items of a batch at once (each item one graph call).
+        Threads that run the items of a batch at once (each item one graph call); one
+        pool, shared by the threads that call the backend (the service's two lanes).
     """
 
     def __init__(self, *, encoder, denoiser, connectivity, workers: int = 1) -> None:
@@ -109,6 +111,7 @@ class OnnxBackend:
         self.n_volumes = len(encoder.get_outputs())
         self._volumes = volume_names(self.n_volumes)
         self._pool: ThreadPoolExecutor | None = None
+        self._pool_lock = threading.Lock()
 
     def _run(self, session, outputs: Sequence[str], feeds: dict[str, np.ndarray]
              ) -> list[np.ndarray]:
@@ -137,8 +140,10 @@ class OnnxBackend:
         if size <= 1 or self.workers == 1:
             runs = [item(b) for b in range(size)]
         else:
-            if self._pool is None:
-                self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="onnx-item")
+            with self._pool_lock:
+                if self._pool is None:
+                    self._pool = ThreadPoolExecutor(self.workers,
+                                                    thread_name_prefix="onnx-item")
             runs = list(self._pool.map(item, range(size)))
         if size == 1:
             return runs[0]

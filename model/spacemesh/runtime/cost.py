@@ -10,7 +10,7 @@ The formula, in seconds on the reference machine (2 CPU cores, one onnxruntime t
 core; ``bench/bench_cost_model.py`` times the real pipeline against it)::
 
     seconds  = 1.05e-5 P + seeds * per_seed(N, V)        (tolerance: a sum over its tries)
-    per_seed = 1.1e-8 P N                                farthest-point start
+    per_seed = 7.3e-7 P + 5.6e-5 N                       farthest-point start
              + D (7.8e-6 N + 3.67e-8 N^2)                the denoiser steps that run
              + 1.3e-4 N                                  connectivity network
              + f (3.2e-7 N^2 + 0.25 + 1.61e-3 V + 1.86e-7 V^2)   decode, geometry stage
@@ -147,7 +147,8 @@ class CostModel:
     """
 
     prepare_s_per_point: float = 1.05e-5
-    fps_s: float = 1.1e-8
+    fps_s_per_point: float = 7.3e-7
+    fps_s_per_token: float = 5.6e-5
     step_s1: float = 7.8e-6
     step_s2: float = 3.67e-8
     connect_s: float = 1.3e-4
@@ -240,7 +241,8 @@ class CostModel:
         n, v = float(tokens), float(wanted)
         slower = 1 + self.denoised_slowdown * start
         per_seed = (
-            (self.fps_s * points * n if options.start == "points" else 0.0)
+            (self.fps_s_per_point * points + self.fps_s_per_token * n
+             if options.start == "points" else 0.0)
             + steps * (self.step_s1 * n + self.step_s2 * n * n)
             + self.connect_s * n
             + slower * (self.decode_s2 * n * n + self.geometry_s0 + self.geometry_s1 * v
