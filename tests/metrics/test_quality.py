@@ -74,3 +74,16 @@ def test_distribution_distance():
     assert distribution_distance(a, a) == 0.0
     assert distribution_distance(a + 0.5, a) == pytest.approx(0.5)
     assert np.isnan(distribution_distance(np.zeros(0), a))
+
+
+def test_an_open_surface_is_valid_only_when_declared_open():
+    from spacemesh.primitives import faces_subset
+
+    sphere = icosphere(2)
+    cap, _ = faces_subset(sphere, sphere.face_normals()[:, 2] > 0).remove_unreferenced_vertices()
+    closed_only = topology_flags(cap)
+    declared = topology_flags(cap, open_surface=True)
+    assert not closed_only["valid"] and declared["valid"]
+    assert not closed_only["watertight"] and not declared["watertight"]
+    assert declared["manifold"] and declared["oriented"]
+    assert topology_flags(sphere, open_surface=True)["valid"]  # closed is valid either way

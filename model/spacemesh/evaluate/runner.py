@@ -250,9 +250,16 @@ def _timed(
 
 
 def _generate(
-    generator: Any, points: FloatArray, normals: FloatArray | None, **options: Any
+    generator: Any, points: FloatArray, normals: FloatArray | None, declared_open: set[int],
+    **options: Any
 ) -> PolygonMesh:
-    return generator.generate(points, normals, **options).mesh
+    """Our mesh; its ``id`` joins ``declared_open`` when its fit report says it is an
+    open surface (valid with boundary edges)."""
+    result = generator.generate(points, normals, **options)
+    fit = getattr(result, "fit", None)  # stand-in generators may have no fit report
+    if fit is not None and fit.open_surface:
+        declared_open.add(id(result.mesh))
+    return result.mesh
 
 
 @contextlib.contextmanager
@@ -341,6 +348,8 @@ def _row(
     seconds: float,
     reference: Reference,
     seed: list[int],
+    *,
+    open_surface: bool = False,
 ) -> dict[str, Any]:
     row: dict[str, Any] = {
         "shape_id": shape.shape_id,
@@ -350,7 +359,7 @@ def _row(
         "seconds": seconds,
     }
     if mesh is not None and mesh.n_faces:
-        row.update(score_mesh(mesh, reference, seed=seed))
+        row.update(score_mesh(mesh, reference, seed=seed, open_surface=open_surface))
         if math.isnan(row["cd"]):
             row["status"] = "failed: no surface"
     else:
@@ -469,6 +478,7 @@ def run_evaluation(
         reference = Reference.from_mesh(gt, seed=[seed, index, 0], options=options)
         normals = estimate_normals(points)  # (P, 3), what every method may use
         meshes: dict[str, tuple[PolygonMesh | None, str, float]] = {}
+        declared_open: set[int] = set()  # ids of our meshes whose fit report says open
         if generator is not None:
             wants_normals = bool(getattr(getattr(generator, "spec", None), "normals", False))
             for mode in parse_modes(",".join(modes)):
@@ -484,7 +494,8 @@ def run_evaluation(
                         meshes[method] = (None, "failed: no true normals", 0.0)
                         continue
                 with _geometry_changed(generator, geometry):
-                    meshes[method] = _timed(_generate, generator, points, given, **extra)
+                    meshes[method] = _timed(_generate, generator, points, given,
+                                            declared_open, **extra)
         ours = meshes.get("ours", (None,))[0] if psr_star_target == "ours" else None
         ours_count = ours.n_vertices if ours is not None and ours.n_faces else gt.n_vertices
         poisson: dict[str, tuple[PolygonMesh | None, str, float]] = {}
@@ -513,7 +524,8 @@ def run_evaluation(
         for k, method in enumerate(methods):
             mesh, status, seconds = meshes[method]
             result.rows.append(
-                _row(shape, method, mesh, status, seconds, reference, [seed, index, k + 1])
+                _row(shape, method, mesh, status, seconds, reference, [seed, index, k + 1],
+                     open_surface=mesh is not None and id(mesh) in declared_open)
             )
             if mesh is not None and mesh.n_faces:
                 result.distributions[method]["edge_lengths"].append(edge_lengths(mesh))

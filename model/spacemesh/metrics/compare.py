@@ -151,7 +151,8 @@ def format_degrees(histogram: dict[int, int]) -> str:
 
 
 def score_mesh(
-    mesh: PolygonMesh, reference: Reference, *, seed: int | list[int] = 1
+    mesh: PolygonMesh, reference: Reference, *, seed: int | list[int] = 1,
+    open_surface: bool = False,
 ) -> dict[str, Any]:
     """Every metric of a prediction against a reference (keys in :data:`METRIC_KEYS`).
 
@@ -162,6 +163,9 @@ def score_mesh(
     reference : Reference
     seed : int or list of int
         Seed of the prediction's samples.
+    open_surface : bool
+        The prediction was declared open (its fit report): ``valid`` allows boundary
+        edges (:func:`topology_flags`).
 
     Returns
     -------
@@ -170,7 +174,7 @@ def score_mesh(
     """
     options = reference.options
     row: dict[str, Any] = {"n_vertices": int(mesh.n_vertices), "n_faces": int(mesh.n_faces)}
-    row.update(topology_flags(mesh))
+    row.update(topology_flags(mesh, open_surface))
     shape = surface_topology(mesh)
     row.update(pieces=shape.pieces, genus=shape.genus,
                topology=(shape.pieces, shape.genus) == (reference.topology.pieces,

@@ -26,20 +26,24 @@ from spacemesh.topology import check_topology
 from spacemesh.typed import FloatArray
 
 
-def topology_flags(mesh: PolygonMesh) -> dict[str, bool | int]:
+def topology_flags(mesh: PolygonMesh, open_surface: bool = False) -> dict[str, bool | int]:
     """Connectivity validity of a mesh.
 
     Parameters
     ----------
     mesh : PolygonMesh
+    open_surface : bool
+        The mesh's maker declared it open (a generate's fit report ``open_surface``):
+        boundary edges do not make it invalid
+        (:meth:`spacemesh.topology.TopologyReport.is_valid`).
 
     Returns
     -------
     dict
         ``manifold`` (edge- and vertex-manifold, well-formed faces), ``watertight``
         (every edge has exactly two faces), ``oriented`` (neighbouring faces traverse
-        shared edges in opposite directions), ``valid`` (all three, and not empty) and
-        ``components``.
+        shared edges in opposite directions), ``valid`` (all three, and not empty;
+        watertight only unless ``open_surface``) and ``components``.
     """
     report = check_topology(mesh)
     nonempty = report.n_faces > 0
@@ -47,7 +51,7 @@ def topology_flags(mesh: PolygonMesh) -> dict[str, bool | int]:
         "manifold": bool(report.is_manifold and nonempty),
         "watertight": bool(report.is_closed and report.is_edge_manifold and nonempty),
         "oriented": bool(report.is_oriented and nonempty),
-        "valid": bool(report.is_closed_oriented_manifold),
+        "valid": bool(report.is_valid(open_surface)),
         "components": int(report.n_components),
     }
 
