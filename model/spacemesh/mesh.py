@@ -192,6 +192,13 @@ class PolygonMesh:
         rows = np.split(rotated, self.face_offsets[1:-1])
         return {tuple(r.tolist()) for r in rows}
 
+    def face_centroids(self) -> FloatArray:
+        """(F, 3) the mean of each face's corners."""
+        if self.n_faces == 0:
+            return np.zeros((0, 3))
+        corners = self.vertices[self.face_indices]  # (S, 3)
+        return np.add.reduceat(corners, self.face_offsets[:-1], axis=0) / self.face_sizes[:, None]
+
     def face_normals(self) -> FloatArray:
         """(F, 3) unit normals by Newell's method (robust for non-planar polygons)."""
         v = self.vertices[self.face_indices]

@@ -55,6 +55,8 @@ def face_planarity(mesh: PolygonMesh) -> float:
     float
         In the mesh's units.
     """
+    if mesh.is_triangle_mesh():  # three corners always lie in their plane
+        return 0.0
     worst = 0.0
     for face in mesh.faces:
         if len(face) > 3:

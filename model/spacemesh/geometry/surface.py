@@ -61,7 +61,7 @@ from spacemesh.primitives import (
     triangle_normals,
     triangles_of,
 )
-from spacemesh.primitives.closest import candidate_triangles
+from spacemesh.primitives.closest import candidate_triangles, mean_spacing
 from spacemesh.topology import corner_fans, edge_connected_faces, face_adjacency
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
@@ -129,10 +129,9 @@ def face_support(mesh: PolygonMesh, points: FloatArray,
     triangles, source = triangles_of(mesh)  # (T, 3), (T,)
     near, gap = candidate_triangles(points, mesh.vertices, triangles,
                                     k=SUPPORT_CANDIDATES)  # (P, k) each
-    reach = (SUPPORT_SPACINGS * _mean_spacing(points)) ** 2
-    normal = triangle_normals(mesh.vertices[triangles])  # (T, 3)
-    if signed_volume(mesh) < 0:  # outward is the other way
-        normal = -normal
+    reach = (SUPPORT_SPACINGS * mean_spacing(points)) ** 2
+    outward = -1.0 if signed_volume(mesh) < 0 else 1.0  # -1: the faces point inward
+    normal = outward * triangle_normals(mesh.vertices[triangles])  # (T, 3)
     facing = (_facing(points, normal[near], gap <= reach) if normals is None
               else np.asarray(normals, np.float64))
     agree = np.einsum("pkd,pd->pk", normal[near], facing) > 0  # (P, k)
@@ -143,11 +142,14 @@ def face_support(mesh: PolygonMesh, points: FloatArray,
     rows = np.arange(len(points))
     supported = np.zeros(mesh.n_faces, dtype=bool)
     supported[source[near[rows, best][gap[rows, best] <= reach]]] = True
-    area = _face_areas(mesh)  # (F,)
-    supported &= _covered(mesh, triangles, source, points, np.sqrt(reach)) >= MIN_COVERED
+    triangle_area = triangle_areas(mesh.vertices, triangles)  # (T,)
+    area = np.bincount(source, triangle_area, minlength=mesh.n_faces).astype(np.float64)
+    covered = _covered(mesh, triangles, source, triangle_area, points, np.sqrt(reach))
+    supported &= covered >= MIN_COVERED
     supported = _fill_gaps(mesh, supported, area)
     total = float(area.sum())
-    unseen = _unseen(mesh, ~supported, points, np.sqrt(reach) / SUPPORT_SPACINGS)
+    unseen = _unseen(mesh, ~supported, area, outward, points,
+                     np.sqrt(reach) / SUPPORT_SPACINGS)
     share = float(area[unseen].sum() / total) if total > 0 else 0.0
     return SurfaceSupport(supported, share)
 
@@ -200,9 +202,10 @@ def open_surface(mesh: PolygonMesh, support: SurfaceSupport
     if kept.all() or not kept.any():
         return mesh, stats
     before = int(kept.sum())
-    kept = _unpinched(mesh, kept, _face_areas(mesh))
+    area = _face_areas(mesh)  # (F,)
+    kept = _unpinched(mesh, kept, area)
     stats["faces_unpinched"] = before - int(kept.sum())
-    kept, stats["pieces_dropped"] = _without_specks(mesh, kept)
+    kept, stats["pieces_dropped"] = _without_specks(mesh, kept, area)
     if not kept.any():
         return mesh, {key: 0 for key in stats}
     stats["faces_trimmed"] = int(mesh.n_faces - kept.sum())
@@ -233,8 +236,9 @@ def drop_crossing_faces(mesh: PolygonMesh) -> tuple[PolygonMesh, int]:
     crossing = self_intersecting_faces(mesh)  # (F,)
     if not crossing.any() or crossing.all():
         return mesh, 0
-    kept = _unpinched(mesh, ~crossing, _face_areas(mesh))
-    kept, _ = _without_specks(mesh, kept)
+    area = _face_areas(mesh)  # (F,)
+    kept = _unpinched(mesh, ~crossing, area)
+    kept, _ = _without_specks(mesh, kept, area)
     if not kept.any():
         return mesh, 0
     result, _ = faces_subset(mesh, kept).remove_unreferenced_vertices()
@@ -294,23 +298,20 @@ def _facing(points: FloatArray, candidates: FloatArray, within: BoolArray) -> Fl
     return oriented_normals(points, plane, votes)
 
 
-def _unseen(mesh: PolygonMesh, candidates: BoolArray, points: FloatArray,
-            spacing: float) -> BoolArray:
+def _unseen(mesh: PolygonMesh, candidates: BoolArray, area: FloatArray, outward: float,
+            points: FloatArray, spacing: float) -> BoolArray:
     """(F,) the ``candidates`` in front of which no point lies: no point within
     :data:`RAY_SPACINGS` spacings of the ray from the face's centre along its outward
-    normal (by the closed mesh's signed volume), beyond one spacing from the centre
-    (the :data:`MAX_RAYS` largest candidates are cast; smaller ones count as seen)."""
+    normal (``outward`` -1: the faces point inward), beyond one spacing from the centre
+    (the :data:`MAX_RAYS` largest candidates by ``area`` are cast; smaller ones count as
+    seen)."""
     unseen = np.zeros(mesh.n_faces, dtype=bool)
     chosen = np.flatnonzero(candidates)
     if len(chosen) == 0:
         return unseen
-    area = _face_areas(mesh)
     chosen = chosen[np.argsort(-area[chosen], kind="stable")[:MAX_RAYS]]
-    centre = np.add.reduceat(mesh.vertices[mesh.face_indices], mesh.face_offsets[:-1],
-                             axis=0)[chosen] / mesh.face_sizes[chosen, None]  # (R, 3)
-    normal = mesh.face_normals()[chosen]  # (R, 3)
-    if signed_volume(mesh) < 0:  # outward is the other way
-        normal = -normal
+    centre = mesh.face_centroids()[chosen]  # (R, 3)
+    normal = outward * mesh.face_normals()[chosen]  # (R, 3)
     offset = points[None, :, :] - centre[:, None, :]  # (R, P, 3)
     along = np.einsum("rpd,rd->rp", offset, normal)  # (R, P)
     across = np.einsum("rpd,rpd->rp", offset, offset) - along ** 2
@@ -324,24 +325,17 @@ _COVER_SAMPLES = np.array([[1 / 3, 1 / 3, 1 / 3], [2 / 3, 1 / 6, 1 / 6],
                            [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]])
 
 
-def _covered(mesh: PolygonMesh, triangles: IntArray, source: IntArray, points: FloatArray,
-             reach: float) -> FloatArray:
+def _covered(mesh: PolygonMesh, triangles: IntArray, source: IntArray, areas: FloatArray,
+             points: FloatArray, reach: float) -> FloatArray:
     """(F,) the share of each face's area within ``reach`` of some point (from
-    :data:`_COVER_SAMPLES` on each of its triangles, weighted by their areas)."""
+    :data:`_COVER_SAMPLES` on each of its triangles, weighted by their ``areas``)."""
     corners = mesh.vertices[triangles]  # (T, 3, 3)
     samples = np.einsum("sk,tkd->tsd", _COVER_SAMPLES, corners)  # (T, S, 3)
     distance, _ = cKDTree(points).query(samples.reshape(-1, 3))
     near = (distance <= reach).reshape(len(triangles), -1).mean(axis=1)  # (T,)
-    areas = triangle_areas(mesh.vertices, triangles)
     covered = np.bincount(source, near * areas, minlength=mesh.n_faces)
     total = np.bincount(source, areas, minlength=mesh.n_faces)
     return np.divide(covered, total, out=np.ones(mesh.n_faces), where=total > 0)
-
-
-def _mean_spacing(points: FloatArray) -> float:
-    """Mean distance from each point to its nearest other point."""
-    distances, _ = cKDTree(points).query(points, k=2)
-    return float(np.mean(distances[:, 1]))
 
 
 def _fill_gaps(mesh: PolygonMesh, supported: BoolArray, area: FloatArray) -> BoolArray:
@@ -397,13 +391,13 @@ def _face_areas(mesh: PolygonMesh) -> FloatArray:
     return np.bincount(source, areas, minlength=mesh.n_faces).astype(np.float64)
 
 
-def _without_specks(mesh: PolygonMesh, kept: BoolArray) -> tuple[BoolArray, int]:
+def _without_specks(mesh: PolygonMesh, kept: BoolArray, area: FloatArray
+                    ) -> tuple[BoolArray, int]:
     """``kept`` without its pieces that have a rim and less than
-    :data:`MIN_PIECE_SHARE` of the kept area (how many were dropped). Pieces share no
-    vertex (none is pinched), so dropping one pinches nothing."""
+    :data:`MIN_PIECE_SHARE` of the kept ``area`` (how many were dropped). Pieces share
+    no vertex (none is pinched), so dropping one pinches nothing."""
     label = _kept_labels(mesh, kept)  # (F,)
     n_pieces = int(label.max()) + 1
-    area = _face_areas(mesh)
     piece_area = np.bincount(label[kept], area[kept], minlength=n_pieces)
     sub = faces_subset(mesh, kept)
     keys = edge_keys(sub.halfedges, sub.n_vertices)

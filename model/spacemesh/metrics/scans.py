@@ -30,7 +30,7 @@ from spacemesh.primitives import (
     surface_area,
     triangles_of,
 )
-from spacemesh.primitives.closest import nearest_triangles
+from spacemesh.primitives.closest import mean_spacing, nearest_triangles
 from spacemesh.topology import check_topology
 from spacemesh.typed import BoolArray, FloatArray
 
@@ -86,11 +86,9 @@ def trim_to_points(mesh: PolygonMesh, points: FloatArray,
     PolygonMesh
         Unused vertices removed.
     """
-    tree = cKDTree(np.asarray(points, dtype=np.float64))
-    spacing = float(np.mean(tree.query(points, k=2)[0][:, 1]))
-    centroids = np.add.reduceat(mesh.vertices[mesh.face_indices], mesh.face_offsets[:-1],
-                                axis=0) / mesh.face_sizes[:, None]  # (F, 3)
-    distance, _ = tree.query(centroids)
+    points = np.asarray(points, dtype=np.float64)
+    distance, _ = cKDTree(points).query(mesh.face_centroids())  # (F,)
+    spacing = mean_spacing(points)
     trimmed, _ = faces_subset(mesh, distance <= spacings * spacing).remove_unreferenced_vertices()
     return trimmed
 

@@ -117,6 +117,22 @@ def _subtriangle_centroids(level: int) -> FloatArray:
     return np.column_stack([1.0 - uv.sum(axis=1), uv])
 
 
+def mean_spacing(points: FloatArray) -> float:
+    """The mean distance from each point to its nearest other point.
+
+    Parameters
+    ----------
+    points : (P, 3) float
+        At least two.
+
+    Returns
+    -------
+    float
+    """
+    distances, _ = cKDTree(points).query(points, k=2)  # (P, 2): self, nearest other
+    return float(np.mean(distances[:, 1]))
+
+
 def candidate_triangles(points: FloatArray, positions: FloatArray, triangles: IntArray,
                         k: int = NEAREST_SAMPLES) -> tuple[IntArray, FloatArray]:
     """The triangles of each point's ``k`` nearest surface samples (the centroids of a
