@@ -264,7 +264,9 @@ def test_work_nobody_waits_for_stops_at_the_next_stage(start_server, generator, 
     assert late.status_code == 504, late.text
     wait_for(lambda: metric(server.url, "spacemesh_stopped_batches_total") == 1,
              "the abandoned batch to stop")
-    assert slow.geometry_stages == 1  # stopped before the second seed's geometry
+    # Stopped before the second seed's geometry (8 would run if nothing stopped it). Under
+    # load the deadline can pass before the first seed's geometry, hence 0 or 1.
+    assert slow.geometry_stages <= 1
     assert post(server.url, case, raw=True).status_code == 200  # the worker is free
 
 
