@@ -70,8 +70,11 @@ def finish_geometry(
     simplified: dict[str, Any] = {}
     if (options.dense_factor > 1 and target_vertices is not None
             and mesh.n_vertices > target_vertices):
-        # a dense decode: collapsed to the count asked for, the points' planes the cost
-        reduced = simplify(mesh, points, normals, target_vertices=target_vertices)
+        # a dense decode: fitted to the points first (the collapses' placements and
+        # costs read the fitted surface), then collapsed to the count asked for, the
+        # points' planes the cost
+        dense = refine_geometry(mesh, points, normals, options).mesh
+        reduced = simplify(dense, points, normals, target_vertices=target_vertices)
         mesh, simplified = reduced.mesh, {"simplify": reduced.stats}
     tries = [normals] if normals is None else [normals, None]
     best: tuple[float, PolygonMesh, dict[str, Any]] | None = None
