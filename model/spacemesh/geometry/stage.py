@@ -60,9 +60,9 @@ class GeometryOptions:
         Never let the share of self-intersecting faces grow.
     dense_factor : float
         With ``start=points``, decode this many times the vertices asked for (at most
-        :data:`MAX_DENSE_VERTICES`) and simplify to the count asked for
-        (:mod:`spacemesh.geometry.simplify`) before the fit; 1 (the default) decodes at
-        the count asked for.
+        :data:`MAX_DENSE_VERTICES`), fit it, and simplify it to the
+        count asked for (:mod:`spacemesh.geometry.simplify`) before the fit; 1 (the
+        default) decodes at the count asked for.
     """
 
     fit: VertexFitOptions = field(default_factory=VertexFitOptions)
@@ -75,7 +75,7 @@ class GeometryOptions:
     def decode_vertices(self, wanted: int) -> int:
         """The vertices to decode for a mesh of ``wanted`` vertices: ``wanted`` times
         :attr:`dense_factor`, at most :data:`MAX_DENSE_VERTICES` (and never fewer than
-        ``wanted``)."""
+        ``wanted``: so a request's cost grows with the count it asks for)."""
         if self.dense_factor <= 1:
             return wanted
         return max(wanted, min(round(self.dense_factor * wanted), MAX_DENSE_VERTICES))

@@ -14,13 +14,16 @@ core; ``bench/bench_cost_model.py`` times the real pipeline against it)::
              + D (7.8e-6 N + 3.67e-8 N^2)                the denoiser steps that run
              + 1.3e-4 N                                  connectivity network
              + f (3.2e-7 N^2 + 0.25 + 1.61e-3 V + 1.86e-7 V^2)   decode, geometry stage
+             + f (1.61e-3 W + 1.86e-7 W^2 + 1.5e-3 (W - V))      with a dense decode
              + 5.6e-6 min(P, 20000) + 4e-5 V             fit report
     seeds    = samples + retry_seeds * 0.5 ** samples
     MB       = 3.5e-3 min(P, 20000) + 5.2e-4 P + 1.7e-4 (1 + 1.5 s) N^2 + 0.02 V + 0.006 N seeds
 
 ``P``: input points (after the reduction), ``V``: vertices asked for (``target_vertices``,
 else the model's count), ``N``: vertex tokens the networks place (``V``, at most 2,048
-outside ``raw``, :mod:`spacemesh.runtime.large`), ``D``: denoiser steps that run (with
+outside ``raw``, :mod:`spacemesh.runtime.large`), ``W``: the dense decode's vertices
+(:attr:`spacemesh.geometry.GeometryOptions.dense_factor`; fitted, then collapsed to
+``V``; the term is absent without one), ``D``: denoiser steps that run (with
 ``start=points`` only those below ``start_time``), ``s``: the start time (1 from noise),
 ``f = 1 + 1.3 s``: denoised vertices lie less evenly than farthest points, and the decode
 and the geometry stage take about twice as long on them. The model's retry seeds run only
@@ -156,6 +159,7 @@ class CostModel:
     geometry_s0: float = 0.25
     geometry_s1: float = 1.61e-3
     geometry_s2: float = 1.86e-7
+    collapse_s: float = 1.5e-3
     report_s_per_point: float = 5.6e-6
     report_s_per_vertex: float = 4e-5
     denoised_slowdown: float = 1.3
@@ -230,23 +234,28 @@ class CostModel:
                ) -> tuple[float, float]:
         """Seconds and MB of ``seeds`` seeds with ``options`` (no tolerance)."""
         if options.start == "points":
-            wanted = vertex_count(spec, options)
+            wanted = dense = vertex_count(spec, options)
+            if not options.raw:
+                dense = decode_count(spec, options)
             tokens = network_vertices(decode_count(spec, options), spec.max_vertices,
                                       spec.large_meshes, raw=options.raw)
             start = float(options.start_time or 0.0)
         else:  # from noise the network places the model's tokens and picks the count
-            wanted = tokens = spec.max_vertices
+            wanted = dense = tokens = spec.max_vertices
             start = 1.0
         steps = denoiser_steps(spec, sampler_key(options))
-        n, v = float(tokens), float(wanted)
+        n, v, d = float(tokens), float(wanted), float(dense)
+        geometry = self.geometry_s0 + self.geometry_s1 * v + self.geometry_s2 * v * v
+        if d > v:  # a dense decode: fitted at its count, collapsed to ``v``, fitted again
+            geometry += (self.geometry_s1 * d + self.geometry_s2 * d * d
+                         + self.collapse_s * (d - v))
         slower = 1 + self.denoised_slowdown * start
         per_seed = (
             (self.fps_s_per_point * points + self.fps_s_per_token * n
              if options.start == "points" else 0.0)
             + steps * (self.step_s1 * n + self.step_s2 * n * n)
             + self.connect_s * n
-            + slower * (self.decode_s2 * n * n + self.geometry_s0 + self.geometry_s1 * v
-                        + self.geometry_s2 * v * v)
+            + slower * (self.decode_s2 * n * n + geometry)
             + self.report_s_per_point * min(points, REPORT_POINTS)
             + self.report_s_per_vertex * v
         )

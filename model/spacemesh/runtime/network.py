@@ -10,6 +10,7 @@ alone, so a seed's mesh never depends on its group, see
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -59,6 +60,13 @@ def decode_count(spec: ModelSpec, options: GenerateOptions) -> int:
     with ``raw``), which the geometry stage simplifies back to :func:`vertex_count`."""
     wanted = vertex_count(spec, options)
     return wanted if options.raw else spec.geometry.decode_vertices(wanted)
+
+
+def plain_spec(spec: ModelSpec) -> ModelSpec:
+    """``spec`` without its dense decode: every request decodes the count it asks for."""
+    if spec.geometry.dense_factor <= 1:
+        return spec
+    return replace(spec, geometry=replace(spec.geometry, dense_factor=1.0))
 
 
 def drop_duplicates(positions: FloatArray, alive: np.ndarray,
@@ -198,12 +206,16 @@ def run_group(backend: Backend, spec: ModelSpec,
         if (start == "points" and not options.raw and decode_count(spec, options) > wanted
                 and decoded.stats.get("large_meshes") != "split"):
             # a dense decode: kept only if it has no more handles than the decode of the
-            # count asked for (its farthest-point prefix), which a denser graph can add
-            plain = _decode_prefix(backend, spec, positions, alive, volumes, b, wanted,
-                                   prepared)
-            dense_genus, plain_genus = _genus(decoded.mesh), _genus(plain.mesh)
-            if plain_genus < dense_genus:
-                decoded = plain
+            # count asked for (its farthest-point prefix), which a denser graph can add;
+            # one without handles is kept without decoding the other
+            dense_genus = _genus(decoded.mesh)
+            plain_genus = None
+            if dense_genus > 0:
+                plain = _decode_prefix(backend, spec, positions, alive, volumes, b, wanted,
+                                       prepared)
+                plain_genus = _genus(plain.mesh)
+                if plain_genus < dense_genus:
+                    decoded = plain
             decoded.stats["dense_genus"] = [dense_genus, plain_genus]
         mesh = outward(decoded.mesh)
         e1 = time.perf_counter()
@@ -238,4 +250,4 @@ def run_group(backend: Backend, spec: ModelSpec,
 
 
 __all__ = ["SamplerKey", "decode_count", "decode_item", "denoiser_steps", "drop_duplicates",
-           "run_group", "sampler_key", "start_tokens", "vertex_count"]
+           "plain_spec", "run_group", "sampler_key", "start_tokens", "vertex_count"]

@@ -45,7 +45,9 @@ from spacemesh.runtime.backend import Backend
 from spacemesh.runtime.choice import acceptable, best_fit, crosses
 from spacemesh.runtime.network import (
     SamplerKey,
+    decode_count,
     denoiser_steps,
+    plain_spec,
     run_group,
     sampler_key,
     vertex_count,
@@ -209,6 +211,7 @@ class MeshGenerator:
     def _generate_prepared(
         self, items: Sequence[tuple[PreparedInput, GenerateOptions]],
         progress: ProgressFn | None, stage: StageFn | None, *, retry: bool = True,
+        dense: bool = True,
     ) -> list[GenerateResult]:
         """:meth:`generate_batch` on prepared inputs with resolved options (no
         ``tolerance``): the best fit of each request's seeds, in request order.
@@ -218,18 +221,36 @@ class MeshGenerator:
         preferred to any without, then one whose faces do not cross; when none of a
         request's seeds has both, that many more seeds run (stage ``pieces``; not with
         ``retry`` False) before choosing (:func:`spacemesh.runtime.choice.best_fit`).
+
+        With the model's dense decode (``dense``; :attr:`GeometryOptions.dense_factor`), a
+        chosen mesh whose faces still cross after the untangling gives way to the decode
+        at the count asked for (all of the above again, ``dense`` False) when that one
+        does not cross: a denser graph can tangle thin parts that the plain one leaves
+        apart, and no output may cross.
         """
+        spec = self.spec if dense else plain_spec(self.spec)
         results = []
         for (prepared, options), tried in zip(items, self._seed_results(items, progress,
-                                                                         stage), strict=True):
+                                                                         stage, spec),
+                                              strict=True):
             expected = prepared.pieces
-            if (retry and self.spec.retry_seeds and not options.raw
+            if (retry and spec.retry_seeds and not options.raw
                     and not any(acceptable(r, expected) for r in tried)):
-                tried += self._retry_seeds(prepared, options, progress, stage)
+                tried += self._retry_seeds(prepared, options, progress, stage, spec)
             spent = summed_timings(tried)  # every seed ran: the request spent them all
-            chosen = best_fit(tried, options, expected, check=self.spec.retry_seeds > 0)
+            chosen = best_fit(tried, options, expected, check=spec.retry_seeds > 0)
             chosen.timings = spent
-            results.append(self._faced(self._untangled(chosen, prepared, stage), prepared))
+            chosen = self._untangled(chosen, prepared, stage)
+            if (spec.retry_seeds and crosses(chosen)
+                    and decode_count(spec, options) > vertex_count(spec, options)):
+                plain = self._generate_prepared([(prepared, options)], progress, stage,
+                                                retry=retry, dense=False)[0]
+                plain.timings = summed_timings([chosen, plain])  # both ran
+                if not crosses(plain):
+                    results.append(plain)
+                    continue
+                chosen.timings = plain.timings
+            results.append(self._faced(chosen, prepared))
         return results
 
     def _untangled(self, result: GenerateResult, prepared: PreparedInput,
@@ -300,22 +321,26 @@ class MeshGenerator:
         return result
 
     def _retry_seeds(self, prepared: PreparedInput, options: GenerateOptions,
-                     progress: ProgressFn | None, stage: StageFn | None
-                     ) -> list[GenerateResult]:
+                     progress: ProgressFn | None, stage: StageFn | None,
+                     spec: ModelSpec | None = None) -> list[GenerateResult]:
         """The results of the model's ``retry_seeds`` seeds after a request's own
-        (stage ``pieces``)."""
+        (stage ``pieces``), with ``spec`` (default: the model's)."""
+        spec = spec or self.spec
         if stage is not None:
             stage("pieces", 1, 1)
         more = replace(options, seed=options.seed + options.samples,
-                       samples=self.spec.retry_seeds)
-        return self._seed_results([(prepared, more)], progress, stage)[0]
+                       samples=spec.retry_seeds)
+        return self._seed_results([(prepared, more)], progress, stage, spec)[0]
 
     def _seed_results(
         self, items: Sequence[tuple[PreparedInput, GenerateOptions]],
         progress: ProgressFn | None, stage: StageFn | None,
+        spec: ModelSpec | None = None,
     ) -> list[list[GenerateResult]]:
         """Every seed's result of each request (``samples`` seeds from its ``seed``),
-        the seeds of all requests grouped by sampler settings to share network calls."""
+        the seeds of all requests grouped by sampler settings to share network calls,
+        with ``spec`` (default: the model's)."""
+        spec = spec or self.spec
         jobs: list[tuple[int, GenerateOptions]] = []  # (request index, one seed)
         for index, (_, options) in enumerate(items):
             jobs += [(index, replace(options, seed=options.seed + k))
@@ -323,7 +348,7 @@ class MeshGenerator:
         groups: dict[SamplerKey, list[int]] = {}
         for j, (_, options) in enumerate(jobs):
             groups.setdefault(sampler_key(options), []).append(j)
-        total = sum(denoiser_steps(self.spec, key) for key in groups)
+        total = sum(denoiser_steps(spec, key) for key in groups)
         outcomes: list[GenerateResult | None] = [None] * len(jobs)
         done = 0
         for key, members in groups.items():
@@ -331,12 +356,12 @@ class MeshGenerator:
                 if progress is not None:
                     progress(offset + step, total)
 
-            batch = run_group(self.backend, self.spec,
+            batch = run_group(self.backend, spec,
                               [(items[jobs[j][0]][0], jobs[j][1]) for j in members],
                               key, report, stage or _no_stage)
             for j, result in zip(members, batch, strict=True):
                 outcomes[j] = result
-            done += denoiser_steps(self.spec, key)
+            done += denoiser_steps(spec, key)
         return [[r for j, (i, _) in enumerate(jobs) if i == index
                  for r in [outcomes[j]] if r is not None] for index in range(len(items))]
 
