@@ -63,6 +63,7 @@ from spacemesh.repair.fill.kinds import FilledBy
 from spacemesh.repair.fill.passes import Passes
 from spacemesh.repair.fill.policy import DEFAULT_POLICY, FillPolicy
 from spacemesh.repair.findings import MAX_REPORTED, Finding, find_issues
+from spacemesh.repair.halfedges import FaceSubset
 from spacemesh.repair.orient import orient_faces
 from spacemesh.repair.patch import MIN_FREE
 from spacemesh.repair.pinched import hole_loops
@@ -236,9 +237,16 @@ def _plan_regions(work: PolygonMesh, findings: list[Finding], n_tokens: int,
         if ids:
             requested = np.logical_or.reduce([rings[i] for i in ids])
             regions.append(AutoRegion(requested, grow_region(work, requested), ids))
+    whole: list[FaceSubset] = []  # FaceSubset.of(work, every face), once if needed
+
+    def loops_of(vertices: IntArray) -> list[IntArray] | None:
+        if not whole:
+            whole.append(FaceSubset.of(work, np.arange(work.n_faces)))
+        return hole_loops(work, vertices, whole[0])
+
     for region in regions:
         holes_only = all(findings[i].kind == "hole" for i in region.findings)
-        if holes_only and all(hole_loops(work, findings[i].vertices) is not None
+        if holes_only and all(loops_of(findings[i].vertices) is not None
                               for i in region.findings):
             region.strategy = "in-place"  # the loops filled, the ring kept
             region.region = region.requested.copy()
@@ -423,6 +431,8 @@ def repair_auto(plan: AutoPlan, run_pass: RunPass, *, fair: bool = True,
     if plan.removed is not None:  # the fins left at non-manifold edges go first
         state.apply(np.arange(work.n_vertices), np.flatnonzero(~plan.removed), plan.opened)
     size = wedge_size(plan.n_tokens)
+    opened = plan.opened
+    whole = FaceSubset.of(opened, np.arange(opened.n_faces))  # for every region's loops
     outcome: dict[int, FilledBy] = {}
     region_reports = []
     for index, region in enumerate(plan.regions):
@@ -432,7 +442,7 @@ def repair_auto(plan: AutoPlan, run_pass: RunPass, *, fair: bool = True,
             by = _model_region(state, region, index, later, run_pass)
         else:
             loops = [state.vertex_map[loop] for i in region.findings
-                     for loop in (hole_loops(plan.opened, plan.findings[i].vertices) or [])]
+                     for loop in (hole_loops(opened, plan.findings[i].vertices, whole) or [])]
             by = _in_place(state, loops, index, later, size, run_pass)
         if all(plan.findings[i].kind == "hole" for i in region.findings):  # in place: all
             by = finish_holes(state, index, by, policy, fair=fair,
