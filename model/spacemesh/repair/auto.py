@@ -54,6 +54,7 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh.cancel import checkpoint
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import faces_subset
 from spacemesh.repair.cut import grow_region
@@ -226,7 +227,10 @@ def _others(mesh: PolygonMesh, regions: list[AutoRegion], region: AutoRegion) ->
 def _plan_regions(work: PolygonMesh, findings: list[Finding], n_tokens: int,
                   max_growth: float, plan_region: PlanRegion) -> list[AutoRegion]:
     """Group the findings' rings into regions and plan each (:func:`plan_auto`)."""
-    rings = [f.ring(work) for f in findings]
+    rings = []
+    for f in findings:
+        checkpoint()  # abandoned work stops here (spacemesh.cancel): a ring reads the mesh
+        rings.append(f.ring(work))
     union = np.logical_or.reduce(rings) if rings else np.zeros(work.n_faces, dtype=bool)
     grown = grow_region(work, union)
     n_groups, group = vertex_connected_faces(work, grown)  # group (F,), -1 outside
@@ -235,11 +239,13 @@ def _plan_regions(work: PolygonMesh, findings: list[Finding], n_tokens: int,
     for g in range(n_groups):
         ids = [i for i, o in enumerate(owner) if o == g]
         if ids:
+            checkpoint()
             requested = np.logical_or.reduce([rings[i] for i in ids])
             regions.append(AutoRegion(requested, grow_region(work, requested), ids))
     whole: list[FaceSubset] = []  # FaceSubset.of(work, every face), once if needed
 
     def loops_of(vertices: IntArray) -> list[IntArray] | None:
+        checkpoint()
         if not whole:
             whole.append(FaceSubset.of(work, np.arange(work.n_faces)))
         return hole_loops(work, vertices, whole[0])
@@ -299,7 +305,9 @@ def plan_auto(mesh: PolygonMesh, mode: str, n_tokens: int, *, plan_region: PlanR
     start = time.perf_counter()
     max_growth = DEFAULT_MAX_GROWTH if max_growth is None else float(max_growth)
     work, weld_map = (weld_vertices(mesh) if weld else (mesh, None))
+    checkpoint()
     work, reversed_faces = orient_faces(work)
+    checkpoint()
     findings = find_issues(work, mode)
     if not findings and not reversed_faces.any():
         what = {"holes": "no hole (open boundary)", "defects": "no defect",
@@ -384,6 +392,7 @@ def _in_place(state: Passes, loops: list[IntArray], index: int, later: BoolArray
     state.wedge = wedge
     by_model = 0
     for w in range(n_wedges):
+        checkpoint()
         try:
             result = run_pass(state.mesh, state.wedge == w, state.vertices_of(later),
                               state.face_source < 0, len(state.results))
@@ -436,6 +445,7 @@ def repair_auto(plan: AutoPlan, run_pass: RunPass, *, fair: bool = True,
     outcome: dict[int, FilledBy] = {}
     region_reports = []
     for index, region in enumerate(plan.regions):
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         before = len(state.results)
         later = _others(work, plan.regions[index:], region)
         if region.strategy == "model":

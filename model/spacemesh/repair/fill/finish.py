@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh.cancel import checkpoint
 from spacemesh.primitives import faces_subset, triangulate_faces
 from spacemesh.repair.fill.fan import faired_fan, fan_fill
 from spacemesh.repair.fill.flat import flat_surface
@@ -93,15 +94,18 @@ def fair_region(state: Passes, index: int, policy: FillPolicy) -> FillKind | Non
                                     == FillKind.FAN) else None
     if not policy.probe_fills:
         return replaced
+    checkpoint()
     chosen = np.zeros(state.mesh.n_faces, dtype=bool)
     flat_parts: list[BoolArray] = []  # parts the flat fill replaces
     for part in patch_parts(state.mesh, state.made_by == index):
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         choice = probe_choice(state, part, policy, held_back=held_back)
         if choice == FillKind.MESHFIX:
             chosen |= part
         elif choice == FillKind.FLAT and not onto_flat(state, part, policy):
             flat_parts.append(part)
     for i, part in enumerate(flat_parts):
+        checkpoint()
         renumbered = flat_instead(state, index, part, policy)
         if renumbered is None:
             continue

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from spacemesh.cancel import checkpoint
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import faces_subset, faces_touching, triangulate_faces, vertices_of
 from spacemesh.primitives.closest import closest_points_on_triangles
@@ -183,6 +184,7 @@ def probe_regions(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
     regions: list[BoolArray] = []
     spread = np.full(len(candidates), np.inf)
     for tried in range(len(candidates)):
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         if len(regions) == count:
             break
         pick = int(np.argmax(spread)) if tried else 0
@@ -264,6 +266,7 @@ def probe_errors(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
     probes."""
     totals = {kind.value: [0.0, 0.0, 0] for kind in policy.alternatives}
     for faces in probe_regions(mesh, loops, known, count):
+        checkpoint()
         around = faces_around(mesh, vertices_of(mesh, faces), PROBE_RINGS)
         probe_loops = patch_loops(mesh, faces)
         assert probe_loops is not None  # a probe is a disc (probe_regions)

@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from spacemesh.cancel import checkpoint
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import faces_subset, faces_touching
 from spacemesh.typed import BoolArray, FloatArray, IntArray
@@ -221,6 +222,7 @@ def refine_patch(mesh: PolygonMesh, patch: BoolArray, target: float
     budget = int(MAX_DENSITY * area / (math.sqrt(3) / 4 * target**2)) + 1
     added = 0
     for _ in range(MAX_ROUNDS):
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         if added >= budget:
             break
         step = _split_pass(tris, positions, SPLIT_RATIO * target, budget - added)
@@ -232,6 +234,7 @@ def refine_patch(mesh: PolygonMesh, patch: BoolArray, target: float
         return mesh, np.arange(mesh.n_faces)
     p = positions.array()
     for _ in range(FLIP_SWEEPS):
+        checkpoint()
         if _flip_pass(tris, p) == 0:
             break
     keep = np.ones(mesh.n_faces, dtype=bool)
