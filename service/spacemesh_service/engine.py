@@ -558,10 +558,14 @@ class Engine:
                                weld=opts.weld, max_growth=opts.max_growth)
         except RegionError as error:
             raise P.region_problem(error) from None
-        work = plan.mesh if isinstance(plan, AutoPlan) else plan.cut.mesh
-        estimate = self.cost_model.repair(
-            self._generator.spec, steps=int(opts.resolved.steps or self.default_steps),
-            faces=work.n_faces, passes=len(plan.regions) if isinstance(plan, AutoPlan) else 1)
+        steps = int(opts.resolved.steps or self.default_steps)
+        spec = self._generator.spec
+        if isinstance(plan, AutoPlan):
+            estimate = self.cost_model.repair(
+                spec, steps=steps, faces=plan.mesh.n_faces, passes=plan.model_passes,
+                fills=plan.fills, fill_vertices2=plan.fill_vertices2, automatic=True)
+        else:
+            estimate = self.cost_model.repair(spec, steps=steps, faces=plan.cut.mesh.n_faces)
         self._within_budget(estimate, "repair")
         return _RepairJob(mesh, shape, plan, opts, estimate)
 

@@ -717,7 +717,7 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
                            fit_patch=fit_patch, policy=policy)
 
     state, findings, regions = repair_auto(plan, run_pass, fair=fit_patch, policy=policy)
-    passes = [r.stats for r in state.results]
+    passes = list(state.passes)
     out, work = state.mesh, plan.mesh
     new = state.face_source < 0
     sizes, counts = np.unique(out.face_sizes[new], return_counts=True)

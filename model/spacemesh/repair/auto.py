@@ -198,6 +198,34 @@ class AutoPlan:
         """Input vertices merged away by the weld (0 without ``weld=True``)."""
         return 0 if self.weld_map is None else len(self.weld_map) - self.mesh.n_vertices
 
+    def _holes_only(self, region: AutoRegion) -> bool:
+        return all(self.findings[i].kind == "hole" for i in region.findings)
+
+    @property
+    def model_passes(self) -> int:
+        """The model passes the repair is expected to run (what it costs,
+        :meth:`spacemesh.runtime.cost.CostModel.repair`): one per region re-generated
+        whole, and one per wedge of the fan over each hole of a region filled in place
+        (a hole of ``k`` vertices has a fan of ``k`` triangles, :func:`wedge_size` of
+        them a pass)."""
+        size = wedge_size(self.n_tokens)
+        return sum(1 if region.strategy == "model" else
+                   sum(-(-self.findings[i].size // size) for i in region.findings)
+                   for region in self.regions)
+
+    @property
+    def fills(self) -> int:
+        """Regions of holes only, whose fill is refined, faired and probed after their
+        passes (:func:`spacemesh.repair.fill.finish.finish_holes`)."""
+        return sum(self._holes_only(region) for region in self.regions)
+
+    @property
+    def fill_vertices2(self) -> int:
+        """The sum over the holes of those regions of their squared vertex count (a
+        hole's fill grows with its area)."""
+        return sum(self.findings[i].size ** 2 for region in self.regions
+                   if self._holes_only(region) for i in region.findings)
+
 
 def wedge_size(n_tokens: int) -> int:
     """Most fan triangles one model pass re-generates in the fallback (a wedge of ``k``
@@ -367,8 +395,8 @@ def _model_region(state: Passes, region: AutoRegion, index: int, later: BoolArra
                   run_pass: RunPass) -> FilledBy:
     """Re-generate the region ``index`` with its ring by one model pass."""
     result = run_pass(state.mesh, state.faces_of(region.requested), state.vertices_of(later),
-                      state.faces_of(region.region), len(state.results))
-    state.results.append(result)
+                      state.faces_of(region.region), len(state.passes))
+    state.passes.append(result.stats)
     state.apply(result.vertex_map, result.face_source, result.mesh, index)
     return _filled_by(result.stats.loops - _polygons(result), _polygons(result))
 
@@ -395,10 +423,10 @@ def _in_place(state: Passes, loops: list[IntArray], index: int, later: BoolArray
         checkpoint()
         try:
             result = run_pass(state.mesh, state.wedge == w, state.vertices_of(later),
-                              state.face_source < 0, len(state.results))
+                              state.face_source < 0, len(state.passes))
         except RegionError:
             continue  # this wedge keeps its fan
-        state.results.append(result)
+        state.passes.append(result.stats)
         state.apply(result.vertex_map, result.face_source, result.mesh, index)
         by_model += _polygons(result) == 0
     return _filled_by(by_model, n_wedges - by_model)
@@ -428,7 +456,7 @@ def repair_auto(plan: AutoPlan, run_pass: RunPass, *, fair: bool = True,
     Returns
     -------
     passes : Passes
-        The final mesh, maps and every pass's result.
+        The final mesh, maps and every pass's statistics.
     findings : list of dict
         What was found and done (``kind``, ``size``, ``vertex``, ``region``, ``action``,
         ``filled_by`` for holes).
@@ -446,7 +474,7 @@ def repair_auto(plan: AutoPlan, run_pass: RunPass, *, fair: bool = True,
     region_reports = []
     for index, region in enumerate(plan.regions):
         checkpoint()  # abandoned work stops here (spacemesh.cancel)
-        before = len(state.results)
+        before = len(state.passes)
         later = _others(work, plan.regions[index:], region)
         if region.strategy == "model":
             by = _model_region(state, region, index, later, run_pass)
@@ -456,11 +484,11 @@ def repair_auto(plan: AutoPlan, run_pass: RunPass, *, fair: bool = True,
             by = _in_place(state, loops, index, later, size, run_pass)
         if all(plan.findings[i].kind == "hole" for i in region.findings):  # in place: all
             by = finish_holes(state, index, by, policy, fair=fair,
-                              passes=state.results[before:])
+                              passes=state.passes[before:])
         for i in region.findings:
             outcome[i] = by
         region_reports.append({**region.report(index, work.n_faces),
-                               "passes": len(state.results) - before, "filled_by": by.value})
+                               "passes": len(state.passes) - before, "filled_by": by.value})
     findings: list[dict[str, Any]] = [
         {"kind": f.kind, "size": f.size, "vertex": int(f.vertices[0]), "region": -1,
          "action": "split"} for f in plan.split]

@@ -203,7 +203,7 @@ def fan_if_not_discs(state: Passes, index: int, policy: FillPolicy,
     ``policy``'s ``euler``) differs from its number of loops joins them by a tube or a
     handle (a model pass can splice one in), which changes the genus of the mesh. True
     when it did; then the region's ``passes`` (their
-    :class:`spacemesh.repair.api.RepairResult`) report no handle added, as none of
+    :class:`spacemesh.repair.api.RepairStats`) report no handle added, as none of
     their fill is left."""
     mesh = state.mesh
     patch = state.made_by == index
@@ -217,6 +217,6 @@ def fan_if_not_discs(state: Passes, index: int, policy: FillPolicy,
                                  np.full(filled.n_faces - int((~patch).sum()), -1)])
         fan = (filled, source, source < 0)
     replaced = fan_instead(state, index, policy, fan)
-    for result in passes if replaced else ():
-        result.stats.handles_added = 0
+    for stats in passes if replaced else ():
+        stats.handles_added = 0
     return replaced
