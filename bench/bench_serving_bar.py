@@ -12,9 +12,10 @@ the default budget) on free ports, and measures:
    batch for it (``spacemesh_batches_total`` and the lanes' stopped calls unchanged).
 2. **The CPU falls idle within 2 s** (under 0.1 s of CPU in a 0.5 s window,
    bench_abandoned_work.py) after each of those answers, after a REST client that leaves
-   5 s into the admitted heavy request, and after a gRPC ``Generate`` of it cancelled
-   5 s in; and after a request past its deadline (a second server with a budget that
-   admits everything and a 10 s deadline, the issue's first reproduction: 504).
+   5 s into the admitted heavy request (8 s into the repair), and after a gRPC
+   ``Generate`` of it cancelled 5 s in; and after requests past their deadline (a second
+   server with a budget that admits everything and a 10 s deadline: the issue's first
+   reproduction and the repair, 504).
 3. **A small generate gets a 200 within 10 s** while the admitted heavy one runs
    (bench_lanes.py's small request; the heavy one is seen running in the metrics).
 4. **Four concurrent ``target_vertices=10000``** requests keep the server's peak RSS
@@ -177,24 +178,41 @@ def heavy_query() -> str:
     return "&".join(f"{k}={v}" for k, v in HEAVY_GENERATE.items()) + "&seed=0"
 
 
-def disconnect_and_cancel(server: Server, bar: Bar, cloud: bytes) -> None:
-    """Clause 2: a REST client that leaves, a gRPC call cancelled."""
+def leave_after(port: int, target: str, parts: dict[str, tuple[str, bytes]],
+                seconds: float = 5.0) -> None:
+    """POST ``parts`` (name -> (filename or "", bytes)) as a multipart body written by
+    hand, then close the connection ``seconds`` later without reading the answer."""
+    boundary = "spacemesh-bar"
+    body = b""
+    for name, (filename, data) in parts.items():
+        label = f'; filename="{filename}"' if filename else ""
+        body += (f"--{boundary}\r\nContent-Disposition: form-data; name=\"{name}\"{label}"
+                 "\r\n\r\n").encode() + data + b"\r\n"
+    body += f"--{boundary}--\r\n".encode()
+    head = (f"POST {target} HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: multipart/form-data; "
+            f"boundary={boundary}\r\nContent-Length: {len(body)}\r\n\r\n").encode()
+    with socket.create_connection(("127.0.0.1", port)) as client:
+        client.sendall(head + body)
+        time.sleep(seconds)
+
+
+def disconnect_and_cancel(server: Server, bar: Bar, inputs: dict[str, bytes]) -> None:
+    """Clause 2: a REST client that leaves (a generate, a repair), a gRPC call cancelled."""
     import grpc
 
     from spacemesh_service.pb import spacemesh_pb2 as pb
     from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
 
-    boundary = "spacemesh-bar"  # the multipart body by hand, so the socket can be closed
-    body = (f"--{boundary}\r\nContent-Disposition: form-data; name=\"file\"; "
-            f"filename=\"cloud.ply\"\r\n\r\n").encode() + cloud + f"\r\n--{boundary}--\r\n".encode()
-    head = (f"POST /generate?{heavy_query()} HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: "
-            f"multipart/form-data; boundary={boundary}\r\nContent-Length: {len(body)}"
-            "\r\n\r\n").encode()
-    with socket.create_connection(("127.0.0.1", server.port)) as client:
-        client.sendall(head + body)
-        time.sleep(5.0)
+    cloud = inputs["cloud"]
+    leave_after(server.port, f"/generate?{heavy_query()}", {"file": ("cloud.ply", cloud)})
     idle = seconds_to_idle(server.pid)
     bar.add("2 CPU idle", "REST client gone 5 s into the admitted heavy generate",
+            f"idle {idle:.1f} s later", idle <= IDLE_S)
+    leave_after(server.port, "/repair?format=ply", {
+        "file": ("mesh.ply", inputs["mesh"]), "region": ("", json.dumps(AUTO_ALL).encode())},
+        seconds=8.0)
+    idle = seconds_to_idle(server.pid)
+    bar.add("2 CPU idle", "REST client gone 8 s into the repair of 324,216 faces",
             f"idle {idle:.1f} s later", idle <= IDLE_S)
 
     with grpc.insecure_channel(f"127.0.0.1:{server.grpc_port}", options=[
@@ -210,8 +228,8 @@ def disconnect_and_cancel(server: Server, bar: Bar, cloud: bytes) -> None:
             idle <= IDLE_S)
 
 
-def past_deadline(bar: Bar) -> None:
-    """Clause 2: a request past its deadline (a server that admits everything)."""
+def past_deadline(bar: Bar, mesh: bytes) -> None:
+    """Clause 2: requests past their deadline (a server that admits everything)."""
     server = Server("--request-timeout-s", "10", "--request-budget-s", "1000000",
                     "--request-budget-mb", "1000000")
     try:
@@ -219,6 +237,12 @@ def past_deadline(bar: Bar) -> None:
                                      files={"file": ("points.ply", EXAMPLE.read_bytes())})
         idle = seconds_to_idle(server.pid)
         bar.add("2 CPU idle", "the first reproduction past a 10 s deadline (admit-all budget)",
+                f"{status} {kind} after {seconds:.1f} s; idle {idle:.1f} s later",
+                status == 504 and idle <= IDLE_S)
+        status, kind, seconds = post(server.url, "/repair", "format=ply", files={
+            "file": ("mesh.ply", mesh)}, data={"region": json.dumps(AUTO_ALL)})
+        idle = seconds_to_idle(server.pid)
+        bar.add("2 CPU idle", "the repair of 324,216 faces past a 10 s deadline",
                 f"{status} {kind} after {seconds:.1f} s; idle {idle:.1f} s later",
                 status == 504 and idle <= IDLE_S)
     finally:
@@ -321,14 +345,14 @@ def main() -> int:
     server = Server()
     try:
         reproductions(server, bar, inputs)
-        disconnect_and_cancel(server, bar, inputs["cloud"])
+        disconnect_and_cancel(server, bar, inputs)
         small_while_heavy(server, bar, inputs["cloud"])
         four_large(server, bar, inputs["example"])
         options(server, bar, inputs["example"])
         after_sigterm(server, bar, inputs["example"])
     finally:
         server.stop()
-    past_deadline(bar)
+    past_deadline(bar, inputs["mesh"])
     held = sum(row["holds"] for row in bar.rows)
     print(f"\n{held} of {len(bar.rows)} checks hold", flush=True)
     if args.json:
