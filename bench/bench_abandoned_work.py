@@ -1,7 +1,7 @@
 """How soon a server stops work nobody waits for (issue 37's reproductions).
 
 Starts ``spacemesh serve`` with its default settings (the shipped model, a 30 s request
-deadline) but a budget that admits everything (``--request-budget-s``: by default the
+deadline) but a budget that admits everything (``--request-budget-s`` and ``-mb``: by default the
 server refuses these requests as too expensive before any work, bench/bench_cost_model.py)
 on free ports, sends requests that cannot finish in time, and prints when the
 answer came and how many seconds later the server's CPU fell idle (under 0.1 s of CPU in
@@ -68,7 +68,8 @@ def main() -> None:
     server = subprocess.Popen(
         [sys.executable, "-c", "from spacemesh.cli import main; main()", "serve", "--port",
          str(port), "--grpc-port", str(grpc_port), "--host", "127.0.0.1",
-         "--request-timeout-s", str(args.deadline), "--request-budget-s", "1000000"],
+         "--request-timeout-s", str(args.deadline), "--request-budget-s", "1000000",
+         "--request-budget-mb", "1000000"],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     url = f"http://127.0.0.1:{port}"
     try:

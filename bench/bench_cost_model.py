@@ -2,7 +2,8 @@
 
 For each request of a calibration set (generates on the example torus,
 ``examples/points.ply``, and on torus clouds of 20,000 to 200,000 points; repairs of
-icospheres), a fresh process loads the shipped model, runs the service's warm-up (a
+icospheres, a marked region or ``{"auto": "all"}`` with 1 to 20 holes: its planning
+counts), a fresh process loads the shipped model, runs the service's warm-up (a
 2,048-point sphere, default options), then the request, and reports its wall time and the
 peak RSS it added (``VmHWM`` reset after the warm-up; Linux only). The table sets these
 beside :data:`spacemesh.runtime.cost.DEFAULT_COST_MODEL`'s estimate, and the number of
@@ -34,7 +35,9 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "points.ply"
 #: name -> (kind, cloud, options): cloud is "example", a point count (a sampled torus) or,
-#: for a repair, ``[icosphere subdivisions, sphere radius around (0, 0, 1)]``.
+#: for a repair, ``[icosphere subdivisions, sphere radius around (0, 0, 1)]`` (a marked
+#: region) or ``{"subdivisions", "holes"[, "radius"]}`` (``{"auto": "all"}`` on
+#: :func:`bench.heavy_requests.holed_icosphere`).
 CASES: dict[str, tuple[str, Any, dict[str, Any]]] = {
     "default": ("generate", "example", {}),
     "tv500": ("generate", "example", {"target_vertices": 500}),
@@ -58,12 +61,20 @@ CASES: dict[str, tuple[str, Any, dict[str, Any]]] = {
     "repair-1280-steps200": ("repair", [3, 0.3], {"steps": 200}),
     "repair-1280-steps1024": ("repair", [3, 0.3], {"steps": 1024}),
     "repair-327680": ("repair", [7, 0.02], {}),
+    "repair-auto-20k-1": ("repair", {"subdivisions": 5, "holes": 1}, {}),
+    "repair-auto-20k-6": ("repair", {"subdivisions": 5, "holes": 6}, {}),
+    "repair-auto-81k-6": ("repair", {"subdivisions": 6, "holes": 6}, {}),
+    "repair-auto-327k-1": ("repair", {"subdivisions": 7, "holes": 1}, {}),
+    "repair-auto-324k-6": ("repair", {"subdivisions": 7, "holes": 6}, {}),
+    "repair-auto-307k-6-wide": ("repair", {"subdivisions": 7, "holes": 6, "radius": 0.2}, {}),
+    "repair-auto-79k-20": ("repair", {"subdivisions": 6, "holes": 20}, {}),
 }
 #: Minutes each: with --full.
 LONG_CASES: dict[str, tuple[str, Any, dict[str, Any]]] = {
     "tv2048-steps20-t1": ("generate", "example", {"target_vertices": 2048, "steps": 20,
                                                   "start_time": 1.0}),
     "tv10000": ("generate", "example", {"target_vertices": 10_000}),
+    "repair-auto-316k-20": ("repair", {"subdivisions": 7, "holes": 20}, {}),
 }
 #: Issue 37's first reproduction.
 HEAVY = "samples=16&target_vertices=10000&steps=1024&start=points&start_time=1"
@@ -97,20 +108,29 @@ def run_child(kind: str, cloud: Any, options: dict[str, Any]) -> dict[str, Any]:
     generator = MeshGenerator.from_repository(None)
     generator.generate(fibonacci_sphere(2048), None, GenerateOptions(seed=1))  # warm-up
     if kind == "repair":
+        from bench.heavy_requests import AUTO_ALL, holed_icosphere
         from spacemesh.examples import icosphere
-        from spacemesh.repair import plan_repair, repair_mesh
+        from spacemesh.repair import AutoPlan, plan_repair, repair_mesh
 
-        mesh = icosphere(cloud[0])
-        region = {"sphere": {"center": [0, 0, 1], "radius": cloud[1]}}
-        plan = plan_repair(mesh, region, generator.spec.max_vertices)
+        if isinstance(cloud, dict):  # an automatic region: planned in the request
+            mesh, region = holed_icosphere(**cloud), AUTO_ALL
+        else:
+            mesh = icosphere(cloud[0])
+            region = {"sphere": {"center": [0, 0, 1], "radius": cloud[1]}}
+            plan = plan_repair(mesh, region, generator.spec.max_vertices)
         before = _kb("VmRSS")
         Path("/proc/self/clear_refs").write_text("5")  # VmHWM from here on
         started = time.perf_counter()
+        if isinstance(cloud, dict):
+            plan = plan_repair(mesh, region, generator.spec.max_vertices)
         result = repair_mesh(mesh, region, generator, seed=0, steps=options.get("steps"),
                              plan=plan)
         seconds = time.perf_counter() - started
+        work = ({"passes": plan.model_passes, "fills": plan.fills,
+                 "fill_vertices2": plan.fill_vertices2, "automatic": True}
+                if isinstance(plan, AutoPlan) else {})
         return {"seconds": seconds, "mb": (_kb("VmHWM") - before) / 1024,
-                "runs": result.stats.samplings, "faces": mesh.n_faces}
+                "runs": result.stats.samplings, "faces": mesh.n_faces, "work": work}
     if cloud == "example":
         points, normals = load_points(EXAMPLE)
     else:
@@ -138,7 +158,8 @@ def estimate(kind: str, measured: dict[str, Any], options: dict[str, Any]) -> An
     spec = ModelSpec.from_manifest(_json.loads(manifest.read_text()))
     if kind == "repair":
         return DEFAULT_COST_MODEL.repair(spec, steps=int(options.get("steps", spec.steps)),
-                                         faces=int(measured["faces"]))
+                                         faces=int(measured["faces"]),
+                                         **measured.get("work", {}))
     resolved = GenerateOptions(seed=0, **options).resolve(spec)
     return DEFAULT_COST_MODEL.generate(spec, resolved, int(measured["points"]))
 
@@ -216,10 +237,10 @@ def main() -> None:
     parser.add_argument("--json", type=Path, help="write the rows here")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    sys.path.insert(0, str(ROOT))
     if args.child:
         print(json.dumps(run_child(*json.loads(args.child))))
         return
-    sys.path.insert(0, str(ROOT))
     cases = {**CASES, **(LONG_CASES if args.full else {})}
     if args.only is not None:
         cases = {k: v for k, v in {**CASES, **LONG_CASES}.items() if k in args.only}

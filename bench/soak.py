@@ -3,7 +3,7 @@
 Usage::
 
     .venv/bin/python bench/soak.py [--clients 4] [--minutes 1] [--url http://HOST:PORT
-        --grpc HOST:PORT [--pid PID]] [--model DIR] [--seed 0] [--json OUT]
+        --grpc HOST:PORT [--pid PID]] [--model DIR] [--seed 0] [--heavy] [--json OUT]
 
 Without ``--url`` it starts the real server itself (``spacemesh serve``, default settings,
 the shipped model unless ``--model``; its output goes to a log file) and reads the
@@ -19,12 +19,22 @@ Each client loops until the time is up over a fixed mix, drawn with its own seed
   NaN, a deeply nested JSON body, an ``.npz`` that inflates to 60 M points, a bad repair
   region, an empty gRPC request, a bad gRPC option.
 
+With ``--heavy`` the mix also holds heavy valid requests (bench/heavy_requests.py):
+``target_vertices=2048&samples=4`` on 200,000 points of a real mesh (admitted by the
+default budget), ``{"auto": "all"}`` on a 324,216-face mesh with 6 holes (admitted), and
+requests the budget refuses before any work (``target_vertices=10000`` on the example
+cloud, the same repair with 20 holes: 422 ``too-expensive``). A heavy admitted request
+deserves a 200, or, when the heavy ones queue behind each other past the deadline, an
+honest 504 ``timeout`` or 503 ``queue-full``: those are counted apart (``overload``),
+never a 500.
+
 Every answer is checked against what the request deserves (200, or the problem kind it
 must get). It prints the latency percentiles (p50, p95, p99) of the valid and the
-invalid requests, the answers by problem kind, the number of 5xx answers (gRPC INTERNAL,
-UNKNOWN, UNAVAILABLE, DATA_LOSS count as 5xx; there must be none), the answers that were
-not the expected ones, and the server's peak RSS. Exit status 1 if any 5xx or unexpected
-answer was seen.
+invalid requests (and of the small valid ones, without the heavy), the answers by status
+and by problem kind, the number of 5xx answers (gRPC INTERNAL, UNKNOWN, UNAVAILABLE,
+DATA_LOSS count as 5xx; there must be none but the heavy requests' honest overload
+answers), the 500s, the answers that were not the expected ones, and the server's peak
+RSS. Exit status 1 if any 500, other 5xx or unexpected answer was seen.
 """
 
 from __future__ import annotations
@@ -55,6 +65,8 @@ from tests.io.bombs import inflating_npz  # noqa: E402
 PROBLEM = "https://spacemesh.dev/problems/"
 #: gRPC codes that are server errors (the 5xx of gRPC).
 GRPC_SERVER_ERRORS = {"INTERNAL", "UNKNOWN", "UNAVAILABLE", "DATA_LOSS"}
+#: The honest answers of an admitted heavy request that waited behind others.
+OVERLOAD = {("504", "timeout"), ("503", "queue-full")}
 
 
 @dataclass(frozen=True)
@@ -68,6 +80,8 @@ class Outcome:
     kind: str  # the problem's slug ("" on success)
     server_error: bool
     expected: bool
+    heavy: bool = False
+    overload: bool = False  # a heavy admitted request's honest 504 timeout or 503 queue-full
 
 
 # ---------------------------------------------------------------------- inputs
@@ -85,15 +99,35 @@ def ply(points: np.ndarray) -> bytes:
 
 
 @dataclass(frozen=True)
+class Heavy:
+    """The heavy inputs (``--heavy``)."""
+
+    cloud: bytes  # 200,000 points of a real mesh, binary PLY
+    big_mesh: bytes  # 324,216 faces, 6 holes, binary PLY
+    bigger_mesh: bytes  # 315,982 faces, 20 holes: too expensive
+    example: bytes  # examples/points.ply
+
+    @classmethod
+    def make(cls) -> Heavy:
+        from bench.heavy_requests import binary_ply, holed_icosphere, real_cloud
+        from spacemesh.io import export_mesh
+
+        return cls(binary_ply(real_cloud()), export_mesh(holed_icosphere(7, 6), "ply"),
+                   export_mesh(holed_icosphere(7, 20), "ply"),
+                   (ROOT / "examples" / "points.ply").read_bytes())
+
+
+@dataclass(frozen=True)
 class Inputs:
     points: np.ndarray
     ply: bytes
     mesh: bytes  # an OBJ to repair
     region: dict
     bomb: bytes
+    heavy: Heavy | None = None
 
     @classmethod
-    def make(cls) -> Inputs:
+    def make(cls, heavy: bool = False) -> Inputs:
         from spacemesh.examples import icosphere
         from spacemesh.io import export_mesh
 
@@ -101,7 +135,7 @@ class Inputs:
         sphere = icosphere(2)
         star = [int(f) for f in np.unique(sphere.face_of_corner[sphere.face_indices == 0])]
         return cls(points, ply(points), export_mesh(sphere, "obj"), {"faces": star},
-                   inflating_npz(60_000_000))
+                   inflating_npz(60_000_000), Heavy.make() if heavy else None)
 
 
 # ---------------------------------------------------------------------- requests
@@ -178,6 +212,30 @@ class Soak:
             "grpc too few points": (False, "too-few-points", 1, lambda: self.rpc(
                 self.stub.Generate, pb.GenerateRequest(points=few))),
         }
+        if inputs.heavy is not None:
+            self.mix.update(self.heavy_mix(inputs.heavy))
+
+    def heavy_mix(self, heavy: Heavy) -> dict[str, tuple[bool, str, int,
+                                                         Callable[[], tuple[str, str]]]]:
+        """The heavy requests: admitted ones (the problem kind "heavy") and ones the
+        budget refuses (``too-expensive``)."""
+        from bench.heavy_requests import AUTO_ALL, HEAVY_GENERATE
+
+        auto = json.dumps(AUTO_ALL)
+        return {
+            "rest heavy generate": (True, "heavy", 1, lambda: self.rest(
+                "/generate", params={**HEAVY_GENERATE, "seed": 0, "format": "ply"},
+                files={"file": ("cloud.ply", heavy.cloud)})),
+            "rest big repair": (True, "heavy", 1, lambda: self.rest(
+                "/repair", params={"format": "ply"},
+                files={"file": ("mesh.ply", heavy.big_mesh)}, data={"region": auto})),
+            "rest too expensive generate": (False, "too-expensive", 1, lambda: self.rest(
+                "/generate", params={"target_vertices": 10_000},
+                files={"file": ("points.ply", heavy.example)})),
+            "rest too expensive repair": (False, "too-expensive", 1, lambda: self.rest(
+                "/repair", files={"file": ("mesh.ply", heavy.bigger_mesh)},
+                data={"region": auto})),
+        }
 
     def rest(self, route: str, **keywords) -> tuple[str, str]:
         response = self.http.post(route, **keywords)
@@ -208,7 +266,12 @@ class Soak:
         expected = ok if valid else (not ok and kind == expected_kind)
         if valid and not ok and kind == "no-surface":  # an honest answer for some seeds
             expected = True
-        return Outcome(name, valid, seconds, status, kind, server_error, expected)
+        heavy = expected_kind == "heavy" or name.startswith("rest too expensive")
+        overload = expected_kind == "heavy" and (status, kind) in OVERLOAD
+        if overload:  # admitted, but queued behind the other heavy ones past the deadline
+            expected, server_error = True, False
+        return Outcome(name, valid, seconds, status, kind, server_error, expected, heavy,
+                       overload)
 
     def client(self, index: int, seed: int, until: float, out: list[Outcome],
                lock: threading.Lock) -> None:
@@ -265,16 +328,21 @@ def report(outcomes: list[Outcome], seconds: float, clients: int,
            peak_rss_mb: float | None) -> dict:
     valid = [o for o in outcomes if o.valid]
     invalid = [o for o in outcomes if not o.valid]
+    small = [o for o in valid if not o.heavy]
+    groups = (("all", outcomes), ("valid", valid), ("small valid", small),
+              ("invalid", invalid))
     summary = {
         "clients": clients, "seconds": round(seconds, 1), "requests": len(outcomes),
         "requests_per_s": round(len(outcomes) / max(seconds, 1e-9), 2),
         "latency_ms": {name: dict(zip(("p50", "p95", "p99"), map(lambda v: round(v, 1),
                                                                    percentiles(
                        [o.seconds for o in group])), strict=True))
-                       for name, group in (("all", outcomes), ("valid", valid),
-                                           ("invalid", invalid))},
+                       for name, group in groups},
         "answers": dict(sorted(Counter(o.kind or "ok" for o in outcomes).items())),
+        "statuses": dict(sorted(Counter(o.status for o in outcomes).items())),
         "server_errors": sum(o.server_error for o in outcomes),
+        "internal_errors": sum(o.status in ("500", "INTERNAL") for o in outcomes),
+        "overload": sum(o.overload for o in outcomes),
         "unexpected": [f"{o.name}: {o.status} {o.kind}" for o in outcomes if not o.expected],
         "peak_rss_mb": peak_rss_mb,
         "by_request": {name: {"count": len(g), "p50_ms": round(percentiles(
@@ -284,13 +352,28 @@ def report(outcomes: list[Outcome], seconds: float, clients: int,
     print(f"\n## Soak: {clients} clients, {seconds:.0f} s, {len(outcomes)} requests "
           f"({summary['requests_per_s']} / s)\n")
     print("| requests | count | p50 ms | p95 ms | p99 ms |\n|---|---:|---:|---:|---:|")
-    for name, group in (("all", outcomes), ("valid", valid), ("invalid", invalid)):
+    for name, group in groups:
         p50, p95, p99 = percentiles([o.seconds for o in group])
         print(f"| {name} | {len(group)} | {p50:.0f} | {p95:.0f} | {p99:.0f} |")
+    heavy = sorted({o.name for o in outcomes if o.heavy})
+    if heavy:
+        print("\n| heavy request | count | answers | p50 s | max s |\n|---|---:|---|---:|---:|")
+        for name in heavy:
+            mine = [o for o in outcomes if o.name == name]
+            answers = ", ".join(f"{k} x{c}" for k, c in sorted(Counter(
+                f"{o.status} {o.kind}".strip() for o in mine).items()))
+            times = [o.seconds for o in mine]
+            print(f"| {name} | {len(mine)} | {answers} | {np.median(times):.1f} | "
+                  f"{max(times):.1f} |")
+    print("\n| status | count |\n|---|---:|")
+    for status, count in summary["statuses"].items():
+        print(f"| {status} | {count} |")
     print("\n| answer (problem kind) | count |\n|---|---:|")
     for kind, count in summary["answers"].items():
         print(f"| {kind} | {count} |")
-    print(f"\n5xx answers: {summary['server_errors']}")
+    print(f"\n500 answers: {summary['internal_errors']}")
+    print(f"heavy requests answered 504 timeout or 503 queue-full: {summary['overload']}")
+    print(f"other 5xx answers: {summary['server_errors']}")
     print(f"unexpected answers: {len(summary['unexpected'])}")
     for line in sorted(set(summary["unexpected"]))[:20]:
         print(f"  {line}")
@@ -309,11 +392,13 @@ def main() -> int:
     parser.add_argument("--model", type=Path, default=None, help="model to serve")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", type=Path, default=None, help="also write the figures")
+    parser.add_argument("--heavy", action="store_true",
+                        help="mix in heavy valid requests and too-expensive ones")
     args = parser.parse_args()
     if args.url and not args.grpc:
         parser.error("--url needs --grpc HOST:PORT")
 
-    inputs = Inputs.make()
+    inputs = Inputs.make(args.heavy)
     process, log = None, None
     if args.url:
         url, target, pid = args.url.rstrip("/"), args.grpc, args.pid
@@ -345,7 +430,8 @@ def main() -> int:
     summary = report(outcomes, seconds, args.clients, peak)
     if args.json:
         args.json.write_text(json.dumps(summary, indent=2))
-    return 1 if summary["server_errors"] or summary["unexpected"] else 0
+    return 1 if (summary["server_errors"] or summary["internal_errors"]
+                 or summary["unexpected"]) else 0
 
 
 if __name__ == "__main__":

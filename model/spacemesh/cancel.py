@@ -5,8 +5,10 @@ The service's batcher runs a batch in its inference thread inside :func:`cancel_
 whose check says whether anyone still waits for the batch (a deadline passed, a client
 went away, a gRPC call was cancelled). Long loops call :func:`checkpoint` on every
 round (the vertex fit's iterations, the geometry stage's rounds and guard, edge
-collapses, untangling), so abandoned work stops within one round instead of at the
-next stage. Outside a scope (the CLI, batch, tests) :func:`checkpoint` does nothing.
+collapses, untangling; a repair's samplings, sampler steps, splice rounds, passes and the
+fills' fairings, refinement rounds and probes; an automatic region's planning), so
+abandoned work stops within one round instead of at the next stage. Outside a scope
+(the CLI, batch, tests) :func:`checkpoint` does nothing.
 The scope is per thread, so concurrent work in other threads is not affected.
 """
 
@@ -40,6 +42,17 @@ def cancel_scope(is_cancelled: Callable[[], bool]) -> Iterator[None]:
         _local.check = outer
 
 
+def cancelled() -> bool:
+    """Whether this thread's scope says the work is not wanted (False outside a scope).
+
+    Returns
+    -------
+    bool
+    """
+    check = getattr(_local, "check", None)
+    return bool(check is not None and check())
+
+
 def checkpoint() -> None:
     """Raise :class:`Cancelled` if this thread's scope says the work is not wanted.
 
@@ -48,9 +61,8 @@ def checkpoint() -> None:
     Cancelled
         Inside a :func:`cancel_scope` whose check returns True.
     """
-    check = getattr(_local, "check", None)
-    if check is not None and check():
+    if cancelled():
         raise Cancelled
 
 
-__all__ = ["Cancelled", "cancel_scope", "checkpoint"]
+__all__ = ["Cancelled", "cancel_scope", "cancelled", "checkpoint"]

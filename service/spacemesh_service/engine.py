@@ -17,7 +17,7 @@ the same inputs, raise the same errors and return the same bytes.
 :meth:`Engine.repair` is the same for a repair (:mod:`spacemesh.repair`):
 
     read mesh + region, (weld,) cut and plan, estimate the cost (thread; region errors and
-      too-expensive: 422 before queueing)
+      too-expensive: 422 before queueing; the deadline or a disconnect stops the planning)
       -> a lane's queue -> repair_mesh alone (its inference thread) -> encode output (thread)
 """
 
@@ -26,6 +26,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -33,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh.cancel import Cancelled, cancel_scope
 from spacemesh.io.limits import ReadLimits
 from spacemesh.mesh import PolygonMesh
 from spacemesh.repair import (
@@ -514,6 +516,11 @@ class Engine:
                      outcome.batch_size, sample_scores=scores, input_kind=cloud.input_kind,
                      reduction=cloud.reduction)
 
+    def _timeout(self) -> Problem:
+        """504 ``timeout``: the request deadline passed."""
+        return Problem(P.TIMEOUT, f"no result within {self.settings.request_timeout_s} s; "
+                       "the work was cancelled", timeout_s=self.settings.request_timeout_s)
+
     async def _queued(self, work: Any, spent: float, lane: Batcher) -> Any:
         """Await ``lane`` (its ``submit`` or ``submit_call``) within what is left of the
         request timeout; its exceptions become problems."""
@@ -524,9 +531,7 @@ class Engine:
                 raise asyncio.TimeoutError
             return await asyncio.wait_for(work, remaining)
         except asyncio.TimeoutError:
-            raise Problem(P.TIMEOUT, f"no result within {self.settings.request_timeout_s} s; "
-                          "the work was cancelled",
-                          timeout_s=self.settings.request_timeout_s) from None
+            raise self._timeout() from None
         except QueueFull:
             raise Problem(P.QUEUE_FULL, f"{lane.depth} requests are waiting already",
                           retry_after=lane.retry_after()) from None
@@ -553,10 +558,14 @@ class Engine:
                                weld=opts.weld, max_growth=opts.max_growth)
         except RegionError as error:
             raise P.region_problem(error) from None
-        work = plan.mesh if isinstance(plan, AutoPlan) else plan.cut.mesh
-        estimate = self.cost_model.repair(
-            self._generator.spec, steps=int(opts.resolved.steps or self.default_steps),
-            faces=work.n_faces, passes=len(plan.regions) if isinstance(plan, AutoPlan) else 1)
+        steps = int(opts.resolved.steps or self.default_steps)
+        spec = self._generator.spec
+        if isinstance(plan, AutoPlan):
+            estimate = self.cost_model.repair(
+                spec, steps=steps, faces=plan.mesh.n_faces, passes=plan.model_passes,
+                fills=plan.fills, fill_vertices2=plan.fill_vertices2, automatic=True)
+        else:
+            estimate = self.cost_model.repair(spec, steps=steps, faces=plan.cut.mesh.n_faces)
         self._within_budget(estimate, "repair")
         return _RepairJob(mesh, shape, plan, opts, estimate)
 
@@ -567,6 +576,8 @@ class Engine:
 
         The mesh and region are read, and the region cut and planned, in a worker
         thread, so every region error answers 422 before the request is queued; the
+        planning runs in a cancellation scope (:mod:`spacemesh.cancel`), so the request's
+        deadline (504) or a client that leaves stops it at its next checkpoint. The
         repair then waits in the queue of its lane and runs alone in its inference thread.
 
         Parameters
@@ -604,8 +615,20 @@ class Engine:
         if not self._inflight:
             raise RuntimeError("call Engine.repair inside 'with engine.admit():'")
         started = time.perf_counter()
+        deadline = time.monotonic() + self.settings.request_timeout_s
+        gone = threading.Event()  # the client left: the planning stops
+
+        def plan() -> _RepairJob:  # in a parse thread: planning a big automatic region
+            with cancel_scope(lambda: gone.is_set() or time.monotonic() > deadline):
+                return self._decode_repair(upload, region, options)
+
         try:
-            job = await self.parsing.run(self._decode_repair, upload, region, options)
+            job = await self.parsing.run(plan)
+        except asyncio.CancelledError:
+            gone.set()
+            raise
+        except Cancelled:  # the deadline passed while the region was planned
+            raise self._timeout() from None
         except Problem as problem:
             if problem.kind in P.REGION_KINDS:
                 self.metrics.repair_rejected.labels(problem.kind.slug).inc()

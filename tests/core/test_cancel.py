@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from spacemesh.cancel import Cancelled, cancel_scope, checkpoint
+from spacemesh.cancel import Cancelled, cancel_scope, cancelled, checkpoint
 from spacemesh.examples import icosphere
 from spacemesh.primitives import sample_surface
 
@@ -25,9 +25,12 @@ def after(calls: int):
 
 def test_checkpoints_raise_only_inside_a_scope_that_says_so():
     checkpoint()  # no scope: nothing happens
+    assert not cancelled()
     with cancel_scope(lambda: False):
         checkpoint()
+        assert not cancelled()
         with cancel_scope(lambda: True), pytest.raises(Cancelled):
+            assert cancelled()
             checkpoint()
         checkpoint()  # the outer scope is back
     checkpoint()

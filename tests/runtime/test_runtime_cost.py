@@ -145,6 +145,45 @@ def test_repair_cost_grows_with_steps_passes_and_faces(spec):
     assert info.value.option == "steps" and "this repair is estimated" in str(info.value)
 
 
+def test_an_automatic_repair_costs_its_fills_their_holes_and_its_search(spec):
+    model = DEFAULT_COST_MODEL
+    base = model.repair(spec, steps=50, faces=300_000, passes=6)
+    for bigger in (model.repair(spec, steps=50, faces=300_000, passes=6, fills=6),
+                   model.repair(spec, steps=50, faces=300_000, passes=6,
+                                fill_vertices2=6 * 60**2),
+                   model.repair(spec, steps=50, faces=300_000, passes=6, automatic=True)):
+        assert bigger.seconds > base.seconds
+    filled = model.repair(spec, steps=50, faces=300_000, passes=6, fills=6,
+                          fill_vertices2=6 * 60**2)
+    # one pass: one sixth of the fills, as a smaller region would have
+    fewer, _ = filled.with_changes({"region": 1})
+    assert fewer < filled.seconds
+    one, _ = model.repair(spec, steps=50, faces=300_000, passes=1, fills=1,
+                          fill_vertices2=60**2).with_changes({})
+    assert fewer == pytest.approx(one)
+
+
+def test_the_default_budget_admits_issue_37s_repair_and_refuses_a_larger_one(spec):
+    """``{"auto": "all"}`` on a 324,216-face icosphere with 6 holes (issue 37: 326,000
+    faces) is admitted (estimated 26 s; it took 18 s); with 20 holes on 315,982 faces
+    (estimated 76 s; it took 56 s, past the 30 s deadline) it is refused."""
+    from bench.heavy_requests import AUTO_ALL, holed_icosphere
+    from spacemesh.repair import plan_repair
+
+    budget = Budget(seconds=60.0, memory_mb=2048.0)  # the default: twice the deadline
+    for holes, admitted in ((6, True), (20, False)):
+        plan = plan_repair(holed_icosphere(7, holes), AUTO_ALL, spec.max_vertices)
+        e = DEFAULT_COST_MODEL.repair(spec, steps=spec.steps, faces=plan.mesh.n_faces,
+                                      passes=plan.model_passes, fills=plan.fills,
+                                      fill_vertices2=plan.fill_vertices2, automatic=True)
+        if admitted:
+            budget.check(e, what="repair")
+        else:
+            with pytest.raises(CostError) as info:
+                budget.check(e, what="repair")
+            assert info.value.option == "region"
+
+
 def test_the_cost_model_is_a_frozen_option_object(spec):
     slower = replace(DEFAULT_COST_MODEL, geometry_s1=2 * DEFAULT_COST_MODEL.geometry_s1)
     assert isinstance(slower, CostModel)

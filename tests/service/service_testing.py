@@ -3,11 +3,30 @@
 from __future__ import annotations
 
 import io
+import re
 import threading
 import time
 from dataclasses import dataclass
 
 import numpy as np
+
+
+def metric(url: str, name: str) -> float:
+    """The value of the unlabelled metric ``name`` on the server at ``url`` (0 when absent)."""
+    import httpx
+
+    text = httpx.get(url + "/metrics").text
+    match = re.search(rf"^{re.escape(name)} (\S+)$", text, re.M)
+    return float(match.group(1)) if match else 0.0
+
+
+def wait_for(condition, what: str, timeout: float = 30.0) -> None:
+    """Wait until ``condition()`` is true (failing after ``timeout`` s, never measuring)."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.01)
+
 
 #: Seeds tried to find one that gives a surface (and one that gives none).
 SEEDS_TO_TRY = 40

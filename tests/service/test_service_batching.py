@@ -9,7 +9,6 @@ step down instead, far beyond what the test waits.
 from __future__ import annotations
 
 import json
-import re
 import socket
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -24,25 +23,14 @@ from service_testing import (
     GatedGenerator,
     SlowGenerator,
     WrappedGenerator,
+    metric,
+    wait_for,
 )
 
 from spacemesh_service.pb import spacemesh_pb2 as pb
 from spacemesh_service.pb import spacemesh_pb2_grpc as pb_grpc
 
 pytestmark = pytest.mark.slow
-
-
-def metric(url: str, name: str) -> float:
-    text = httpx.get(url + "/metrics").text
-    match = re.search(rf"^{re.escape(name)} (\S+)$", text, re.M)
-    return float(match.group(1)) if match else 0.0
-
-
-def wait_for(condition, what: str, timeout: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
-        time.sleep(0.01)
 
 
 def post(url: str, case, **options) -> httpx.Response:

@@ -444,6 +444,7 @@ def fit_to_surface(positions: FloatArray, triangles: IntArray, moving: BoolArray
     springs = spring * (incidence.T @ incidence)  # (V, V)
     fixed = ~moving
     for _ in range(rounds):
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         owner, _ = nearest_triangles(samples, x, triangles)
         under = x[triangles[owner]]  # (M, 3, 3)
         bary = barycentric(closest_points_on_triangles(samples, under), under)  # (M, 3)

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh.cancel import checkpoint
 from spacemesh.decode import Embeddings
 from spacemesh.geometry import refine_geometry
 from spacemesh.mesh import PolygonMesh
@@ -616,6 +617,7 @@ def repair_mesh(
     flipped = bool(enclosed_volume(mesh) < 0)
     fewest: tuple[Any, ...] | None = None
     for attempt in range(TOPOLOGY_ATTEMPTS):
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         t0 = time.perf_counter()
         rng = np.random.default_rng(int(seed) if attempt == 0 else [int(seed), attempt])
         samples = sample_patch(cut, patch, n_points=spec.n_points, normals=spec.normals,
@@ -636,6 +638,7 @@ def repair_mesh(
         candidates, valid, dropped = select_new_vertices(result, samples, patch.expected_new)
         timings["sampler"] = time.perf_counter() - t0
 
+        checkpoint()
         t0 = time.perf_counter()
         out = backend.connect(positions[None].astype(np.float32), valid[None], volumes)
         timings["connectivity"] = time.perf_counter() - t0
@@ -655,6 +658,7 @@ def repair_mesh(
     assert fewest is not None  # set by the first of the TOPOLOGY_ATTEMPTS (at least one)
     drop, samples, candidates, dropped, fill, spliced = fewest
 
+    checkpoint()
     t0 = time.perf_counter()
     if fit_patch and spliced.n_new_vertices:
         cloud = patch.from_unit(np.concatenate([samples.hole, samples.kept]))
@@ -701,6 +705,7 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
     and put their results together; pass ``k`` uses the seed ``seed + k``."""
     def run_pass(mesh: PolygonMesh, faces: BoolArray, tolerated: BoolArray,
                  allowed: BoolArray, index: int) -> RepairResult:
+        checkpoint()  # every pass
         step = plan_repair(mesh, faces, spec.max_vertices, max_growth=plan.max_growth,
                            tolerated=tolerated)
         assert isinstance(step, RepairPlan)  # a face mask is never an automatic region
@@ -712,7 +717,7 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
                            fit_patch=fit_patch, policy=policy)
 
     state, findings, regions = repair_auto(plan, run_pass, fair=fit_patch, policy=policy)
-    passes = [r.stats for r in state.results]
+    passes = list(state.passes)
     out, work = state.mesh, plan.mesh
     new = state.face_source < 0
     sizes, counts = np.unique(out.face_sizes[new], return_counts=True)

@@ -54,6 +54,7 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh.cancel import checkpoint
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import faces_subset
 from spacemesh.repair.cut import grow_region
@@ -63,6 +64,7 @@ from spacemesh.repair.fill.kinds import FilledBy
 from spacemesh.repair.fill.passes import Passes
 from spacemesh.repair.fill.policy import DEFAULT_POLICY, FillPolicy
 from spacemesh.repair.findings import MAX_REPORTED, Finding, find_issues
+from spacemesh.repair.halfedges import FaceSubset
 from spacemesh.repair.orient import orient_faces
 from spacemesh.repair.patch import MIN_FREE
 from spacemesh.repair.pinched import hole_loops
@@ -196,6 +198,34 @@ class AutoPlan:
         """Input vertices merged away by the weld (0 without ``weld=True``)."""
         return 0 if self.weld_map is None else len(self.weld_map) - self.mesh.n_vertices
 
+    def _holes_only(self, region: AutoRegion) -> bool:
+        return all(self.findings[i].kind == "hole" for i in region.findings)
+
+    @property
+    def model_passes(self) -> int:
+        """The model passes the repair is expected to run (what it costs,
+        :meth:`spacemesh.runtime.cost.CostModel.repair`): one per region re-generated
+        whole, and one per wedge of the fan over each hole of a region filled in place
+        (a hole of ``k`` vertices has a fan of ``k`` triangles, :func:`wedge_size` of
+        them a pass)."""
+        size = wedge_size(self.n_tokens)
+        return sum(1 if region.strategy == "model" else
+                   sum(-(-self.findings[i].size // size) for i in region.findings)
+                   for region in self.regions)
+
+    @property
+    def fills(self) -> int:
+        """Regions of holes only, whose fill is refined, faired and probed after their
+        passes (:func:`spacemesh.repair.fill.finish.finish_holes`)."""
+        return sum(self._holes_only(region) for region in self.regions)
+
+    @property
+    def fill_vertices2(self) -> int:
+        """The sum over the holes of those regions of their squared vertex count (a
+        hole's fill grows with its area)."""
+        return sum(self.findings[i].size ** 2 for region in self.regions
+                   if self._holes_only(region) for i in region.findings)
+
 
 def wedge_size(n_tokens: int) -> int:
     """Most fan triangles one model pass re-generates in the fallback (a wedge of ``k``
@@ -225,7 +255,10 @@ def _others(mesh: PolygonMesh, regions: list[AutoRegion], region: AutoRegion) ->
 def _plan_regions(work: PolygonMesh, findings: list[Finding], n_tokens: int,
                   max_growth: float, plan_region: PlanRegion) -> list[AutoRegion]:
     """Group the findings' rings into regions and plan each (:func:`plan_auto`)."""
-    rings = [f.ring(work) for f in findings]
+    rings = []
+    for f in findings:
+        checkpoint()  # abandoned work stops here (spacemesh.cancel): a ring reads the mesh
+        rings.append(f.ring(work))
     union = np.logical_or.reduce(rings) if rings else np.zeros(work.n_faces, dtype=bool)
     grown = grow_region(work, union)
     n_groups, group = vertex_connected_faces(work, grown)  # group (F,), -1 outside
@@ -234,11 +267,20 @@ def _plan_regions(work: PolygonMesh, findings: list[Finding], n_tokens: int,
     for g in range(n_groups):
         ids = [i for i, o in enumerate(owner) if o == g]
         if ids:
+            checkpoint()
             requested = np.logical_or.reduce([rings[i] for i in ids])
             regions.append(AutoRegion(requested, grow_region(work, requested), ids))
+    whole: list[FaceSubset] = []  # FaceSubset.of(work, every face), once if needed
+
+    def loops_of(vertices: IntArray) -> list[IntArray] | None:
+        checkpoint()
+        if not whole:
+            whole.append(FaceSubset.of(work, np.arange(work.n_faces)))
+        return hole_loops(work, vertices, whole[0])
+
     for region in regions:
         holes_only = all(findings[i].kind == "hole" for i in region.findings)
-        if holes_only and all(hole_loops(work, findings[i].vertices) is not None
+        if holes_only and all(loops_of(findings[i].vertices) is not None
                               for i in region.findings):
             region.strategy = "in-place"  # the loops filled, the ring kept
             region.region = region.requested.copy()
@@ -291,7 +333,9 @@ def plan_auto(mesh: PolygonMesh, mode: str, n_tokens: int, *, plan_region: PlanR
     start = time.perf_counter()
     max_growth = DEFAULT_MAX_GROWTH if max_growth is None else float(max_growth)
     work, weld_map = (weld_vertices(mesh) if weld else (mesh, None))
+    checkpoint()
     work, reversed_faces = orient_faces(work)
+    checkpoint()
     findings = find_issues(work, mode)
     if not findings and not reversed_faces.any():
         what = {"holes": "no hole (open boundary)", "defects": "no defect",
@@ -351,8 +395,8 @@ def _model_region(state: Passes, region: AutoRegion, index: int, later: BoolArra
                   run_pass: RunPass) -> FilledBy:
     """Re-generate the region ``index`` with its ring by one model pass."""
     result = run_pass(state.mesh, state.faces_of(region.requested), state.vertices_of(later),
-                      state.faces_of(region.region), len(state.results))
-    state.results.append(result)
+                      state.faces_of(region.region), len(state.passes))
+    state.passes.append(result.stats)
     state.apply(result.vertex_map, result.face_source, result.mesh, index)
     return _filled_by(result.stats.loops - _polygons(result), _polygons(result))
 
@@ -376,12 +420,13 @@ def _in_place(state: Passes, loops: list[IntArray], index: int, later: BoolArray
     state.wedge = wedge
     by_model = 0
     for w in range(n_wedges):
+        checkpoint()
         try:
             result = run_pass(state.mesh, state.wedge == w, state.vertices_of(later),
-                              state.face_source < 0, len(state.results))
+                              state.face_source < 0, len(state.passes))
         except RegionError:
             continue  # this wedge keeps its fan
-        state.results.append(result)
+        state.passes.append(result.stats)
         state.apply(result.vertex_map, result.face_source, result.mesh, index)
         by_model += _polygons(result) == 0
     return _filled_by(by_model, n_wedges - by_model)
@@ -411,7 +456,7 @@ def repair_auto(plan: AutoPlan, run_pass: RunPass, *, fair: bool = True,
     Returns
     -------
     passes : Passes
-        The final mesh, maps and every pass's result.
+        The final mesh, maps and every pass's statistics.
     findings : list of dict
         What was found and done (``kind``, ``size``, ``vertex``, ``region``, ``action``,
         ``filled_by`` for holes).
@@ -423,24 +468,27 @@ def repair_auto(plan: AutoPlan, run_pass: RunPass, *, fair: bool = True,
     if plan.removed is not None:  # the fins left at non-manifold edges go first
         state.apply(np.arange(work.n_vertices), np.flatnonzero(~plan.removed), plan.opened)
     size = wedge_size(plan.n_tokens)
+    opened = plan.opened
+    whole = FaceSubset.of(opened, np.arange(opened.n_faces))  # for every region's loops
     outcome: dict[int, FilledBy] = {}
     region_reports = []
     for index, region in enumerate(plan.regions):
-        before = len(state.results)
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
+        before = len(state.passes)
         later = _others(work, plan.regions[index:], region)
         if region.strategy == "model":
             by = _model_region(state, region, index, later, run_pass)
         else:
             loops = [state.vertex_map[loop] for i in region.findings
-                     for loop in (hole_loops(plan.opened, plan.findings[i].vertices) or [])]
+                     for loop in (hole_loops(opened, plan.findings[i].vertices, whole) or [])]
             by = _in_place(state, loops, index, later, size, run_pass)
         if all(plan.findings[i].kind == "hole" for i in region.findings):  # in place: all
             by = finish_holes(state, index, by, policy, fair=fair,
-                              passes=state.results[before:])
+                              passes=state.passes[before:])
         for i in region.findings:
             outcome[i] = by
         region_reports.append({**region.report(index, work.n_faces),
-                               "passes": len(state.results) - before, "filled_by": by.value})
+                               "passes": len(state.passes) - before, "filled_by": by.value})
     findings: list[dict[str, Any]] = [
         {"kind": f.kind, "size": f.size, "vertex": int(f.vertices[0]), "region": -1,
          "action": "split"} for f in plan.split]

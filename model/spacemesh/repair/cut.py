@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh.cancel import checkpoint
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import faces_touching, vertices_of
 from spacemesh.repair.halfedges import FaceSubset
@@ -72,6 +73,7 @@ def grow_region(mesh: PolygonMesh, region: BoolArray) -> BoolArray:
     """
     region = np.asarray(region, dtype=bool).copy()
     while True:  # each round adds at least one face, so this ends
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         touched = vertices_of(mesh, region)
         local = np.flatnonzero(faces_touching(mesh, touched) & ~region)
         if local.size == 0:

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from spacemesh.cancel import checkpoint
 from spacemesh.permutation import log_sinkhorn
 from spacemesh.runtime.backend import Backend, denoiser_fn
 from spacemesh.runtime.sampler import ProgressFn, reverse_step
@@ -142,6 +143,7 @@ def inpaint_tokens(
     denoise = denoiser_fn(backend, volumes, points)
     total = len(steps)
     for done, i in enumerate(reversed(range(total)), start=1):
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         abar = float(steps.alphas_cumprod[i])
         token = align(x[:, :3], targets, math.sqrt(abar))[:n_known]
         noise = rng.standard_normal((n_known, 4))

@@ -158,11 +158,14 @@ def split_pinched(mesh: PolygonMesh, sub: FaceSubset, open_ids: IntArray
     return loops
 
 
-def hole_loops(mesh: PolygonMesh, vertices: IntArray) -> list[IntArray] | None:
+def hole_loops(mesh: PolygonMesh, vertices: IntArray, sub: FaceSubset | None = None
+               ) -> list[IntArray] | None:
     """The open loops through ``vertices`` as simple cycles in the direction a filling
     face traverses them (loops touching at a vertex split there, :func:`split_pinched`),
-    or None when they cannot be made simple."""
-    sub = FaceSubset.of(mesh, np.arange(mesh.n_faces))
+    or None when they cannot be made simple. ``sub``: ``FaceSubset.of(mesh, every
+    face)``, when the caller has it (it reads the whole mesh)."""
+    if sub is None:
+        sub = FaceSubset.of(mesh, np.arange(mesh.n_faces))
     open_ids = np.flatnonzero(sub.edge_count[sub.edge] == 1)
     inside = np.zeros(mesh.n_vertices, dtype=bool)
     inside[vertices] = True

@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from spacemesh.cancel import checkpoint
 from spacemesh.connectivity import csr_from_edges, slot_lookup
 from spacemesh.decode import (
     EDGE_ROUNDS,
@@ -332,6 +333,7 @@ def fill_hole(
     stats["n_pruned"] += int((is_new & ~finite).sum())
     orders = None
     while True:
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         edges, alive, pruned, detached = _prune(edges, alive, is_new, n_boundary)
         stats["n_pruned"] += pruned
         stats["n_detached"] += detached

@@ -34,10 +34,20 @@ count whose mesh is expected within the tolerance (a mean distance of ``0.5 / V`
 diagonal: twice the example torus's), the other tries at that count, each costing the
 request's seeds. A repair::
 
-    seconds = 1.75 passes (0.0165 D N / 256 + 0.35) + 2e-6 F     MB = 30 + 4e-4 F
+    seconds = 1.75 passes (0.0165 D N / 256 + 0.35) + 2e-6 F
+            + fills (0.58 + 2.2e-6 F) + 1.5e-4 sum(h^2) + 5.6e-6 F auto
+    MB      = 30 + 9e-4 F
 
 ``D``: its sampler steps, ``N``: the model's tokens, ``F``: the mesh's faces, 1.75 the
-expected samplings of up to three (a fill that adds a handle is sampled again).
+expected samplings of up to three (a fill that adds a handle is sampled again),
+``passes``: its model passes (1 for a marked region; for an automatic one a pass per
+region re-generated whole and per wedge of the fan over each hole filled in place),
+``fills``: the regions of holes whose fill is then refined, faired and probed (each
+reads the mesh around its hole, and some of the whole mesh), ``h``: the vertices of each
+of their holes (a hole's fill grows with its area), ``auto``: 1 for an automatic region
+(orienting the mesh and finding its holes and defects read the whole mesh). Fitted on
+icospheres of 20,000 to 327,000 faces with 1 to 20 holes of 16 to 269 vertices (within
+12% of every measured time; ``bench/bench_cost_model.py``).
 """
 
 from __future__ import annotations
@@ -174,8 +184,12 @@ class CostModel:
     repair_step_s: float = 0.0165
     repair_pass_s: float = 0.35
     repair_s_per_face: float = 2e-6
+    repair_fill_s: float = 0.58
+    repair_fill_s_per_face: float = 2.2e-6
+    repair_fill_s_per_vertex2: float = 1.5e-4
+    repair_auto_s_per_face: float = 5.6e-6
     repair_mb: float = 30.0
-    repair_mb_per_face: float = 4e-4
+    repair_mb_per_face: float = 9e-4
 
     # ------------------------------------------------------------------ generate
     def generate(self, spec: ModelSpec, options: GenerateOptions, points: int) -> Estimate:
@@ -281,7 +295,8 @@ class CostModel:
         return counts + [counts[-1]] * (MAX_TRIES - len(counts))
 
     # ------------------------------------------------------------------ repair
-    def repair(self, spec: ModelSpec, *, steps: int, faces: int, passes: int = 1
+    def repair(self, spec: ModelSpec, *, steps: int, faces: int, passes: int = 1,
+               fills: int = 0, fill_vertices2: float = 0.0, automatic: bool = False
                ) -> Estimate:
         """The estimate of a repair.
 
@@ -293,21 +308,35 @@ class CostModel:
         faces : int
             Faces of the mesh (after a weld).
         passes : int
-            Model passes: 1 for a marked region, the regions of an automatic one.
+            Model passes: 1 for a marked region; for an automatic one, a pass per region
+            re-generated whole and per wedge of each hole filled in place
+            (:attr:`spacemesh.repair.auto.AutoPlan.model_passes`).
+        fills : int
+            Regions of holes refined, faired and probed after their passes.
+        fill_vertices2 : float
+            The sum over their holes of the squared number of vertices of each.
+        automatic : bool
+            An automatic region (the whole mesh oriented and searched).
 
         Returns
         -------
         Estimate
-            Levers: ``steps`` (the model's), ``region`` (one pass) and ``mesh`` (no face).
+            Levers: ``steps`` (the model's), ``region`` (one pass, its fills in
+            proportion) and ``mesh`` (no face).
         """
         def formula(changes: Mapping[str, float | None]) -> tuple[float, float]:
             d = float(changes.get("steps", steps) or steps)
             p = float(changes.get("region", passes) or passes)
             f = float(changes.get("mesh", faces) or 0)
+            share = p / passes if passes else 0.0  # of the fills, with fewer passes
             samplings = sum(self.retry_chance ** k for k in range(REPAIR_SAMPLINGS))
             per_pass = (self.repair_step_s * d * spec.max_vertices / 256
                         + self.repair_pass_s)
-            return (samplings * p * per_pass + self.repair_s_per_face * f,
+            filling = share * (fills * (self.repair_fill_s + self.repair_fill_s_per_face * f)
+                               + self.repair_fill_s_per_vertex2 * fill_vertices2)
+            per_face = self.repair_s_per_face + (self.repair_auto_s_per_face if automatic
+                                                 else 0.0)
+            return (samplings * p * per_pass + filling + per_face * f,
                     self.repair_mb + self.repair_mb_per_face * f)
 
         seconds, memory = formula({})

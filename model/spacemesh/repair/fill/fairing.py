@@ -40,6 +40,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
+from spacemesh.cancel import checkpoint
 from spacemesh.geometry.intersections import self_intersecting_faces
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import faces_subset, faces_touching, triangulate_faces, vertices_of
@@ -144,6 +145,7 @@ def _continuation(mesh: PolygonMesh, free: BoolArray, patch: BoolArray, start: F
     best, best_error, kind = start, math.inf, Fairing.NONE
     plate = False  # whether a tri-harmonic or thin-plate surface stays within the box
     for (order, weights), name in zip(SMOOTH_FAIRINGS, FAIRING_NAMES, strict=True):
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         faired = fair_positions(mesh, free, order, weights)
         if not _contained(mesh, free, start, faired):
             continue
@@ -155,6 +157,7 @@ def _continuation(mesh: PolygonMesh, free: BoolArray, patch: BoolArray, start: F
         flat = flat_positions(mesh, free, patch, best, max_flat_loop)
         if flat is not None:
             best, kind = flat, Fairing.FLAT
+    checkpoint()
     found = ring_planes(mesh, free, patch)
     if found is None:
         return best, best_error, kind
@@ -225,6 +228,7 @@ def fair_patch(mesh: PolygonMesh, patch: BoolArray, free: BoolArray, target: flo
 
     before = crossings(mesh.vertices)
     for weight in (1.0, 0.5, 0.25):
+        checkpoint()
         moved = start + weight * (faired - start)
         if crossings(moved) <= before:
             if report is not None:

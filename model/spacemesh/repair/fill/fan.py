@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh.cancel import checkpoint
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import faces_subset
 from spacemesh.repair.fill.loops import patch_edge_length, patch_loops, patch_parts
@@ -63,6 +64,7 @@ def faired_fan(mesh: PolygonMesh, patch: BoolArray, policy: FillPolicy
     current = faces_subset(mesh, ~patch)  # mesh's vertices, the faces kept
     source = np.flatnonzero(~patch)  # (F_current,) face of mesh
     for loops in parts:
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         filled, _ = fan_fill(current, loops)  # current's vertices, then one centroid a loop
         fan = np.arange(filled.n_faces) >= current.n_faces
         free = np.arange(filled.n_vertices) >= current.n_vertices

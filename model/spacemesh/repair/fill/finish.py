@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from spacemesh.cancel import checkpoint
 from spacemesh.primitives import faces_subset, triangulate_faces
 from spacemesh.repair.fill.fan import faired_fan, fan_fill
 from spacemesh.repair.fill.flat import flat_surface
@@ -93,15 +94,18 @@ def fair_region(state: Passes, index: int, policy: FillPolicy) -> FillKind | Non
                                     == FillKind.FAN) else None
     if not policy.probe_fills:
         return replaced
+    checkpoint()
     chosen = np.zeros(state.mesh.n_faces, dtype=bool)
     flat_parts: list[BoolArray] = []  # parts the flat fill replaces
     for part in patch_parts(state.mesh, state.made_by == index):
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         choice = probe_choice(state, part, policy, held_back=held_back)
         if choice == FillKind.MESHFIX:
             chosen |= part
         elif choice == FillKind.FLAT and not onto_flat(state, part, policy):
             flat_parts.append(part)
     for i, part in enumerate(flat_parts):
+        checkpoint()
         renumbered = flat_instead(state, index, part, policy)
         if renumbered is None:
             continue
@@ -199,7 +203,7 @@ def fan_if_not_discs(state: Passes, index: int, policy: FillPolicy,
     ``policy``'s ``euler``) differs from its number of loops joins them by a tube or a
     handle (a model pass can splice one in), which changes the genus of the mesh. True
     when it did; then the region's ``passes`` (their
-    :class:`spacemesh.repair.api.RepairResult`) report no handle added, as none of
+    :class:`spacemesh.repair.api.RepairStats`) report no handle added, as none of
     their fill is left."""
     mesh = state.mesh
     patch = state.made_by == index
@@ -213,6 +217,6 @@ def fan_if_not_discs(state: Passes, index: int, policy: FillPolicy,
                                  np.full(filled.n_faces - int((~patch).sum()), -1)])
         fan = (filled, source, source < 0)
     replaced = fan_instead(state, index, policy, fan)
-    for result in passes if replaced else ():
-        result.stats.handles_added = 0
+    for stats in passes if replaced else ():
+        stats.handles_added = 0
     return replaced

@@ -97,6 +97,21 @@ def fair_positions(mesh: PolygonMesh, free: BoolArray, order: int = 2,
     for _ in range(order - 1):
         near |= vertices_of(mesh, faces_touching(mesh, near))
     faces = faces_touching(mesh, near)
+    # the system over the vertices of those faces only, numbered in the same order (the
+    # same matrices, entry for entry and in the same order, without (V, V) work per call)
+    local = np.flatnonzero(vertices_of(mesh, faces) | free)
+    number = np.full(mesh.n_vertices, -1, dtype=np.int64)
+    number[local] = np.arange(len(local))
+    chosen = faces_subset(mesh, faces)
+    sub = PolygonMesh(positions[local], number[chosen.face_indices], chosen.face_offsets)
+    positions[local] = _fair_all(sub, free[local], order, weights)
+    return positions
+
+
+def _fair_all(mesh: PolygonMesh, free: BoolArray, order: int, weights: str) -> FloatArray:
+    """:func:`fair_positions` over every face of ``mesh`` (the faces it reads)."""
+    positions = np.asarray(mesh.vertices, dtype=np.float64).copy()
+    faces = np.ones(mesh.n_faces, dtype=bool)
     rows = np.flatnonzero(free)
     fixed = ~free
     for _ in range(FAIR_SOLVES if weights == "cotangent" else 1):

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse import identity
 
+from spacemesh.cancel import checkpoint
 from spacemesh.geometry.fitting import fit_to_surface
 from spacemesh.geometry.intersections import self_intersecting_faces
 from spacemesh.mesh import PolygonMesh
@@ -77,6 +78,7 @@ def lay_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
     average = identity(mesh.n_vertices, format="csr") - laplacian(mesh, patch, uniform=True)
     bad = badly_laid(positions, triangles, surface_points, surface_triangles)
     for _ in range(relax_rounds if len(rows) else 0):
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         if not bad:
             break
         positions[rows] = laid((average @ positions)[rows])

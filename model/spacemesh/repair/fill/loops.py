@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import edge_keys, faces_subset
+from spacemesh.primitives import edge_keys, faces_subset, faces_touching, vertices_of
 from spacemesh.topology import check_topology, vertex_connected_faces
 from spacemesh.typed import BoolArray, IntArray
 
@@ -57,8 +57,12 @@ def boundary_edge_length(mesh: PolygonMesh, loops: list[IntArray]) -> float:
 def patch_edge_length(mesh: PolygonMesh, patch: BoolArray) -> float:
     """Mean length of the edges on the patch's border (one side in the patch, the other
     outside it): the density of the surface around the patch (0 without such edges)."""
-    he = mesh.halfedges
-    inside = patch[mesh.face_of_corner]
+    # every side of an edge at a patch vertex is a side of a face touching one: the
+    # counts below are the whole mesh's for the patch's edges, in the same order
+    around = faces_touching(mesh, vertices_of(mesh, patch))
+    near = faces_subset(mesh, around)
+    he = near.halfedges
+    inside = patch[around][near.face_of_corner]
     key = edge_keys(he, mesh.n_vertices)
     _, edge, count = np.unique(key, return_inverse=True, return_counts=True)
     sides = np.bincount(edge, inside, minlength=len(count))

@@ -95,7 +95,8 @@ def ring_planes(mesh: PolygonMesh, free: BoolArray, patch: BoolArray
     if not first.any():
         return None
     area = _triangle_areas(mesh, faces)
-    normal = mesh.face_normals()
+    normal = np.zeros((mesh.n_faces, 3))  # only the ring faces' are read
+    normal[faces] = faces_subset(mesh, faces).face_normals()
     ids = np.flatnonzero(faces)[np.argsort(-area[faces], kind="stable")]
     cos = math.cos(math.radians(CLUSTER_ANGLE))
     sums: list[FloatArray] = []

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from spacemesh.cancel import checkpoint
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import faces_subset, faces_touching, triangulate_faces, vertices_of
 from spacemesh.primitives.closest import closest_points_on_triangles
@@ -96,12 +97,22 @@ SHARPNESS_RINGS = 1
 def sharpest_edge(mesh: PolygonMesh, faces: BoolArray) -> float:
     """The largest dihedral angle (degrees, 0 for coplanar faces) over the edges joining
     two of the ``faces`` ((F,) bool), with polygon normals by Newell's formula; 0 without
-    such an edge."""
+    such an edge.
+
+    Only the faces at the vertices of ``faces`` are read (every side of their edges is
+    one of those faces'), unless a side there is shared by two faces (the twin the
+    whole mesh's lookup picks is then read from the whole mesh, as it always was)."""
+    around = faces_touching(mesh, vertices_of(mesh, faces))
+    local = _sharpest_edge(faces_subset(mesh, around), faces[around], unique_twins=True)
+    return _sharpest_edge(mesh, faces) if local is None else local
+
+
+def _sharpest_edge(mesh: PolygonMesh, faces: BoolArray, unique_twins: bool = False
+                   ) -> float | None:
+    """:func:`sharpest_edge` over every face of ``mesh``; with ``unique_twins``, None
+    where the twin of a side of ``faces`` is not unique."""
     he = mesh.halfedges  # (H, 2)
     p = mesh.vertices
-    normal = np.zeros((mesh.n_faces, 3))
-    np.add.at(normal, mesh.face_of_corner, np.cross(p[he[:, 0]], p[he[:, 1]]))
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
     inside = faces[mesh.face_of_corner]
     n = max(mesh.n_vertices, 1)
     key = he[:, 0] * n + he[:, 1]
@@ -109,10 +120,18 @@ def sharpest_edge(mesh: PolygonMesh, faces: BoolArray) -> float:
     twin_key = he[:, 1] * n + he[:, 0]
     at = np.searchsorted(key[order], twin_key)
     found = (at < len(key)) & (key[order][np.minimum(at, len(key) - 1)] == twin_key)
+    if unique_twins:
+        after = np.minimum(at + 1, len(key) - 1)
+        again = found & (at + 1 < len(key)) & (key[order][after] == twin_key)
+        if (again & inside).any():
+            return None
     twin = np.where(found, order[np.minimum(at, len(key) - 1)], -1)
     both = inside & (twin >= 0) & inside[np.maximum(twin, 0)]
     if not both.any():
         return 0.0
+    normal = np.zeros((mesh.n_faces, 3))
+    np.add.at(normal, mesh.face_of_corner, np.cross(p[he[:, 0]], p[he[:, 1]]))
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
     a = normal[mesh.face_of_corner[both]]
     b = normal[mesh.face_of_corner[twin[both]]]
     cosine = np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0)
@@ -156,7 +175,8 @@ def probe_regions(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
     for _ in range(SHARPNESS_RINGS):
         near_hole |= vertices_of(mesh, faces_touching(mesh, near_hole))
     sharpest = sharpest_edge(mesh, faces_touching(mesh, near_hole)) + SHARPNESS_TOLERANCE
-    clean = vertices_of(mesh, known) & ~vertices_of(mesh, ~known)  # only known faces
+    of_known = vertices_of(mesh, known)
+    clean = of_known & ~vertices_of(mesh, ~known)  # only known faces
     clean[ring] = False
     distance = np.linalg.norm(p - centre, axis=1)
     candidates = np.flatnonzero(clean & (distance > nearest))
@@ -164,13 +184,14 @@ def probe_regions(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
     regions: list[BoolArray] = []
     spread = np.full(len(candidates), np.inf)
     for tried in range(len(candidates)):
+        checkpoint()  # abandoned work stops here (spacemesh.cancel)
         if len(regions) == count:
             break
         pick = int(np.argmax(spread)) if tried else 0
         v = int(candidates[pick])
         spread = np.minimum(spread, np.linalg.norm(p[candidates] - p[v], axis=1))
         spread[pick] = -np.inf
-        inside = (np.linalg.norm(p - p[v], axis=1) < radius) & vertices_of(mesh, known)
+        inside = (np.linalg.norm(p - p[v], axis=1) < radius) & of_known
         inside[v] = True
         faces = faces_touching(mesh, inside)
         touched = vertices_of(mesh, faces)
@@ -245,6 +266,7 @@ def probe_errors(mesh: PolygonMesh, loops: list[IntArray], known: BoolArray,
     probes."""
     totals = {kind.value: [0.0, 0.0, 0] for kind in policy.alternatives}
     for faces in probe_regions(mesh, loops, known, count):
+        checkpoint()
         around = faces_around(mesh, vertices_of(mesh, faces), PROBE_RINGS)
         probe_loops = patch_loops(mesh, faces)
         assert probe_loops is not None  # a probe is a disc (probe_regions)
