@@ -289,4 +289,5 @@ def test_work_nobody_waits_for_stops_inside_a_long_stage(start_server, generator
     wait_for(lambda: metric(server.url, "spacemesh_stopped_batches_total") == 1,
              "the abandoned batch to stop")
     assert long.rounds < 200  # 400 rounds (20 s) if nothing stopped it
-    assert post(server.url, case).status_code == 200
+    # the worker is free: a raw request fits the 0.5 s deadline even on a loaded machine
+    assert post(server.url, case, raw=True).status_code == 200
