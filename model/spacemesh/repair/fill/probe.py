@@ -104,7 +104,11 @@ def sharpest_edge(mesh: PolygonMesh, faces: BoolArray) -> float:
     whole mesh's lookup picks is then read from the whole mesh, as it always was)."""
     around = faces_touching(mesh, vertices_of(mesh, faces))
     local = _sharpest_edge(faces_subset(mesh, around), faces[around], unique_twins=True)
-    return _sharpest_edge(mesh, faces) if local is None else local
+    if local is not None:
+        return local
+    whole = _sharpest_edge(mesh, faces)  # never None without ``unique_twins``
+    assert whole is not None
+    return whole
 
 
 def _sharpest_edge(mesh: PolygonMesh, faces: BoolArray, unique_twins: bool = False
