@@ -72,7 +72,10 @@ def test_a_graph_that_falls_apart_falls_back_to_split(shipped):
     under 90% of them): the pipeline decodes the first 256 tokens instead, and the mesh
     is still valid with the target count: closed with ``surface=closed``, and by default
     (``auto``) open, since a sheet is seen from one side only."""
-    generator = MeshGenerator(shipped.backend, ModelSpec.from_manifest(shipped.manifest))
+    # the model's retry seeds are left out: every seed of a sheet fails the topology
+    # check, and each would decode and fit 1,024 vertices again (the test's time)
+    spec = replace(ModelSpec.from_manifest(shipped.manifest), retry_seeds=0)
+    generator = MeshGenerator(shipped.backend, spec)
     rng = np.random.default_rng(0)
     sheet = np.c_[rng.uniform(-1, 1, (4096, 2)), np.zeros(4096)]
     for surface in ("closed", "auto"):
