@@ -7,12 +7,11 @@ from __future__ import annotations
 import asyncio
 import re
 import threading
-import time
 
 import httpx
 import numpy as np
 import pytest
-from service_testing import ADMIT_ALL, as_ply
+from service_testing import ADMIT_ALL, as_ply, wait_for
 
 from spacemesh.mesh import PolygonMesh
 from spacemesh.runtime.budget import Budget
@@ -145,13 +144,6 @@ def lane_metric(url: str, name: str, lane: str) -> float:
     return float(match.group(1)) if match else 0.0
 
 
-def wait_for(condition, what: str, timeout: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
-        time.sleep(0.02)
-
-
 @pytest.mark.slow
 def test_a_small_generate_succeeds_while_a_heavy_one_runs(start_server, generator, case):
     server = start_server(generator, light_lane_s=5.0, **ADMIT_ALL)
@@ -175,4 +167,4 @@ def test_a_small_generate_succeeds_while_a_heavy_one_runs(start_server, generato
         lines.close()
     # the heavy client went away: its work stops
     wait_for(lambda: lane_metric(url, "spacemesh_lane_running_requests", "main") == 0,
-             "the heavy request to stop")
+             "the heavy request to stop", timeout=60.0)
