@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import json
 import socket
-import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
@@ -39,7 +38,9 @@ from service_testing import (
     WrappedGenerator,
     faulty_repair,
     mesh_file,
+    metric,
     region_pb,
+    wait_for,
 )
 
 from spacemesh.examples import icosphere
@@ -168,19 +169,6 @@ def on_server(server) -> tuple[httpx.Client, pb_grpc.SpaceMeshStub, grpc.Channel
     channel = grpc.insecure_channel(server.grpc_target)
     return (httpx.Client(base_url=server.url, timeout=60), pb_grpc.SpaceMeshStub(channel),
             channel)
-
-
-def wait_for(condition: Callable[[], bool], what: str, timeout: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
-        time.sleep(0.01)
-
-
-def queue_depth(url: str) -> float:
-    text = httpx.get(url + "/metrics").text
-    line = next((x for x in text.splitlines() if x.startswith("spacemesh_queue_depth ")), "")
-    return float(line.split()[1]) if line else 0.0
 
 
 # ---------------------------------------------------------------------- triggers
@@ -384,7 +372,8 @@ def queue_full(env: Env) -> Answers:
             running = pool.submit(post_points, http, env.case.points, seed=env.case.good_seed)
             assert gated.entered.wait(30)
             queued = pool.submit(post_points, http, env.case.points, seed=env.case.good_seed)
-            wait_for(lambda: queue_depth(server.url) == 1, "one queued request")
+            wait_for(lambda: metric(server.url, "spacemesh_queue_depth") == 1,
+                     "one queued request")
             answers = (post_points(http, env.case.points),
                        rpc(lambda: stub.Generate(points_pb(env.case.points))))
             gated.gate.set()

@@ -6,12 +6,11 @@ model and refuses issue 37's reproductions. No test asserts a timing."""
 from __future__ import annotations
 
 import json
-import re
 
 import grpc
 import httpx
 import pytest
-from service_testing import REPAIR_STEPS, mesh_file
+from service_testing import REPAIR_STEPS, mesh_file, metric
 
 from spacemesh.examples import icosphere
 from spacemesh.runtime.budget import CostError
@@ -32,12 +31,6 @@ HEAVY = {"samples": 16, "target_vertices": 10_000, "steps": 1024, "start": "poin
 EXAMPLE_HEAVY = {"target_vertices": 10_000}
 #: A budget (s) the tiny model's default request fits and a 10,000-vertex one does not.
 SMALL_BUDGET_S = 5.0
-
-
-def metric(url: str, name: str) -> float:
-    text = httpx.get(url + "/metrics").text
-    match = re.search(rf"^{re.escape(name)} (\S+)$", text, re.M)
-    return float(match.group(1)) if match else 0.0
 
 
 @pytest.fixture(scope="module")
