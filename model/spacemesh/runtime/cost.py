@@ -248,11 +248,10 @@ class CostModel:
                ) -> tuple[float, float]:
         """Seconds and MB of ``seeds`` seeds with ``options`` (no tolerance)."""
         if options.start == "points":
-            wanted = dense = vertex_count(spec, options)
-            if not options.raw:
-                dense = decode_count(spec, options)
-            tokens = network_vertices(decode_count(spec, options), spec.max_vertices,
-                                      spec.large_meshes, raw=options.raw)
+            wanted = vertex_count(spec, options)
+            dense = decode_count(spec, options)  # ``wanted`` for raw or without one
+            tokens = network_vertices(dense, spec.max_vertices, spec.large_meshes,
+                                      raw=options.raw)
             start = float(options.start_time or 0.0)
         else:  # from noise the network places the model's tokens and picks the count
             wanted = dense = tokens = spec.max_vertices
