@@ -252,10 +252,9 @@ def check_topology(mesh: PolygonMesh) -> TopologyReport:
     face = mesh.face_of_corner
 
     # Faces that visit a vertex twice: duplicate (face, vertex) pairs.
-    fv = face * max(mesh.n_vertices, 1) + mesh.face_indices
-    _, fv_counts = np.unique(fv, return_counts=True)
-    dup_pairs = np.unique(fv[np.isin(fv, np.unique(fv)[fv_counts > 1])] // max(mesh.n_vertices, 1))
-    n_repeated = len(dup_pairs)
+    fv = np.sort(face * max(mesh.n_vertices, 1) + mesh.face_indices)  # (S,)
+    repeated = fv[1:][fv[1:] == fv[:-1]]  # a pair once per repeat
+    n_repeated = len(np.unique(repeated // max(mesh.n_vertices, 1)))
 
     keys = edge_keys(halfedges, mesh.n_vertices)
     uniq, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)

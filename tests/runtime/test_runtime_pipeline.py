@@ -238,6 +238,24 @@ def test_a_model_with_retry_seeds_tries_more_when_no_mesh_is_acceptable(generato
         assert check_topology(result.mesh).is_closed_oriented_manifold
 
 
+def test_retry_seeds_top_a_request_up_to_one_more_than_their_count(generator, cloud):
+    from dataclasses import replace
+
+    spec = replace(generator.spec, retry_seeds=3)
+    assert [spec.retries_for(k) for k in (1, 2, 3, 4, 8)] == [3, 2, 1, 0, 0]
+    assert replace(spec, retry_seeds=0).retries_for(1) == 0
+    retrying = MeshGenerator(generator.backend, spec)
+    for samples, most in ((2, 4), (4, 4)):
+        stages = []
+        result = retrying.generate(cloud, seed=3, samples=samples,
+                                   stage=lambda name, d, t: stages.append(name))
+        seeds = [seed for seed, _ in result.sample_scores]
+        # the request's own seeds, then (only if none passed the check) up to 4 in all
+        assert seeds[:samples] == list(range(3, 3 + samples))
+        assert seeds == list(range(3, 3 + len(seeds))) and len(seeds) in (samples, most)
+        assert ("pieces" in stages) == (len(seeds) > samples)
+
+
 def test_retry_seeds_in_a_manifest_are_checked():
     from spacemesh.runtime.spec import check_retry_seeds
 

@@ -16,7 +16,7 @@ core; ``bench/bench_cost_model.py`` times the real pipeline against it)::
              + f (3.2e-7 N^2 + 0.25 + 1.61e-3 V + 1.86e-7 V^2)   decode, geometry stage
              + f (1.61e-3 W + 1.86e-7 W^2 + 1.5e-3 (W - V))      with a dense decode
              + 5.6e-6 min(P, 20000) + 4e-5 V             fit report
-    seeds    = samples + retry_seeds * 0.5 ** samples
+    seeds    = max over k <= samples of k + R(k) 0.5 ** k,   R(k) = max(0, 1 + retry_seeds - k)
     MB       = 3.5e-3 min(P, 20000) + 5.2e-4 P + 1.7e-4 (1 + 1.5 s) N^2 + 0.02 V + 0.006 N seeds
 
 ``P``: input points (after the reduction), ``V``: vertices asked for (``target_vertices``,
@@ -27,8 +27,10 @@ outside ``raw``, :mod:`spacemesh.runtime.large`), ``W``: the dense decode's vert
 ``start=points`` only those below ``start_time``), ``s``: the start time (1 from noise),
 ``f = 1 + 1.3 s``: denoised vertices lie less evenly than farthest points, and the decode
 and the geometry stage take about twice as long on them. The model's retry seeds run only
-when none of the request's seeds passes the topology check; the estimate counts them at
-an even chance per seed (``0.5 ** samples``). A ``tolerance`` search counts as 8 tries
+when none of the request's seeds passes the topology check, and only to top the request
+up to ``1 + retry_seeds`` seeds (``R``); the estimate counts them at
+an even chance per seed (``0.5 ** samples``), and never estimates more samples cheaper
+than fewer. A ``tolerance`` search counts as 8 tries
 (:meth:`CostModel.tolerance_tries`): the doubling ladder from the model's count to the
 count whose mesh is expected within the tolerance (a mean distance of ``0.5 / V`` of the
 diagonal: twice the example torus's), the other tries at that count, each costing the
@@ -224,14 +226,16 @@ class CostModel:
 
     def _generate(self, spec: ModelSpec, options: GenerateOptions, points: int
                   ) -> tuple[float, float]:
-        retries = 0 if options.raw else spec.retry_seeds
-        expected_retries = retries * self.retry_chance ** options.samples
+        # the seeds expected to run, never fewer than a request of fewer samples's (the
+        # retry seeds top a request up to 1 + retry_seeds, so 2 samples expect fewer than 1)
+        expected_seeds = float(options.samples) if options.raw else max(
+            k + spec.retries_for(k) * self.retry_chance ** k
+            for k in range(1, options.samples + 1))
         prepare = self.prepare_s_per_point * points
         base_mb = (self.report_mb_per_point * min(points, REPORT_POINTS)
                    + self.points_mb * points)
         if options.tolerance is None or options.start != "points":
-            seconds, memory = self._seeds(spec, options, points,
-                                          options.samples + expected_retries)
+            seconds, memory = self._seeds(spec, options, points, expected_seeds)
             return prepare + seconds, base_mb + memory
         tries = self.tolerance_tries(spec, float(options.tolerance))
         seconds, memory = 0.0, 0.0
@@ -241,7 +245,8 @@ class CostModel:
                                         points, options.samples)
             seconds, memory = seconds + try_s, max(memory, try_mb)
         found = replace(options, tolerance=None, target_vertices=tries[-1])
-        retry_s, retry_mb = self._seeds(spec, found, points, expected_retries)
+        retry_s, retry_mb = self._seeds(spec, found, points,
+                                        expected_seeds - options.samples)
         return prepare + seconds + retry_s, base_mb + max(memory, retry_mb)
 
     def _seeds(self, spec: ModelSpec, options: GenerateOptions, points: int, seeds: float

@@ -219,8 +219,9 @@ class MeshGenerator:
         With a model whose :attr:`ModelSpec.retry_seeds` is set, a mesh with as many
         pieces as the points (:func:`spacemesh.geometry.pieces.point_pieces`) is
         preferred to any without, then one whose faces do not cross; when none of a
-        request's seeds has both, that many more seeds run (stage ``pieces``; not with
-        ``retry`` False) before choosing (:func:`spacemesh.runtime.choice.best_fit`).
+        request's seeds has both, more seeds run, up to ``1 + retry_seeds`` in all
+        (:meth:`ModelSpec.retries_for`; stage ``pieces``; not with ``retry`` False) before
+        choosing (:func:`spacemesh.runtime.choice.best_fit`).
 
         With the model's dense decode (``dense``; :attr:`GeometryOptions.dense_factor`), a
         chosen mesh whose faces still cross after the untangling gives way to the decode
@@ -234,7 +235,7 @@ class MeshGenerator:
                                                                          stage, spec),
                                               strict=True):
             expected = prepared.pieces
-            if (retry and spec.retry_seeds and not options.raw
+            if (retry and spec.retries_for(options.samples) and not options.raw
                     and not any(acceptable(r, expected) for r in tried)):
                 tried += self._retry_seeds(prepared, options, progress, stage, spec)
             spent = summed_timings(tried)  # every seed ran: the request spent them all
@@ -323,13 +324,16 @@ class MeshGenerator:
     def _retry_seeds(self, prepared: PreparedInput, options: GenerateOptions,
                      progress: ProgressFn | None, stage: StageFn | None,
                      spec: ModelSpec | None = None) -> list[GenerateResult]:
-        """The results of the model's ``retry_seeds`` seeds after a request's own
-        (stage ``pieces``), with ``spec`` (default: the model's)."""
+        """The results of the model's retry seeds after a request's own
+        (:meth:`ModelSpec.retries_for`; stage ``pieces``), with ``spec`` (default: the
+        model's); none when the request's own seeds are as many."""
         spec = spec or self.spec
+        count = spec.retries_for(options.samples)
+        if count == 0:
+            return []
         if stage is not None:
             stage("pieces", 1, 1)
-        more = replace(options, seed=options.seed + options.samples,
-                       samples=spec.retry_seeds)
+        more = replace(options, seed=options.seed + options.samples, samples=count)
         return self._seed_results([(prepared, more)], progress, stage, spec)[0]
 
     def _seed_results(

@@ -94,8 +94,9 @@ class ModelSpec:
         Seeds tried beyond a request's own when none of its meshes has as many pieces as
         the points and faces that do not cross (``manifest["sampler"]["retry_seeds"]``, at
         most :data:`MAX_RETRY_SEEDS`; 0, the default, tries
-        none). The decode's topology and crossings depend on the seed; see
-        docs/GEOMETRY.md.
+        none), topping a request up to ``1 + retry_seeds`` seeds in all
+        (:meth:`retries_for`). The decode's topology and crossings depend on the seed;
+        see docs/GEOMETRY.md.
     """
 
     n_points: int
@@ -114,6 +115,24 @@ class ModelSpec:
     local_points: int = 0
     large_meshes: str = DEFAULT_LARGE_MESHES
     retry_seeds: int = 0
+
+    def retries_for(self, samples: int) -> int:
+        """The retry seeds a request of ``samples`` seeds of its own may add when none
+        of them passes the topology check: enough for ``1 + retry_seeds`` seeds in all,
+        so a request that already ran that many adds none (its cost stays that of the
+        seeds it asked for).
+
+        Parameters
+        ----------
+        samples : int
+            The request's own seeds.
+
+        Returns
+        -------
+        int
+            From 0 to :attr:`retry_seeds`.
+        """
+        return max(0, self.retry_seeds + 1 - samples)
 
     @classmethod
     def from_config(cls, config: dict[str, Any], betas: Sequence[float] | None = None,
