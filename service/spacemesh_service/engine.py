@@ -504,7 +504,7 @@ class Engine:
             stage("encode_output", 1, 1)
         t0 = time.perf_counter()
         try:
-            encoded = await asyncio.to_thread(encode_mesh, result.mesh, opts.format, info, fit)
+            encoded = await self._encoded(started, result.mesh, opts.format, info, fit)
         except Problem as problem:  # no-surface: say how, so it can be replayed
             problem.extra.update(options=options, seed=result.seed, steps=result.steps,
                                  timings=timings)
@@ -515,6 +515,33 @@ class Engine:
         return Reply(encoded, options, self.model_name, self.model_version, timings,
                      outcome.batch_size, sample_scores=scores, input_kind=cloud.input_kind,
                      reduction=cloud.reduction)
+
+    async def _encoded(self, started: float, mesh: PolygonMesh, fmt: str,
+                       info: dict[str, Any], fit: dict[str, Any] | None = None
+                       ) -> EncodedMesh:
+        """:func:`~spacemesh_service.outputs.encode_mesh` in a worker thread, within what
+        is left of the request's deadline (counted from ``started``, a
+        :func:`time.perf_counter`): past it the answer is 504 ``timeout`` and the encoding
+        stops at its next checkpoint (:mod:`spacemesh.cancel`; between validating and
+        writing), as it does when the client leaves."""
+        remaining = self.settings.request_timeout_s - (time.perf_counter() - started)
+        if remaining <= 0:
+            raise self._timeout()
+        end = time.monotonic() + remaining
+        gone = threading.Event()  # the client left, or the deadline passed
+
+        def run() -> EncodedMesh:
+            with cancel_scope(lambda: gone.is_set() or time.monotonic() > end):
+                return encode_mesh(mesh, fmt, info, fit)
+
+        try:
+            return await asyncio.wait_for(asyncio.to_thread(run), remaining)
+        except (asyncio.TimeoutError, Cancelled):
+            gone.set()
+            raise self._timeout() from None
+        except asyncio.CancelledError:
+            gone.set()
+            raise
 
     def _timeout(self) -> Problem:
         """504 ``timeout``: the request deadline passed."""
@@ -662,7 +689,7 @@ class Engine:
         if stage is not None:
             stage("encode_output", 1, 1)
         t0 = time.perf_counter()
-        encoded = await asyncio.to_thread(encode_mesh, result.mesh, opts.format, info)
+        encoded = await self._encoded(started, result.mesh, opts.format, info)
         timings["encode_output"] = time.perf_counter() - t0
         timings["total"] = time.perf_counter() - started
         m = self.metrics

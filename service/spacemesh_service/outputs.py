@@ -18,6 +18,7 @@ import math
 from dataclasses import asdict, dataclass, replace
 from typing import Any
 
+from spacemesh.cancel import checkpoint
 from spacemesh.io import export_mesh
 from spacemesh.mesh import PolygonMesh
 from spacemesh.topology import check_topology, surface_topology
@@ -146,7 +147,8 @@ def finite_or_none(value: Any) -> Any:
 
 def encode_mesh(mesh: PolygonMesh, fmt: str, info: dict[str, Any],
                 fit: dict[str, float | int] | None = None) -> EncodedMesh:
-    """Validate and serialise a mesh.
+    """Validate and serialise a mesh (in a cancellation scope, abandoned work stops
+    between the two: :func:`spacemesh.cancel.checkpoint`).
 
     Parameters
     ----------
@@ -164,6 +166,7 @@ def encode_mesh(mesh: PolygonMesh, fmt: str, info: dict[str, Any],
     EncodedMesh
     """
     mesh, stats = validate_mesh(mesh, open_surface=bool(fit and fit.get("open_surface")))
+    checkpoint()  # a request abandoned while the mesh was checked is not written
     stats = replace(stats, fit=fit)
     body = mesh_json(mesh, stats, info) if fmt == "json" else export_mesh(mesh, fmt)
     return EncodedMesh(body, fmt, MEDIA_TYPES[fmt], stats)

@@ -248,7 +248,7 @@ def test_retry_seeds_top_a_request_up_to_one_more_than_their_count(generator, cl
     for samples, most in ((2, 4), (4, 4)):
         stages = []
         result = retrying.generate(cloud, seed=3, samples=samples,
-                                   stage=lambda name, d, t: stages.append(name))
+                                   stage=lambda name, d, t, seen=stages: seen.append(name))
         seeds = [seed for seed, _ in result.sample_scores]
         # the request's own seeds, then (only if none passed the check) up to 4 in all
         assert seeds[:samples] == list(range(3, 3 + samples))

@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from spacemesh.cancel import cancelled
+
 
 def metric(url: str, name: str) -> float:
     """The value of the unlabelled metric ``name`` on the server at ``url`` (0 when absent)."""
@@ -26,6 +28,26 @@ def wait_for(condition, what: str, timeout: float = 30.0) -> None:
     while not condition():
         assert time.monotonic() < deadline, f"timed out waiting for {what}"
         time.sleep(0.01)
+
+
+class HeldStage:
+    """``function`` whose first call waits until the work of its thread is abandoned
+    (:func:`spacemesh.cancel.cancelled`), counting its calls and those begun after."""
+
+    def __init__(self, function) -> None:
+        self.function = function
+        self.calls = 0
+        self.after = 0
+        self.held = threading.Event()
+
+    def __call__(self, *args, **kwargs):
+        self.calls += 1
+        if not self.held.is_set():
+            self.held.set()
+            wait_for(cancelled, "the request's deadline", timeout=60)
+        elif cancelled():
+            self.after += 1
+        return self.function(*args, **kwargs)
 
 
 #: Seeds tried to find one that gives a surface (and one that gives none).

@@ -15,14 +15,12 @@ from __future__ import annotations
 
 import importlib
 import json
-import threading
 
 import httpx
 import numpy as np
 import pytest
-from service_testing import ADMIT_ALL, mesh_file, metric, wait_for
+from service_testing import ADMIT_ALL, HeldStage, mesh_file, metric, wait_for
 
-from spacemesh.cancel import cancelled
 from spacemesh.examples import icosphere
 from tests.repair.auto_meshes import punched
 
@@ -54,26 +52,6 @@ STAGES = {
     "refinement": ("spacemesh.repair.fill.refine", "_split_pass", HOLES, 4, 99),
     "probes": ("spacemesh.repair.fill.probe", "faces_touching", HOLES, 4, 203),
 }
-
-
-class HeldStage:
-    """``function`` whose first call waits until the work of its thread is abandoned
-    (:func:`spacemesh.cancel.cancelled`), counting its calls and those begun after."""
-
-    def __init__(self, function) -> None:
-        self.function = function
-        self.calls = 0
-        self.after = 0
-        self.held = threading.Event()
-
-    def __call__(self, *args, **kwargs):
-        self.calls += 1
-        if not self.held.is_set():
-            self.held.set()
-            wait_for(cancelled, "the request's deadline", timeout=60)
-        elif cancelled():
-            self.after += 1
-        return self.function(*args, **kwargs)
 
 
 @pytest.fixture(scope="module")
