@@ -201,6 +201,20 @@ class PolygonMesh:
 
     def face_normals(self) -> FloatArray:
         """(F, 3) unit normals by Newell's method (robust for non-planar polygons)."""
+        normal = self._area_vectors()
+        length = np.linalg.norm(normal, axis=1, keepdims=True)
+        return normal / np.where(length > 0, length, 1.0)
+
+    def vertex_normals(self) -> FloatArray:
+        """(V, 3) unit normals of the vertices: the sum of their faces' area-weighted
+        normals (Newell's), zero at a vertex without faces or whose faces cancel."""
+        total = np.zeros((self.n_vertices, 3))
+        np.add.at(total, self.face_indices, self._area_vectors()[self.face_of_corner])
+        length = np.linalg.norm(total, axis=1, keepdims=True)
+        return total / np.where(length > 0, length, 1.0)
+
+    def _area_vectors(self) -> FloatArray:
+        """(F, 3) each face's normal times twice its area (Newell's method)."""
         v = self.vertices[self.face_indices]
         w = self.vertices[self.face_indices[self.next_corner]]
         cross = np.stack(
@@ -213,8 +227,7 @@ class PolygonMesh:
         )
         normal = np.zeros((self.n_faces, 3))
         np.add.at(normal, self.face_of_corner, cross)
-        length = np.linalg.norm(normal, axis=1, keepdims=True)
-        return normal / np.where(length > 0, length, 1.0)
+        return normal
 
     def __repr__(self) -> str:
         return (

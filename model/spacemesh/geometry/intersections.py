@@ -147,28 +147,115 @@ def intersecting_triangles(vertices: FloatArray, triangles: IntArray,
     -------
     (T,) bool
     """
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    pairs = crossing_pairs(vertices, triangles, source_face)
+    hit = np.zeros(len(triangles), dtype=bool)
+    hit[pairs.reshape(-1)] = True
+    return hit
+
+
+def touching_eps(vertices: FloatArray, triangles: IntArray) -> float:
+    """The distance below which two triangles touch: 1e-9 of the extent of ``vertices``
+    used by ``triangles``."""
+    return 1e-9 * (float(np.ptp(vertices[triangles.reshape(-1)], axis=0).max()) or 1.0)
+
+
+def crossing_pairs(vertices: FloatArray, triangles: IntArray,
+                   source_face: IntArray | None = None, among: IntArray | None = None
+                   ) -> IntArray:
+    """The pairs of triangles that intersect (:func:`pairs_cross`), each once.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float
+    triangles : (T, 3) int
+    source_face : (T,) int, optional
+        The polygon face of each triangle (triangles of one face are not compared).
+    among : (K,) int, optional
+        Only the pairs with at least one of these triangles (default: every pair).
+
+    Returns
+    -------
+    (P, 2) int
+        ``[i, j]`` with ``i < j``, in no promised order.
+    """
     vertices = np.asarray(vertices, dtype=np.float64)
     triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-    hit = np.zeros(len(triangles), dtype=bool)
-    if len(triangles) < 2:
-        return hit
+    none = np.zeros((0, 2), dtype=np.int64)
+    if len(triangles) < 2 or (among is not None and len(among) == 0):
+        return none
     corners = vertices[triangles]  # (T, 3, 3)
     centre = corners.mean(axis=1)
     radius = np.linalg.norm(corners - centre[:, None], axis=2).max(axis=1)  # (T,)
-    extent = float(np.ptp(vertices[triangles.reshape(-1)], axis=0).max()) or 1.0
-    eps = 1e-9 * extent
-    pairs = cKDTree(centre).query_pairs(2 * float(radius.max()) + eps, output_type="ndarray")
+    eps = touching_eps(vertices, triangles)
+    tree = cKDTree(centre)
+    reach = 2 * float(radius.max()) + eps
+    if among is None:
+        pairs = tree.query_pairs(reach, output_type="ndarray")
+    else:  # every pair with a triangle of ``among``: the same pairs, found from them
+        found = tree.query_ball_point(centre[among], radius[among] + float(radius.max()) + eps)
+        j = np.concatenate([np.asarray(f, dtype=np.int64) for f in found])
+        i = np.repeat(np.asarray(among, dtype=np.int64), [len(f) for f in found])
+        pairs = np.unique(np.sort(np.stack([i, j], axis=1)[i != j], axis=1), axis=0)
     if len(pairs) == 0:
-        return hit
+        return none
     i, j = pairs[:, 0], pairs[:, 1]
     near = np.linalg.norm(centre[i] - centre[j], axis=1) <= radius[i] + radius[j] + eps
     if source_face is not None:
         near &= source_face[i] != source_face[j]
     i, j = i[near], j[near]
     crossing = pairs_cross(vertices, triangles, i, j, eps)
-    hit[i[crossing]] = True
-    hit[j[crossing]] = True
-    return hit
+    return np.stack([i[crossing], j[crossing]], axis=1)
+
+
+class CrossingFaces:
+    """Which faces of a mesh cross another, kept up to date as its vertices move: only
+    the pairs with a triangle that touches a moved vertex are tested again, so each
+    answer is :func:`self_intersecting_faces` of the moved mesh at a fraction of its
+    cost (a new touching distance, when the extent changes, or a polygon triangulated
+    otherwise at the new positions, tests everything again).
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+        The connectivity, and the first positions.
+    """
+
+    def __init__(self, mesh: PolygonMesh) -> None:
+        self.mesh = mesh
+        self.n_faces = mesh.n_faces
+        self.triangles, self.source = triangles_of(mesh)  # (T, 3), (T,)
+        self.vertices = np.asarray(mesh.vertices, dtype=np.float64).copy()  # (V, 3)
+        self.eps = touching_eps(self.vertices, self.triangles) if len(self.triangles) else 0.0
+        self.pairs = crossing_pairs(self.vertices, self.triangles, self.source)  # (P, 2)
+
+    def faces(self) -> BoolArray:
+        """(F,) which faces cross another at the current positions."""
+        out = np.zeros(self.n_faces, dtype=bool)
+        out[self.source[self.pairs.reshape(-1)]] = True
+        return out
+
+    def move(self, positions: FloatArray) -> BoolArray:
+        """Move the vertices to ``positions`` (``(V, 3)``) and return :meth:`faces`."""
+        positions = np.asarray(positions, dtype=np.float64)
+        moved = np.any(positions != self.vertices, axis=1)  # (V,)
+        self.vertices = positions.copy()
+        if not moved.any() or len(self.triangles) < 2:
+            return self.faces()
+        eps = touching_eps(positions, self.triangles)
+        triangles = self.triangles
+        if not self.mesh.is_triangle_mesh():  # a polygon's triangles follow its shape
+            triangles, _ = triangles_of(self.mesh.with_vertices(positions))
+        if eps != self.eps or not np.array_equal(triangles, self.triangles):
+            self.eps, self.triangles = eps, triangles
+            self.pairs = crossing_pairs(positions, self.triangles, self.source)
+            return self.faces()
+        touched = moved[self.triangles].any(axis=1)  # (T,)
+        kept = self.pairs[~(touched[self.pairs[:, 0]] | touched[self.pairs[:, 1]])]
+        fresh = crossing_pairs(positions, self.triangles, self.source,
+                               among=np.flatnonzero(touched))
+        self.pairs = np.concatenate([kept, fresh])
+        return self.faces()
 
 
 def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntArray,
