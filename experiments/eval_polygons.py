@@ -99,11 +99,11 @@ def main() -> int:
               f"{row['planarity_poly'] * 100:6.3f} {row['crossing_poly']:5.3f} "
               f"{int(row['valid_tria'])}/{int(row['valid_poly'])}   "
               f"{row['s_tria']:5.1f} {row['s_poly']:6.1f}", flush=True)
-    _summary(rows, "all", rows)
+    _summary(rows, "all")
     cad = [r for r in rows if r["category"] in CAD_LIKE]
     if cad and len(cad) < len(rows):
-        _summary(cad, "CAD-like", rows)
-        _summary([r for r in rows if r["category"] not in CAD_LIKE], "other", rows)
+        _summary(cad, "CAD-like")
+        _summary([r for r in rows if r["category"] not in CAD_LIKE], "other")
     with args.out.open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
         writer.writeheader()
@@ -112,7 +112,7 @@ def main() -> int:
     return 0
 
 
-def _summary(rows: list[dict[str, object]], name: str, _all: list[dict[str, object]]) -> None:
+def _summary(rows: list[dict[str, object]], name: str) -> None:
     def mean(key: str) -> float:
         return float(np.mean([float(r[key]) for r in rows]))  # type: ignore[arg-type]
 
