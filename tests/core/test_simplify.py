@@ -114,3 +114,59 @@ def test_small_or_polygon_meshes_come_back_unchanged():
 
     cube = cube_quads()
     assert simplify(cube, _points(cube)[0], target_vertices=4).mesh is cube
+
+
+def _fine_box() -> PolygonMesh:
+    import trimesh
+
+    box = trimesh.creation.box(extents=(2.0, 2.0, 2.0)).subdivide().subdivide()
+    return PolygonMesh.from_faces(np.asarray(box.vertices), np.asarray(box.faces))
+
+
+@pytest.mark.parametrize("max_error", [1e-4, 1e-3, 1e-2])
+def test_stop_at_error_makes_no_collapse_over_it(max_error):
+    """``max_error``: no collapse whose error (a mean squared distance from the planes
+    its vertex gathered) exceeds it, whatever the count; on an ellipsoid (no two faces
+    coplanar) a larger error allows more collapses."""
+    mesh = icosphere(3)
+    mesh = mesh.with_vertices(mesh.vertices * [1.0, 0.6, 0.3])
+    result = simplify(mesh, None, max_error=max_error)
+    _check(mesh, result)
+    assert 0 < result.stats["collapsed"] < mesh.n_vertices - 4
+    assert 0 < result.stats["max_error"] <= max_error
+    # the surface stays within about the error's distance of where it was
+    from spacemesh.geometry import fit_report
+
+    points, _ = _points(mesh)
+    assert fit_report(result.mesh, points).points_to_mesh_p95 < 3 * np.sqrt(max_error)
+    fewer = simplify(mesh, None, max_error=max_error / 10)
+    assert fewer.stats["collapsed"] < result.stats["collapsed"]
+
+
+def test_stop_at_error_collapses_a_box_onto_its_corners_and_no_further():
+    mesh = _fine_box()
+    result = simplify(mesh, None, max_error=1e-9)  # flat collapses cost nothing
+    _check(mesh, result)
+    assert result.mesh.n_vertices == 8 and result.stats["max_error"] <= 1e-9
+    assert np.allclose(np.abs(result.mesh.vertices), 1.0)
+    # the points' planes (estimated normals, blurred at the creases) cost more there
+    points, _ = _points(mesh)
+    assert simplify(mesh, points, max_error=1e-9).mesh.n_vertices > 8
+
+
+def test_an_open_mesh_keeps_its_boundary():
+    mesh = _fine_box()
+    centres = mesh.vertices[mesh.face_indices.reshape(-1, 3)].mean(axis=1)
+    keep = centres[:, 2] < 0.99  # the top face removed: a boundary loop
+    tri = mesh.face_indices.reshape(-1, 3)[keep]
+    used = np.unique(tri)
+    index = np.full(mesh.n_vertices, -1)
+    index[used] = np.arange(len(used))
+    opened = PolygonMesh(mesh.vertices[used], index[tri].reshape(-1),
+                         np.arange(0, 3 * len(tri) + 1, 3))
+    result = simplify(opened, None, max_error=1e-9)
+    assert_valid_mesh(result.mesh, open_surface=True)
+    rim = np.isclose(opened.vertices[:, 2], 1.0)
+    kept = {tuple(v) for v in result.mesh.vertices}
+    assert all(tuple(v) in kept for v in opened.vertices[rim])  # every rim vertex stays
+    assert result.mesh.n_vertices < opened.n_vertices - 20

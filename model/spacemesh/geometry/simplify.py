@@ -20,7 +20,19 @@ Every collapse keeps what the decode guaranteed, and more:
 * **no new crossing**: the faces around the merged vertex are tested exactly against
   every face near them (:func:`spacemesh.geometry.intersections.pairs_cross`);
 * **the same pieces and genus**: edge collapses under the link condition keep both; the
-  result is checked, and the input returned unchanged if it ever differs.
+  result is checked, and the input returned unchanged if it ever differs;
+* **the same boundary**: on an open mesh no edge that touches a boundary vertex
+  collapses (the link condition above is the one of a closed surface).
+
+It stops at a vertex count (``target_vertices``, the dense decode's use) or at an error
+(``max_error``, ``face_type=polygons``: :func:`spacemesh.geometry.polygons.collapse_flat`),
+whichever comes first. With ``max_error`` the error of a collapse is its quadric's cost
+per unit of its weight (the trace of its 3x3 block): the weighted mean squared distance
+of the merged vertex from the planes its quadric has gathered (the points', or with no
+points the mesh's own faces'), so a collapse in a flat region costs about nothing, one
+that cuts a crease or a curve does not; the cheapest first, none over ``max_error``, and
+where the cheapest position would fold a face the other candidate positions within
+``max_error`` are tried.
 
 The result's faces are the decode's faces reduced by collapses: no face is made from the
 points. numpy, scipy and a heap only.
@@ -82,8 +94,8 @@ class SimplifyResult:
     stats : dict
         ``collapsed`` (edges collapsed), ``refused`` (counts by reason: ``link``,
         ``piece``, ``flip``, ``crossing``), ``max_error`` (the largest collapse cost, a
-        squared distance), ``kept_topology`` (False when the check failed and the input
-        came back).
+        squared distance; per unit of weight with :func:`simplify`'s ``max_error``),
+        ``kept_topology`` (False when the check failed and the input came back).
     vertex_map : (V_in,) int, optional
         The output vertex each input vertex was merged into (None when the input came
         back unchanged): every output face is an input face with its vertices mapped.
@@ -143,6 +155,16 @@ def _placement(quadric: FloatArray, a: FloatArray, b: FloatArray
     """The cost and position that minimise ``quadric`` for the edge ``a``-``b``: the
     quadric's own minimum when it is well posed and near the edge, else the best of the
     ends and the midpoint."""
+    costs, h = _candidates(quadric, a, b)
+    best = int(np.argmin(costs))
+    return max(float(costs[best]), 0.0), h[best, :3]
+
+
+def _candidates(quadric: FloatArray, a: FloatArray, b: FloatArray
+                ) -> tuple[FloatArray, FloatArray]:
+    """The costs ``(C,)`` of the edge ``a``-``b``'s candidate positions ``(C, 4)``
+    (homogeneous): its ends, its midpoint and, when well posed and near the edge, the
+    quadric's own minimum."""
     middle = 0.5 * (a + b)
     candidates = [a, b, middle]
     block = quadric[:3, :3]
@@ -154,9 +176,7 @@ def _placement(quadric: FloatArray, a: FloatArray, b: FloatArray
             candidates.append(optimum)
     h = np.ones((len(candidates), 4))
     h[:, :3] = candidates
-    costs = np.einsum("ci,ij,cj->c", h, quadric, h)
-    best = int(np.argmin(costs))
-    return max(float(costs[best]), 0.0), h[best, :3]
+    return np.einsum("ci,ij,cj->c", h, quadric, h), h
 
 
 class _Collapse(NamedTuple):
@@ -173,7 +193,10 @@ class _Collapser:
     """The mutable state of one simplification (see :func:`simplify`)."""
 
     def __init__(self, vertices: FloatArray, triangles: IntArray, quadrics: FloatArray,
-                 options: SimplifyOptions) -> None:
+                 options: SimplifyOptions, max_error: float | None = None) -> None:
+        # with max_error: costs per unit of quadric weight, and every candidate position
+        # within it tried (the cheapest may fold a fan that another keeps flat)
+        self.max_error = max_error
         self.positions = vertices.copy()
         self.triangles = triangles.copy()
         self.quadrics = quadrics
@@ -199,6 +222,11 @@ class _Collapser:
         self.heap: list[tuple[float, int, int, int, int]] = []
         self.parked: list[set[int]] = [set() for _ in range(len(vertices))]
         self.merged_into = np.arange(len(vertices))
+        # the vertices of edges with one face (none on a closed mesh) never move
+        edges = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+        unique, count = np.unique(edges, axis=0, return_counts=True)
+        self.boundary = np.zeros(len(vertices), dtype=bool)
+        self.boundary[unique[count == 1].reshape(-1)] = True
 
     def neighbours(self, v: int) -> set[int]:
         """The vertices that share a face with ``v``."""
@@ -210,8 +238,10 @@ class _Collapser:
 
     def push(self, a: int, b: int) -> None:
         """Queue the collapse of edge ``a``-``b`` at its current cost."""
-        cost, _ = _placement(self.quadrics[a] + self.quadrics[b], self.positions[a],
-                             self.positions[b])
+        quadric = self.quadrics[a] + self.quadrics[b]
+        cost, _ = _placement(quadric, self.positions[a], self.positions[b])
+        if self.max_error is not None:
+            cost /= max(float(np.trace(quadric[:3, :3])), 1e-300)
         lo, hi = min(a, b), max(a, b)
         heapq.heappush(self.heap, (cost, lo, hi, int(self.version[lo]), int(self.version[hi])))
 
@@ -253,26 +283,37 @@ class _Collapser:
         """The collapse of ``b`` into ``a`` if it passes every check, else why not
         (``link``, ``piece``, ``flip`` or ``crossing``)."""
         shared = self.faces_of[a] & self.faces_of[b]
-        if len(shared) != 2:
+        if len(shared) != 2 or self.boundary[a] or self.boundary[b]:
             return "link"
         opposite = {int(u) for f in shared for u in self.triangles[f]} - {a, b}
         if self.neighbours(a) & self.neighbours(b) != opposite:
             return "link"
         if self.piece_size[self.piece[a]] <= 4:
             return "piece"
-        _, position = _placement(self.quadrics[a] + self.quadrics[b], self.positions[a],
-                                 self.positions[b])
+        quadric = self.quadrics[a] + self.quadrics[b]
+        if self.max_error is None:
+            positions = [_placement(quadric, self.positions[a], self.positions[b])[1]]
+        else:  # every candidate within the error, the cheapest first
+            costs, h = _candidates(quadric, self.positions[a], self.positions[b])
+            costs /= max(float(np.trace(quadric[:3, :3])), 1e-300)
+            order = np.argsort(costs, kind="stable")
+            positions = [h[c, :3] for c in order[:1]] + [
+                h[c, :3] for c in order[1:] if costs[c] <= self.max_error]
         moved = sorted((self.faces_of[a] | self.faces_of[b]) - shared)  # the new fan
         old = self.triangles[moved]  # (K, 3)
         new = np.where(old == b, a, old)
         old_corners = self.positions[old]  # (K, 3, 3) copies
-        new_corners = self.positions[new]
-        new_corners[new == a] = position
-        if not self._keeps_orientation(old_corners, new_corners):
-            return "flip"
-        if self._crosses(moved, new, a, position, shared):
-            return "crossing"
-        return _Collapse(position, shared, moved, new)
+        why = "flip"
+        for position in positions:
+            new_corners = self.positions[new]
+            new_corners[new == a] = position
+            if not self._keeps_orientation(old_corners, new_corners):
+                continue
+            if self._crosses(moved, new, a, position, shared):
+                why = "crossing"
+                continue
+            return _Collapse(position, shared, moved, new)
+        return why
 
     def _keeps_orientation(self, old: FloatArray, new: FloatArray) -> bool:
         """Whether no face of the fan turns by more than the options allow or shrinks
@@ -335,22 +376,30 @@ class _Collapser:
         return mesh, index[root]
 
 
-def simplify(mesh: PolygonMesh, points: FloatArray, normals: FloatArray | None = None, *,
-             target_vertices: int, options: SimplifyOptions | None = None) -> SimplifyResult:
+def simplify(mesh: PolygonMesh, points: FloatArray | None, normals: FloatArray | None = None, *,
+             target_vertices: int = 4, options: SimplifyOptions | None = None,
+             max_error: float | None = None) -> SimplifyResult:
     """Collapse edges of a closed triangle mesh, cheapest first, down to
-    ``target_vertices`` (see the module docstring).
+    ``target_vertices`` or up to ``max_error`` (see the module docstring).
 
     Parameters
     ----------
     mesh : PolygonMesh
         A closed oriented manifold triangle mesh (a decode), in the points' frame.
-    points : (P, 3) float
-        The input points whose planes make the cost.
+    points : (P, 3) float, optional
+        The input points whose planes make the cost; None: the mesh's own face planes
+        alone make it (area-weighted), so the cost measures how far a collapse moves
+        the surface from where the mesh has it.
     normals : (P, 3) float, optional
         Their normals (estimated when None).
     target_vertices : int
         Collapse until this many vertices are left, or no collapse passes its checks.
+        The default (4) leaves ``max_error`` the stop.
     options : SimplifyOptions, optional
+    max_error : float, optional
+        Make no collapse whose error (its cost per unit of quadric weight, a mean
+        squared distance: the module docstring) exceeds this; None: costs are summed
+        squared distances and only ``target_vertices`` stops.
 
     Returns
     -------
@@ -361,16 +410,19 @@ def simplify(mesh: PolygonMesh, points: FloatArray, normals: FloatArray | None =
     stats: dict[str, Any] = {"collapsed": 0, "refused": {}, "max_error": 0.0,
                              "kept_topology": True}
     if (not mesh.is_triangle_mesh() or mesh.n_vertices <= target_vertices
-            or mesh.n_faces == 0 or len(points) < 4):
+            or mesh.n_faces == 0 or (points is not None and len(points) < 4)):
         return SimplifyResult(mesh, stats)
     vertices = mesh.vertices.astype(np.float64)
     triangles = mesh.face_indices.reshape(-1, 3).astype(np.int64)
-    quadrics = point_quadrics(vertices, points, normals)
     faces = face_quadrics(vertices, triangles)
-    mean_weight = float(np.trace(quadrics[:, :3, :3], axis1=1, axis2=2).sum()) / max(
-        float(np.trace(faces[:, :3, :3], axis1=1, axis2=2).sum()), 1e-300)
-    quadrics += options.face_weight * mean_weight * faces
-    state = _Collapser(vertices, triangles, quadrics, options)
+    if points is None:  # the surface where it is
+        quadrics = faces
+    else:
+        quadrics = point_quadrics(vertices, points, normals)
+        mean_weight = float(np.trace(quadrics[:, :3, :3], axis1=1, axis2=2).sum()) / max(
+            float(np.trace(faces[:, :3, :3], axis1=1, axis2=2).sum()), 1e-300)
+        quadrics += options.face_weight * mean_weight * faces
+    state = _Collapser(vertices, triangles, quadrics, options, max_error)
     for a, b in mesh.edges:
         state.push(int(a), int(b))
     alive = mesh.n_vertices
@@ -381,6 +433,8 @@ def simplify(mesh: PolygonMesh, points: FloatArray, normals: FloatArray | None =
         if (not state.vertex_alive[a] or not state.vertex_alive[b]
                 or state.version[a] != version_a or state.version[b] != version_b):
             continue
+        if max_error is not None and cost > max_error:
+            break  # the cheapest collapse left would move the surface too far
         if state.try_collapse(a, b):
             alive -= 1
             stats["collapsed"] += 1

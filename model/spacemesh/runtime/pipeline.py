@@ -36,7 +36,7 @@ import numpy as np
 
 from spacemesh.geometry import FitReport, SurfaceFacts
 from spacemesh.geometry.finishing import finish_geometry
-from spacemesh.geometry.polygons import merge_coplanar
+from spacemesh.geometry.polygons import collapse_flat, merge_coplanar
 from spacemesh.geometry.surface import drop_crossing_faces
 from spacemesh.geometry.untangle import untangle
 from spacemesh.mesh import PolygonMesh
@@ -296,7 +296,10 @@ class MeshGenerator:
 
     def _faced(self, result: GenerateResult, prepared: PreparedInput) -> GenerateResult:
         """The chosen mesh's faces as ``face_type`` asks, last (nothing after it moves a
-        vertex): with ``polygons`` its flat regions merged into planar polygons
+        vertex): with ``polygons`` the edges collapsed that leave the surface where it
+        was (:func:`spacemesh.geometry.polygons.collapse_flat`: flat regions lose their
+        interior vertices, so the mesh has fewer vertices than asked for), then its flat
+        regions merged into planar polygons
         (:func:`spacemesh.geometry.polygons.merge_coplanar`, every merged face's corners
         within :data:`POLYGON_PLANARITY` of the diagonal of its plane); with
         ``triangles`` a decode's polygons triangulated
@@ -308,7 +311,10 @@ class MeshGenerator:
         stats: dict[str, int | float] = {}
         merged = result.mesh
         if result.options.face_type == "polygons":
-            merged, stats = merge_coplanar(result.mesh, POLYGON_PLANARITY * result.fit.diagonal)
+            tolerance = POLYGON_PLANARITY * result.fit.diagonal
+            flat, stats = collapse_flat(result.mesh, tolerance)
+            merged, merging = merge_coplanar(flat, tolerance)
+            stats = {**stats, **merging}
         elif not result.mesh.is_triangle_mesh():
             vertices, triangles, _ = triangulate_manifold(result.mesh)
             merged = PolygonMesh(vertices, triangles.reshape(-1),
