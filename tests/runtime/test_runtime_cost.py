@@ -63,6 +63,15 @@ def test_more_of_any_input_costs_more(spec):
         assert costs[-1][0] > costs[0][0], (name, costs)
 
 
+def test_polygons_cost_their_collapses_once_growing_with_the_count(spec):
+    extra = [cost(spec, target_vertices=v, face_type="polygons")[0]
+             - cost(spec, target_vertices=v)[0] for v in (200, 1000, 2048)]
+    assert 0 < extra[0] < extra[1] < extra[2]
+    # once per request, whatever its seeds
+    four = (cost(spec, samples=4, face_type="polygons")[0] - cost(spec, samples=4)[0])
+    assert four == pytest.approx(extra[0])
+
+
 def test_steps_cost_only_below_the_start_time(spec):
     """With start=points only the steps below start_time run: at 0 none does."""
     assert cost(spec, start="points", start_time=0.0, steps=1024) == cost(

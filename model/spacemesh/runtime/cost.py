@@ -9,13 +9,14 @@ peak memory (MB), and, per input the request can lower, what lowering it would s
 The formula, in seconds on the reference machine (2 CPU cores, one onnxruntime thread per
 core; ``bench/bench_cost_model.py`` times the real pipeline against it)::
 
-    seconds  = 1.05e-5 P + seeds * per_seed(N, V)        (tolerance: a sum over its tries)
+    seconds  = 1.05e-5 P + once + seeds * per_seed(N, V) (tolerance: a sum over its tries)
     per_seed = 7.3e-7 P + 5.6e-5 N                       farthest-point start
              + D (7.8e-6 N + 3.67e-8 N^2)                the denoiser steps that run
              + 1.3e-4 N                                  connectivity network
              + f (3.2e-7 N^2 + 0.25 + 1.61e-3 V + 1.86e-7 V^2)   decode, geometry stage
              + f (1.61e-3 W + 1.86e-7 W^2 + 1.5e-3 (W - V))      with a dense decode
              + 5.6e-6 min(P, 20000) + 4e-5 V             fit report
+    once     = 5e-6 V^2                                  face_type=polygons: the flat collapses
     seeds    = max over k <= samples of k + R(k) 0.5 ** k,   R(k) = max(0, 1 + retry_seeds - k)
     MB       = 3.5e-3 min(P, 20000) + 5.2e-4 P + 1.7e-4 (1 + 1.5 s) N^2 + 0.02 V + 0.006 N seeds
 
@@ -172,6 +173,7 @@ class CostModel:
     geometry_s1: float = 1.61e-3
     geometry_s2: float = 1.86e-7
     collapse_s: float = 1.5e-3
+    polygons_s2: float = 5e-6
     report_s_per_point: float = 5.6e-6
     report_s_per_vertex: float = 4e-5
     denoised_slowdown: float = 1.3
@@ -234,6 +236,10 @@ class CostModel:
         prepare = self.prepare_s_per_point * points
         base_mb = (self.report_mb_per_point * min(points, REPORT_POINTS)
                    + self.points_mb * points)
+        if options.face_type == "polygons":  # once, on the chosen mesh
+            count = vertex_count(spec, options) if options.start == "points" else (
+                spec.max_vertices)
+            prepare += self.polygons_s2 * float(count) ** 2
         if options.tolerance is None or options.start != "points":
             seconds, memory = self._seeds(spec, options, points, expected_seeds)
             return prepare + seconds, base_mb + memory

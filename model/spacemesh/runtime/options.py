@@ -120,8 +120,9 @@ class GenerateOptions:
         Fraction t/T of the diffusion where ``start=points`` begins; 0 uses the chosen
         points as they are. Only with ``start=points``.
     target_vertices : int, optional
-        Vertices of the final mesh (within 10%); without it the count is a fixed
-        function of the input (the same for every seed).
+        Vertices of the final mesh (within 10%; fewer with ``face_type="polygons"``,
+        whose flat regions lose their interior vertices); without it the count is a
+        fixed function of the input (the same for every seed).
     tolerance : float, optional
         The mesh's size is the smallest the search finds whose mean distance from the
         input points to the mesh is at most this fraction of the input's bounding-box
