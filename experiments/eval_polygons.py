@@ -24,6 +24,7 @@ import argparse
 import csv
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +52,9 @@ def main() -> int:
     parser.add_argument("--category", default="all",
                         help="cad (the CAD-like ones), other, all, or one category")
     parser.add_argument("--limit", type=int, default=None)
+    parser.add_argument("--data", type=Path, default=None,
+                        help="a shard dataset (e.g. data/qemflip-heldout-s2) instead of "
+                             "the real meshes: its --split test shapes, every one CAD-like")
     parser.add_argument("--out", type=Path, default=Path("/tmp/eval_polygons.csv"))
     args = parser.parse_args()
     from spacemesh.evaluate.runner import pin_threads
@@ -58,14 +62,18 @@ def main() -> int:
     pin_threads(1)
     from eval_real_meshes import CATEGORIES, split_meshes
 
-    from spacemesh.evaluate.runner import mesh_shapes
+    from spacemesh.evaluate.runner import dataset_shapes, mesh_shapes
     from spacemesh.metrics.compare import Reference, score_mesh
     from spacemesh.metrics.sampling import apply_normalisation, normalisation
     from spacemesh.runtime import MeshGenerator
 
-    paths, categories = split_meshes(ROOT.parent / "shared" / "meshes", args.split,
-                                     _wanted(args.category, CATEGORIES))
-    shapes = mesh_shapes(paths, categories=categories, seed=0)[: args.limit]
+    if args.data is not None:  # a synthetic set: every shape counts as CAD-like
+        shapes = [replace(shape, category="cad") for shape in dataset_shapes(
+            args.data, "all" if args.split == "all" else "test", args.limit)]
+    else:
+        paths, categories = split_meshes(ROOT.parent / "shared" / "meshes", args.split,
+                                         _wanted(args.category, CATEGORIES))
+        shapes = mesh_shapes(paths, categories=categories, seed=0)[: args.limit]
     generator = MeshGenerator.from_repository(None, threads=1)
     rows = []
     print(f"{'shape':34s} {'cat':11s} {'F tri':>5s} {'F poly':>6s} {'ratio':>5s} "

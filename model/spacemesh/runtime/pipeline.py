@@ -381,7 +381,9 @@ class MeshGenerator:
         """The smallest mesh within ``options.tolerance`` (resolved options), every try
         on the same prepared points. The tries run without the model's retry seeds (the
         search's time); the count found gets them when its mesh fails the topology
-        check, and a retry's mesh is taken only if it keeps the tolerance met."""
+        check, and a retry's mesh is taken only if it keeps the tolerance met. The mesh
+        found is the one a generate at its count gives (untangled and faced once, as
+        :meth:`_generate_prepared` finishes it); a retry seed's is finished likewise."""
         assert options.tolerance is not None
         tolerance = float(options.tolerance)
 
@@ -400,6 +402,7 @@ class MeshGenerator:
         found, _, tried = search_vertex_count(run, aim(tolerance), self.vertex_count(options),
                                               on_try=on_try)
         expected = prepared.pieces
+        searched = found  # a generate's mesh: untangled and faced already
         if self.spec.retry_seeds and not acceptable(found, expected):
             keep_met = distance_of(found) <= tolerance
             retried = self._retry_seeds(prepared, found.options, progress, stage)
@@ -407,7 +410,8 @@ class MeshGenerator:
             extra = [r for r in retried if distance_of(r) <= tolerance or not keep_met]
             found = best_fit([found, *extra], found.options, expected)
         found.timings = summed_timings(ran)
-        found = self._faced(self._untangled(found, prepared, stage), prepared)
+        if found is not searched:  # a retry seed's mesh, as its seed decoded it
+            found = self._faced(self._untangled(found, prepared, stage), prepared)
         # the fit reports carry the tolerance and whether it is met (PreparedInput)
         found.options = replace(found.options, tolerance=tolerance, target_vertices=None)
         found.tolerance_tries = tried
