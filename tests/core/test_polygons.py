@@ -95,9 +95,14 @@ def test_curved_surfaces_keep_their_vertices_under_a_small_tolerance():
     assert stats["vertices_collapsed"] == 0 and flat.n_vertices == sphere.n_vertices
 
 
-@settings(max_examples=40, deadline=None, derandomize=True)
-@given(name=st.sampled_from(sorted(MESHES)),
-       tolerance=st.sampled_from([0.0, 1e-6, 1e-3, 1e-2, 0.05, 0.3]))
+def every_mesh_and_tolerance(test):
+    """``test(name, tolerance)`` over the property meshes and tolerances up to 0.3."""
+    return settings(max_examples=40, deadline=None, derandomize=True)(given(
+        name=st.sampled_from(sorted(MESHES)),
+        tolerance=st.sampled_from([0.0, 1e-6, 1e-3, 1e-2, 0.05, 0.3]))(test))
+
+
+@every_mesh_and_tolerance
 def test_merging_keeps_the_guarantee(name, tolerance):
     mesh = MESHES[name]
     merged, stats = merge_coplanar(mesh, tolerance)
@@ -113,9 +118,7 @@ def test_merging_keeps_the_guarantee(name, tolerance):
         assert np.abs(merged.vertices - mesh.vertices).max() <= 4 * tolerance + 1e-12
 
 
-@settings(max_examples=40, deadline=None, derandomize=True)
-@given(name=st.sampled_from(sorted(MESHES)),
-       tolerance=st.sampled_from([0.0, 1e-6, 1e-3, 1e-2, 0.05, 0.3]))
+@every_mesh_and_tolerance
 def test_collapsing_then_merging_keeps_the_guarantee(name, tolerance):
     mesh = MESHES[name]
     flat, stats = collapse_flat(mesh, tolerance)
