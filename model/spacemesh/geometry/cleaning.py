@@ -115,10 +115,18 @@ def unit_points(points: FloatArray) -> tuple[FloatArray, float]:
     return (points - (low + high) / 2) / (diagonal if diagonal > 0 else 1.0), diagonal
 
 
-def quadric_fits(points: FloatArray, near: IntArray
+def quadric_fits(points: FloatArray, near: IntArray, weights: FloatArray | None = None
                  ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Quadric height fields fitted to the neighbourhoods ``near`` ``(C, k)``, each in
     the frame of its plane (the height along the direction of least variance).
+
+    Parameters
+    ----------
+    points : (P, 3) float
+    near : (C, k) int
+    weights : (C, k) float, optional
+        The neighbours' weights in the height fit (the frame and centroid stay those of
+        the whole neighbourhood, so that refits with other weights share them).
 
     Returns
     -------
@@ -136,14 +144,19 @@ def quadric_fits(points: FloatArray, near: IntArray
     centred = patch - centroid[:, None]
     frame = np.linalg.eigh(np.einsum("cki,ckj->cij", centred, centred))[1]  # (C, 3, 3)
     design, height = _heights(centred, frame)  # (C, k, 6), (C, k)
-    normal_matrix = np.einsum("cki,ckj->cij", design, design)  # (C, 6, 6)
+    weighted = design if weights is None else design * weights[..., None]  # (C, k, 6)
+    normal_matrix = np.einsum("cki,ckj->cij", weighted, design)  # (C, 6, 6)
     scale = np.trace(normal_matrix, axis1=1, axis2=2)[:, None, None]
     normal_matrix = normal_matrix + 1e-12 * scale * np.eye(6)
-    rhs = np.einsum("cki,ck->ci", design, height)[..., None]  # (C, 6, 1)
+    rhs = np.einsum("cki,ck->ci", weighted, height)[..., None]  # (C, 6, 1)
     coefficients = np.linalg.solve(normal_matrix, rhs)[..., 0]  # (C, 6)
     residual = height - np.einsum("cki,ci->ck", design, coefficients)  # (C, k)
-    dof = max(near.shape[1] - design.shape[2], 1)
-    return centroid, frame, coefficients, np.sqrt(np.sum(residual ** 2, axis=1) / dof)
+    if weights is None:
+        dof = max(near.shape[1] - design.shape[2], 1)
+        return centroid, frame, coefficients, np.sqrt(np.sum(residual ** 2, axis=1) / dof)
+    dof_weighted = np.maximum(weights.sum(axis=1) - design.shape[2], 1.0)  # (C,)
+    return centroid, frame, coefficients, np.sqrt(
+        np.sum(weights * residual ** 2, axis=1) / dof_weighted)
 
 
 def _heights(centred: FloatArray, frame: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -72,16 +72,26 @@ MAX_MOVE = 3.0
 #: Points of a larger cloud whose quadrics are fitted (a fixed subset); every point
 #: moves onto the quadric of its nearest subset point.
 DENOISE_POINTS = CLEANING_POINTS
+#: Width of the neighbours' weights in the refits, in scattered noises (0: no refits).
+MODE_WIDTH = 2.0
+#: Refits of each quadric with its neighbours weighted.
+MODE_ROUNDS = 2
 #: Median of the square of a standard normal variable.
 _CHI2_MEDIAN = 0.4549
 
 
-def _offsets(unit: FloatArray, subset: IntArray, neighbours: int
-             ) -> tuple[FloatArray, FloatArray, IntArray]:
+def _offsets(unit: FloatArray, subset: IntArray, neighbours: int, width: float = 0.0,
+             rounds: int = 0) -> tuple[FloatArray, FloatArray, IntArray]:
     """Each point's signed height ``(P,)`` above the quadric of the ``neighbours`` points
     of ``subset`` ``(S,)`` nearest to its nearest subset point, that quadric's normal
     ``(P, 3)``, and each subset point's nearest other subset point ``(S,)`` (indices
-    into ``subset``); fitted :data:`CHUNK` at a time."""
+    into ``subset``); fitted :data:`CHUNK` at a time.
+
+    With ``width`` > 0 each quadric is then refitted ``rounds`` times with the neighbours
+    weighted by a Gaussian of ``width`` over their heights above it, first above it
+    lifted through the patch's own point: a neighbourhood that holds two sheets of a thin
+    part, or two faces of a crease, is fitted to the one its point lies on.
+    """
     tree = cKDTree(unit[subset])
     k = min(max(neighbours, 2), len(subset))
     _, near = tree.query(unit[subset], k=k)  # (S, k), into subset, the point itself first
@@ -93,6 +103,13 @@ def _offsets(unit: FloatArray, subset: IntArray, neighbours: int
     for first in range(0, len(subset), CHUNK):  # bounded memory on large clouds
         rows = slice(first, first + CHUNK)
         centroid, frame, coefficients, _ = quadric_fits(unit[subset], near[rows])
+        for round_ in range(rounds if width > 0 else 0):
+            height = quadric_offsets(unit[subset][near[rows]], centroid, frame,
+                                     coefficients)  # (C, k), the patch's own point first
+            if round_ == 0:
+                height = height - height[:, :1]
+            weights = np.exp(-0.5 * (height / width) ** 2)  # (C, k)
+            centroid, frame, coefficients, _ = quadric_fits(unit[subset], near[rows], weights)
         mine = np.flatnonzero((owner >= first) & (owner < first + len(centroid)))  # (C',)
         patch = owner[mine] - first
         offset[mine] = quadric_offsets(unit[mine, None], centroid[patch], frame[patch],
@@ -123,7 +140,8 @@ def scattered_noise(offset: FloatArray, normal: FloatArray, near: IntArray) -> f
 
 def denoise_points(points: FloatArray, noise: float, *,
                    neighbours: int = DENOISE_NEIGHBOURS, passes: int = DENOISE_PASSES,
-                   max_move: float = MAX_MOVE,
+                   max_move: float = MAX_MOVE, width: float = MODE_WIDTH,
+                   mode_rounds: int = MODE_ROUNDS,
                    threshold: float = DENOISE_NOISE, scatter: float = SCATTER_NOISE
                    ) -> FloatArray:
     """Each point moved along its patch's normal onto the quadric of its neighbours
@@ -158,8 +176,13 @@ def denoise_points(points: FloatArray, noise: float, *,
     limit = max_move * noise  # unit diagonal
     for round_ in range(passes):
         offset, normal, nearest = _offsets(unit, subset, neighbours)
-        if round_ == 0 and scattered_noise(offset[subset], normal[subset], nearest) < scatter:
-            return points  # the offsets are the surface's own (creases, thin parts)
+        if round_ == 0:
+            scattered = scattered_noise(offset[subset], normal[subset], nearest)
+            if scattered < scatter:
+                return points  # the offsets are the surface's own (creases, thin parts)
+        if width > 0:
+            offset, normal, nearest = _offsets(unit, subset, neighbours, width * scattered,
+                                               mode_rounds)
         step = unit - offset[:, None] * normal - start  # (P, 3)
         length = np.linalg.norm(step, axis=1, keepdims=True)
         unit = start + step * np.minimum(1.0, limit / np.maximum(length, 1e-300))

@@ -167,10 +167,10 @@ class PreparedInput:
     def fit_points(self) -> tuple[FloatArray, FloatArray | None]:
         """The normalised points (and normals) the geometry stage fits to, at most
         :data:`MAX_FIT_POINTS` of them (a fixed subset)."""
-        pick = reduction_indices(len(self.unit), MAX_FIT_POINTS, seed=POINT_SUBSET_SEED)
-        if pick is None:
-            return self.unit, self.normals
-        return self.unit[pick], None if self.normals is None else self.normals[pick]
+        pick = reduction_indices(len(self.points), MAX_FIT_POINTS, seed=POINT_SUBSET_SEED)
+        rows = slice(None) if pick is None else pick
+        unit = (self.points[rows] - self.centre) / self.scale  # as sent, not denoised
+        return unit, None if self.normals is None else self.normals[rows]
 
 
 
