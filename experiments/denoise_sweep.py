@@ -1,7 +1,9 @@
 """How far noisy points lie from the true surface before and after the denoising.
 
-A quick stand-in for the full evaluation while tuning
-:func:`spacemesh.geometry.denoise.denoise_points`: on every mesh of one split of the
+The denoising was tried and dropped (docs/GEOMETRY.md, "Tried and dropped: denoising
+the points"): ``git apply experiments/patches/denoise_points.diff`` (on d4a8b3d) first,
+which adds ``spacemesh.geometry.denoise``. A quick stand-in for the full evaluation while
+tuning :func:`spacemesh.geometry.denoise.denoise_points`: on every mesh of one split of the
 real meshes (2,048 points, as ``experiments/eval_real_meshes.py`` samples them, with
 the same noise), the outliers are set aside and the noise measured as the pipeline does
 (:func:`spacemesh.geometry.cleaning.assess_points`), each variant moves the points, and

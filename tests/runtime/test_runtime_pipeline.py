@@ -281,19 +281,3 @@ def test_outliers_are_set_aside_before_anything_else_and_reported(generator, clo
     assert fit.n_points == len(prepared.points)  # measured from the kept points
     # nothing reaches for the strays (the toy model may make an empty mesh)
     assert result.mesh.n_vertices == 0 or np.abs(result.mesh.vertices).max() < 1.5
-
-
-def test_noisy_points_are_denoised_for_the_pipeline_and_reported_as_sent(generator):
-    rng = np.random.default_rng(5)
-    sphere = rng.normal(size=(2048, 3))
-    sphere /= np.linalg.norm(sphere, axis=1, keepdims=True)  # (P, 3) on the unit sphere
-    noisy = sphere + rng.normal(scale=0.01 * np.sqrt(12.0), size=sphere.shape)  # 1% noise
-    options = GenerateOptions(seed=1, start="points").resolve(generator.spec)
-    prepared = generator.prepare_input(GenerateRequest(noisy, options=options), options)
-    kept = prepared.quality.kept
-    assert np.array_equal(prepared.points, noisy[kept])  # the report's reference: as sent
-    denoised = prepared.unit * prepared.scale + prepared.centre  # (P, 3)
-    off_before = np.abs(np.linalg.norm(noisy[kept], axis=1) - 1.0).mean()
-    assert np.abs(np.linalg.norm(denoised, axis=1) - 1.0).mean() < 0.6 * off_before
-    clean = generator.prepare_input(GenerateRequest(sphere, options=options), options)
-    assert np.array_equal(clean.unit, normalize_points(clean.points)[0])  # left as it is

@@ -104,9 +104,9 @@ class PointsQuality:
     noise: float
 
 
-def unit_points(points: FloatArray) -> tuple[FloatArray, float]:
-    """``points`` ``(P, 3)`` centred on their bounding box and divided by its diagonal
-    (so that the estimates do not depend on units), and that diagonal."""
+def _unit(points: FloatArray) -> tuple[FloatArray, float]:
+    """``points`` centred on their bounding box and divided by its diagonal (so that
+    the estimates do not depend on units), and that diagonal."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if not len(points):
         return points, 0.0
@@ -115,18 +115,10 @@ def unit_points(points: FloatArray) -> tuple[FloatArray, float]:
     return (points - (low + high) / 2) / (diagonal if diagonal > 0 else 1.0), diagonal
 
 
-def quadric_fits(points: FloatArray, near: IntArray, weights: FloatArray | None = None
-                 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+def _quadric_fits(points: FloatArray, near: IntArray
+                  ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Quadric height fields fitted to the neighbourhoods ``near`` ``(C, k)``, each in
     the frame of its plane (the height along the direction of least variance).
-
-    Parameters
-    ----------
-    points : (P, 3) float
-    near : (C, k) int
-    weights : (C, k) float, optional
-        The neighbours' weights in the height fit (the frame and centroid stay those of
-        the whole neighbourhood, so that refits with other weights share them).
 
     Returns
     -------
@@ -144,19 +136,14 @@ def quadric_fits(points: FloatArray, near: IntArray, weights: FloatArray | None 
     centred = patch - centroid[:, None]
     frame = np.linalg.eigh(np.einsum("cki,ckj->cij", centred, centred))[1]  # (C, 3, 3)
     design, height = _heights(centred, frame)  # (C, k, 6), (C, k)
-    weighted = design if weights is None else design * weights[..., None]  # (C, k, 6)
-    normal_matrix = np.einsum("cki,ckj->cij", weighted, design)  # (C, 6, 6)
+    normal_matrix = np.einsum("cki,ckj->cij", design, design)  # (C, 6, 6)
     scale = np.trace(normal_matrix, axis1=1, axis2=2)[:, None, None]
     normal_matrix = normal_matrix + 1e-12 * scale * np.eye(6)
-    rhs = np.einsum("cki,ck->ci", weighted, height)[..., None]  # (C, 6, 1)
+    rhs = np.einsum("cki,ck->ci", design, height)[..., None]  # (C, 6, 1)
     coefficients = np.linalg.solve(normal_matrix, rhs)[..., 0]  # (C, 6)
     residual = height - np.einsum("cki,ci->ck", design, coefficients)  # (C, k)
-    if weights is None:
-        dof = max(near.shape[1] - design.shape[2], 1)
-        return centroid, frame, coefficients, np.sqrt(np.sum(residual ** 2, axis=1) / dof)
-    dof_weighted = np.maximum(weights.sum(axis=1) - design.shape[2], 1.0)  # (C,)
-    return centroid, frame, coefficients, np.sqrt(
-        np.sum(weights * residual ** 2, axis=1) / dof_weighted)
+    dof = max(near.shape[1] - design.shape[2], 1)
+    return centroid, frame, coefficients, np.sqrt(np.sum(residual ** 2, axis=1) / dof)
 
 
 def _heights(centred: FloatArray, frame: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -186,7 +173,7 @@ class _Patches:
     limit : (P,) float
         The lift beyond which a point near that patch is set aside.
     centroid, frame, coefficients
-        The patches (:func:`quadric_fits`).
+        The patches (:func:`_quadric_fits`).
     spread_limit : float
         The spread beyond which a point is set aside.
     gap_limit : float
@@ -217,7 +204,7 @@ class _Patches:
         coefficients = np.empty((count, 6))
         for start in range(0, count, CHUNK):  # bounded memory on large clouds
             rows = slice(start, start + CHUNK)
-            centroid[rows], frame[rows], coefficients[rows], own[rows] = quadric_fits(
+            centroid[rows], frame[rows], coefficients[rows], own[rows] = _quadric_fits(
                 points, near[rows, :SURFACE_NEIGHBOURS])
             lift[rows] = _lift(points[rows], centroid[rows], frame[rows], coefficients[rows])
         spread = distance[:, SPREAD_NEIGHBOUR - 1]
@@ -247,21 +234,12 @@ class _Patches:
         return result
 
 
-def quadric_offsets(points: FloatArray, centroid: FloatArray, frame: FloatArray,
-                    coefficients: FloatArray) -> FloatArray:
-    """``(C, n)`` signed heights of ``points`` ``(C, n, 3)`` above their patches'
-    quadrics (:func:`quadric_fits`; patch ``c`` for the points of row ``c``), along each
-    patch's normal ``frame[:, :, 0]``: a point minus its height times the normal lies on
-    the quadric."""
-    design, height = _heights(points - centroid[:, None], frame)  # (C, n, 6), (C, n)
-    return height - np.einsum("cni,ci->cn", design, coefficients)
-
-
 def _lift(points: FloatArray, centroid: FloatArray, frame: FloatArray,
           coefficients: FloatArray) -> FloatArray:
     """``(C,)`` distance along each patch's normal from ``points`` ``(C, 3)`` to the
     patch's quadric."""
-    return np.abs(quadric_offsets(points[:, None], centroid, frame, coefficients)[:, 0])
+    design, height = _heights((points - centroid)[:, None], frame)  # (C, 1, 6), (C, 1)
+    return np.abs(height[:, 0] - np.einsum("ci,ci->c", design[:, 0], coefficients))
 
 
 def find_outliers(points: FloatArray) -> BoolArray:
@@ -283,7 +261,7 @@ def find_outliers(points: FloatArray) -> BoolArray:
         True for an outlier; all False for clouds of fewer than
         :data:`MIN_CLEANING_POINTS` points.
     """
-    points, _ = unit_points(points)
+    points, _ = _unit(points)
     picked = reduction_indices(len(points), CLEANING_POINTS, seed=CLEANING_SEED)
     subset = np.arange(len(points)) if picked is None else picked
     outliers = np.zeros(len(points), dtype=bool)
@@ -323,14 +301,14 @@ def estimate_noise(points: FloatArray) -> float:
     float
         0 for clouds of fewer than :data:`MIN_CLEANING_POINTS` points.
     """
-    points, diagonal = unit_points(points)
+    points, diagonal = _unit(points)
     if len(points) < MIN_CLEANING_POINTS or diagonal <= 0:
         return 0.0
     pick = reduction_indices(len(points), NOISE_CENTRES, seed=CLEANING_SEED)
     centres = points if pick is None else points[pick]
     k = min(NOISE_NEIGHBOURS, len(points) - 1)
     _, near = cKDTree(points).query(centres, k=k + 1)  # (C, k + 1), the centre included
-    return float(np.median(quadric_fits(points, near)[3]))  # unit diagonal
+    return float(np.median(_quadric_fits(points, near)[3]))  # unit diagonal
 
 
 def assess_points(points: FloatArray) -> PointsQuality:
@@ -352,5 +330,4 @@ def assess_points(points: FloatArray) -> PointsQuality:
     return PointsQuality(kept=kept, outliers=share, noise=estimate_noise(points[kept]))
 
 
-__all__ = ["PointsQuality", "assess_points", "estimate_noise", "find_outliers", "quadric_fits",
-           "quadric_offsets", "unit_points"]
+__all__ = ["PointsQuality", "assess_points", "estimate_noise", "find_outliers"]

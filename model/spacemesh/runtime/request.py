@@ -1,12 +1,10 @@
 """A generate request, its points prepared once for all its seeds, and its result.
 
 :func:`prepare_input` checks a request's points, sets its outliers aside and measures
-their noise (:mod:`spacemesh.geometry.cleaning`), moves measurably noisy points onto
-their neighbours' surface (:mod:`spacemesh.geometry.denoise`; clean points stay as they
-are), normalises them (bounding-box centre to the origin, longest axis to [-1, 1]) and
-picks the encoder's points from them (a fixed seed, so deterministically): a
-:class:`PreparedInput`, shared by the request's seeds and tolerance tries. The fit
-report still measures the mesh against the points the user sent (not outliers).
+their noise (:mod:`spacemesh.geometry.cleaning`), normalises the rest (bounding-box
+centre to the origin, longest axis to [-1, 1]) and picks the encoder's points from them
+(a fixed seed, so deterministically): a :class:`PreparedInput`, shared by the request's
+seeds and tolerance tries.
 """
 
 from __future__ import annotations
@@ -19,7 +17,6 @@ import numpy as np
 
 from spacemesh.geometry import FitReport, PointFacts, SurfaceFacts, feature_weights, fit_report
 from spacemesh.geometry.cleaning import PointsQuality, assess_points
-from spacemesh.geometry.denoise import denoise_points
 from spacemesh.geometry.pieces import point_pieces
 from spacemesh.io.reduce import reduction_indices
 from spacemesh.mesh import PolygonMesh
@@ -125,9 +122,7 @@ class PreparedInput:
     points : (P, 3) float64
         The uploaded points that are not outliers (the fit report's reference).
     unit : (P, 3) float64
-        The same, denoised (:func:`denoise_points`; the same points when they are not
-        measurably noisy) and normalised: what the encoder, the vertex starts and the
-        fit use.
+        The same, normalised.
     normals : (P, 3) float64, optional
         The upload's normals of those points.
     weights : (P,) float64, optional
@@ -167,10 +162,10 @@ class PreparedInput:
     def fit_points(self) -> tuple[FloatArray, FloatArray | None]:
         """The normalised points (and normals) the geometry stage fits to, at most
         :data:`MAX_FIT_POINTS` of them (a fixed subset)."""
-        pick = reduction_indices(len(self.points), MAX_FIT_POINTS, seed=POINT_SUBSET_SEED)
-        rows = slice(None) if pick is None else pick
-        unit = (self.points[rows] - self.centre) / self.scale  # as sent, not denoised
-        return unit, None if self.normals is None else self.normals[rows]
+        pick = reduction_indices(len(self.unit), MAX_FIT_POINTS, seed=POINT_SUBSET_SEED)
+        if pick is None:
+            return self.unit, self.normals
+        return self.unit[pick], None if self.normals is None else self.normals[pick]
 
 
 
@@ -288,7 +283,7 @@ def prepare_input(request: GenerateRequest, spec: ModelSpec,
     if not quality.kept.all():
         p = p[quality.kept]
         n = None if n is None else n[quality.kept]
-    unit, centre, scale = normalize_points(denoise_points(p, quality.noise))
+    unit, centre, scale = normalize_points(p)
     rng = np.random.default_rng(POINT_SUBSET_SEED)
     pick = choose_points(len(unit), spec.n_points, rng)
     columns = [unit[pick]]
