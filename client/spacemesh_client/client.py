@@ -189,7 +189,8 @@ class Client(_Options):
             points leave a large part of the closed mesh unsupported.
             ``Mesh.stats.fit["open_surface"]`` says what was made.
         face_type : {"triangles", "polygons"}, optional
-            ``polygons``: flat regions merged into planar polygons
+            ``polygons``: flat regions without interior vertices (fewer vertices than
+            asked for), merged into planar polygons
             (``Mesh.stats.fit["face_planarity"]`` is the worst corner's distance from
             its plane, a fraction of the diagonal; GLB and glTF hold triangles only).
         filename : str, optional

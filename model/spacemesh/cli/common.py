@@ -67,8 +67,8 @@ SurfaceFlag = Annotated[str | None, typer.Option(
     "points leave a large part of the closed mesh unsupported.")]
 FaceTypeFlag = Annotated[str | None, typer.Option(
     "--face-type", metavar="triangles|polygons", help="triangles (default), or polygons: "
-    "flat regions merged into planar polygons (OBJ, PLY, OFF keep them; GLB holds "
-    "triangles).")]
+    "flat regions without interior vertices, merged into planar polygons (fewer vertices "
+    "than asked for; OBJ, PLY, OFF keep them; GLB holds triangles).")]
 
 P = ParamSpec("P")
 R = TypeVar("R")

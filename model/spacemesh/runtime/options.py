@@ -142,7 +142,9 @@ class GenerateOptions:
         scan). With ``raw`` only ``closed`` (its default there).
     face_type : {"triangles", "polygons", "quads"}, optional
         ``triangles``: a triangle mesh (a model whose decode makes polygons has them
-        triangulated); ``polygons``: flat regions merged into planar polygons
+        triangulated); ``polygons``: the edges collapsed whose collapse leaves the
+        surface where it was (flat regions lose their interior vertices), then flat
+        regions merged into planar polygons
         (:mod:`spacemesh.geometry.polygons`; every merged face's corners within 0.1% of
         the diagonal of its plane; a decode's own polygons are kept as they are);
         ``quads`` needs a model trained on quad-dominant meshes (refused otherwise).
