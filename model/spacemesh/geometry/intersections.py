@@ -124,12 +124,32 @@ def triangle_pairs_intersect(ta: FloatArray, tb: FloatArray, eps: float = 1e-9) 
     size = np.maximum(np.ptp(ta, axis=1).max(axis=1), np.ptp(tb, axis=1).max(axis=1))
     flat = np.maximum(eps, COPLANAR_TOLERANCE * size)[:, None]  # (M, 1)
     coplanar = np.all(np.abs(da) <= flat, axis=1) & np.all(np.abs(db) <= flat, axis=1)
-    crossing = np.zeros(len(ta), dtype=bool)
-    for s, t, normal in ((ta, tb, nb), (tb, ta, na)):
-        for k in range(3):
-            crossing |= _segments_hit(s[:, k], s[:, (k + 1) % 3], t, normal, eps)
-    out = np.where(coplanar, _coplanar_overlap(ta, tb, na, flat[:, 0]), crossing)
-    return out & ~apart & good_a & good_b
+    # each pair tested only where its answer is still open (every test is row by row)
+    out = np.zeros(len(ta), dtype=bool)
+    live = ~apart & good_a & good_b
+    plane = np.flatnonzero(live & coplanar)
+    if len(plane):
+        out[plane] = _coplanar_overlap(ta[plane], tb[plane], na[plane], flat[plane, 0])
+    cut = np.flatnonzero(live & ~coplanar)
+    if len(cut):
+        out[cut] = _edges_cross(ta[cut], tb[cut], na[cut], nb[cut], eps)
+    return out
+
+
+def _edges_cross(ta: FloatArray, tb: FloatArray, na: FloatArray, nb: FloatArray,
+                 eps: float) -> BoolArray:
+    """``(M,)`` whether an edge of one triangle of each pair crosses the other away from
+    its plane (:func:`_segments_hit`, the six edges of a pair tested in one call)."""
+    m = len(ta)
+    start = np.concatenate([ta, tb], axis=1).transpose(1, 0, 2).reshape(-1, 3)  # (6M, 3)
+    end = np.concatenate([ta[:, [1, 2, 0]], tb[:, [1, 2, 0]]], axis=1)
+    end = end.transpose(1, 0, 2).reshape(-1, 3)
+    other = np.concatenate([np.broadcast_to(tb, (3, m, 3, 3)),
+                            np.broadcast_to(ta, (3, m, 3, 3))]).reshape(-1, 3, 3)
+    normal = np.concatenate([np.broadcast_to(nb, (3, m, 3)),
+                             np.broadcast_to(na, (3, m, 3))]).reshape(-1, 3)
+    hit = _segments_hit(start, end, other, normal, eps)  # (6M,)
+    return np.any(hit.reshape(6, m), axis=0)
 
 
 def intersecting_triangles(vertices: FloatArray, triangles: IntArray,
@@ -293,6 +313,8 @@ def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntAr
     ta = np.where(shared[:, None, None], _shrunk(ta, SHRINK), ta)
     tb = np.where(shared[:, None, None], _shrunk(tb, SHRINK), tb)
     maybe = np.flatnonzero(~_separated(ta, tb, eps))
+    if len(maybe) == 0:
+        return crossing
     crossing[keep[maybe[triangle_pairs_intersect(ta[maybe], tb[maybe], eps)]]] = True
     return crossing
 

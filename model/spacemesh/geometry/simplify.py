@@ -202,6 +202,9 @@ class _Collapser:
         self.quadrics = quadrics
         self.options = options
         self.face_alive = np.ones(len(triangles), dtype=bool)
+        # each face's bounding box, kept up to date for the faces a collapse moves
+        corners = vertices[triangles]  # (T, 3, 3)
+        self.box_low, self.box_high = corners.min(axis=1), corners.max(axis=1)  # (T, 3)
         self.vertex_alive = np.ones(len(vertices), dtype=bool)
         self.version = np.zeros(len(vertices), dtype=np.int64)
         self.faces_of: list[set[int]] = [set() for _ in range(len(vertices))]
@@ -258,6 +261,9 @@ class _Collapser:
         self.positions[a] = plan.position
         self.quadrics[a] = self.quadrics[a] + self.quadrics[b]
         self.triangles[plan.moved] = plan.new
+        corners = self.positions[plan.new]  # (K, 3, 3)
+        self.box_low[plan.moved] = corners.min(axis=1)
+        self.box_high[plan.moved] = corners.max(axis=1)
         for f in plan.shared:
             self.face_alive[f] = False
             for u in self.triangles[f]:
@@ -330,33 +336,37 @@ class _Collapser:
     def _crosses(self, moved: list[int], new: IntArray, a: int, position: FloatArray,
                  removed: set[int]) -> bool:
         """Whether a face of the new fan ``new`` (``(K, 3)``, vertex ``a`` at
-        ``position``) would intersect another face near it, or another face of the fan."""
+        ``position``) would intersect another face near it, or another face of the fan.
+
+        The faces near it are the live ones whose bounding box (kept up to date by
+        :meth:`try_collapse`) meets the fan's, each pair is tested only when their boxes
+        meet (``eps`` apart), and the test is :func:`pairs_cross` of the mesh with ``a``
+        moved."""
         fan = self.positions[new]  # (K, 3, 3)
         fan[new == a] = position
-        lo = fan.min(axis=(0, 1)) - self.eps
-        hi = fan.max(axis=(0, 1)) + self.eps
-        alive = np.flatnonzero(self.face_alive)
-        corners = self.positions[self.triangles[alive]]  # (A, 3, 3)
-        near = (np.all(corners.max(axis=1) >= lo, axis=1)
-                & np.all(corners.min(axis=1) <= hi, axis=1))
-        skip = set(moved) | removed
-        others = [int(f) for f in alive[near] if int(f) not in skip]
+        fan_low, fan_high = fan.min(axis=1), fan.max(axis=1)  # (K, 3)
+        lo = fan_low.min(axis=0) - self.eps
+        hi = fan_high.max(axis=0) + self.eps
+        near = (self.face_alive & np.all(self.box_high >= lo, axis=1)
+                & np.all(self.box_low <= hi, axis=1))  # (T,)
+        near[moved] = False
+        near[list(removed)] = False
+        others = np.flatnonzero(near)  # (O,)
         k = len(moved)
-        local = np.concatenate([new, self.triangles[others].reshape(-1, 3)])  # (K + O, 3)
-        ids, inverse = np.unique(local, return_inverse=True)
-        local_positions = self.positions[ids]  # a copy
-        local_positions[ids == a] = position
-        local_tri = inverse.reshape(-1, 3)
+        low = np.concatenate([fan_low, self.box_low[others]]) - self.eps  # (K + O, 3)
+        high = np.concatenate([fan_high, self.box_high[others]]) + self.eps
         i_fan, j_fan = np.triu_indices(k, 1)
         i = np.concatenate([i_fan, np.repeat(np.arange(k), len(others))])
         j = np.concatenate([j_fan, k + np.tile(np.arange(len(others)), k)])
         # only pairs whose bounding boxes overlap can meet
-        box = local_positions[local_tri]  # (K + O, 3, 3)
-        low, high = box.min(axis=1) - self.eps, box.max(axis=1) + self.eps
         overlap = np.all((high[i] >= low[j]) & (high[j] >= low[i]), axis=1)
         i, j = i[overlap], j[overlap]
-        return len(i) > 0 and bool(pairs_cross(local_positions, local_tri, i, j,
-                                               self.eps).any())
+        if len(i) == 0:
+            return False
+        moved_positions = self.positions.copy()  # (V, 3)
+        moved_positions[a] = position
+        local = np.concatenate([new, self.triangles[others]])  # (K + O, 3)
+        return bool(pairs_cross(moved_positions, local, i, j, self.eps).any())
 
     def mesh(self) -> tuple[PolygonMesh, IntArray]:
         """The current mesh, its vertices renumbered in their old order, and the output
