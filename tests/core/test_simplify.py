@@ -170,3 +170,160 @@ def test_an_open_mesh_keeps_its_boundary():
     kept = {tuple(v) for v in result.mesh.vertices}
     assert all(tuple(v) in kept for v in opened.vertices[rim])  # every rim vertex stays
     assert result.mesh.n_vertices < opened.n_vertices - 20
+
+
+# ---------------------------------------------------------------- identity with the
+# straightforward forms of the hot paths (the faster ones must answer byte for byte alike)
+
+
+def _noisy_ellipsoid(seed: int) -> PolygonMesh:
+    """A noisy flattened icosphere: its collapses are often refused for crossings."""
+    mesh = icosphere(3)
+    rng = np.random.default_rng(seed)
+    return mesh.with_vertices(mesh.vertices * [1.0, 0.5, 0.25]
+                              + rng.normal(scale=0.03, size=mesh.vertices.shape))
+
+
+def _reference_crosses(state, moved, new, a, position, removed) -> bool:
+    """The crossing check searched the plain way: the corners of every live face
+    gathered, the near ones and the fan renumbered locally."""
+    from spacemesh.geometry.intersections import pairs_cross
+
+    fan = state.positions[new]
+    fan[new == a] = position
+    lo, hi = fan.min(axis=(0, 1)) - state.eps, fan.max(axis=(0, 1)) + state.eps
+    alive = np.flatnonzero(state.face_alive)
+    corners = state.positions[state.triangles[alive]]
+    near = (np.all(corners.max(axis=1) >= lo, axis=1)
+            & np.all(corners.min(axis=1) <= hi, axis=1))
+    others = [int(f) for f in alive[near] if int(f) not in set(moved) | removed]
+    k = len(moved)
+    local = np.concatenate([new, state.triangles[others].reshape(-1, 3)])
+    ids, inverse = np.unique(local, return_inverse=True)
+    local_positions = state.positions[ids]
+    local_positions[ids == a] = position
+    local_tri = inverse.reshape(-1, 3)
+    i_fan, j_fan = np.triu_indices(k, 1)
+    i = np.concatenate([i_fan, np.repeat(np.arange(k), len(others))])
+    j = np.concatenate([j_fan, k + np.tile(np.arange(len(others)), k)])
+    box = local_positions[local_tri]
+    low, high = box.min(axis=1) - state.eps, box.max(axis=1) + state.eps
+    overlap = np.all((high[i] >= low[j]) & (high[j] >= low[i]), axis=1)
+    i, j = i[overlap], j[overlap]
+    return len(i) > 0 and bool(pairs_cross(local_positions, local_tri, i, j, state.eps).any())
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_crossing_check_answers_as_the_plain_search_does(monkeypatch, seed):
+    """Every crossing check of both modes (kept face boxes, no local renumbering) gives
+    the plain search's answer, and the kept boxes are the live faces' boxes."""
+    from spacemesh.geometry.simplify import _Collapser
+
+    fast = _Collapser._crosses
+    answers: list[bool] = []
+
+    def both(self, moved, new, a, position, removed):
+        answer = fast(self, moved, new, a, position, removed)
+        assert answer == _reference_crosses(self, moved, new, a, position, removed)
+        alive = self.face_alive
+        corners = self.positions[self.triangles[alive]]
+        assert np.array_equal(self.box_low[alive], corners.min(axis=1))
+        assert np.array_equal(self.box_high[alive], corners.max(axis=1))
+        answers.append(answer)
+        return answer
+
+    monkeypatch.setattr(_Collapser, "_crosses", both)
+    mesh = _noisy_ellipsoid(seed)
+    points, _ = _points(mesh, 2000, seed)
+    simplify(mesh, points, target_vertices=60)
+    simplify(mesh, None, max_error=1e-3)
+    assert sum(answers) > 50 and len(answers) - sum(answers) > 50  # both answers tested
+
+
+def _reference_pairs_intersect(ta, tb, eps):
+    """triangle_pairs_intersect the plain way: every test on every pair, then chosen."""
+    from spacemesh.geometry.intersections import (
+        COPLANAR_TOLERANCE,
+        _coplanar_overlap,
+        _segments_hit,
+        _unit_normals,
+    )
+
+    na, good_a = _unit_normals(ta)
+    nb, good_b = _unit_normals(tb)
+    da = np.einsum("mkd,md->mk", tb - ta[:, None, 0], na)
+    db = np.einsum("mkd,md->mk", ta - tb[:, None, 0], nb)
+    apart = (np.all(da > eps, axis=1) | np.all(da < -eps, axis=1)
+             | np.all(db > eps, axis=1) | np.all(db < -eps, axis=1))
+    size = np.maximum(np.ptp(ta, axis=1).max(axis=1), np.ptp(tb, axis=1).max(axis=1))
+    flat = np.maximum(eps, COPLANAR_TOLERANCE * size)[:, None]
+    coplanar = np.all(np.abs(da) <= flat, axis=1) & np.all(np.abs(db) <= flat, axis=1)
+    crossing = np.zeros(len(ta), dtype=bool)
+    for s, t, normal in ((ta, tb, nb), (tb, ta, na)):
+        for k in range(3):
+            crossing |= _segments_hit(s[:, k], s[:, (k + 1) % 3], t, normal, eps)
+    out = np.where(coplanar, _coplanar_overlap(ta, tb, na, flat[:, 0]), crossing)
+    return out & ~apart & good_a & good_b
+
+
+def test_the_pairs_test_answers_as_every_test_on_every_pair_does():
+    """triangle_pairs_intersect tests each pair only where still open: the same answers
+    as every test on every pair, on random pairs of every kind (apart, crossing,
+    coplanar, sharing a corner, degenerate) and every batch size."""
+    from spacemesh.geometry.intersections import triangle_pairs_intersect
+
+    rng = np.random.default_rng(0)
+    kinds = np.zeros(3, dtype=int)
+    for count in (1, 2, 5, 40, 300):
+        ta = rng.normal(size=(count, 3, 3))
+        tb = ta + rng.normal(size=(count, 3, 3)) * rng.choice([1e-3, 0.3, 1.0], (count, 1, 1))
+        flat = rng.random(count) < 0.3
+        ta[flat, :, 2], tb[flat, :, 2] = 0.0, 0.0  # coplanar pairs
+        shared = rng.random(count) < 0.3
+        tb[shared, 0] = ta[shared, 0]  # sharing a corner
+        degenerate = rng.random(count) < 0.05
+        tb[degenerate, 2] = tb[degenerate, 1]
+        ours = triangle_pairs_intersect(ta, tb, 1e-9)
+        assert np.array_equal(ours, _reference_pairs_intersect(ta, tb, 1e-9))
+        kinds += [ours.sum(), (~ours).sum(), (ours & flat).sum()]
+    assert np.all(kinds > 5)
+
+
+def _reference_candidates(quadric, a, b):
+    """One edge's candidate costs and positions, as the collapses first made them."""
+    from spacemesh.geometry.simplify import WELL_POSED
+
+    middle = 0.5 * (a + b)
+    candidates = [a, b, middle]
+    block = quadric[:3, :3]
+    scale = float(block[0, 0] + block[1, 1] + block[2, 2])
+    if scale > 0 and abs(float(np.linalg.det(block))) > WELL_POSED * scale**3:
+        optimum = np.linalg.solve(block, -quadric[:3, 3])
+        if float(np.sum((optimum - middle) ** 2)) <= float(np.sum((a - b) ** 2)):
+            candidates.append(optimum)
+    h = np.ones((len(candidates), 4))
+    h[:, :3] = candidates
+    return np.einsum("ci,ij,cj->c", h, quadric, h), h
+
+
+def test_the_edges_candidates_made_together_are_each_edges_own():
+    """_edge_candidates makes the 3x3 solves of many edges at once: byte for byte each
+    edge's own candidates, for well-posed quadrics (optimum near or far) and ill-posed
+    ones (a flat region's planes, none)."""
+    from spacemesh.geometry.simplify import _edge_candidates
+
+    rng = np.random.default_rng(0)
+    count = 400
+    planes = rng.normal(size=(count, 6, 4))
+    planes[: count // 4, :, :3] = [0.0, 0.0, 1.0]  # one plane's normal: ill posed
+    quadrics = np.einsum("epi,epj->eij", planes, planes)
+    quadrics[-10:] = 0.0
+    a = rng.normal(size=(count, 3))
+    b = a + rng.normal(size=(count, 3)) * rng.choice([1e-2, 1.0, 10.0], (count, 1))
+    together = _edge_candidates(quadrics, a, b)
+    sizes = set()
+    for e, (costs, h) in enumerate(together):
+        own_costs, own_h = _reference_candidates(quadrics[e].copy(), a[e], b[e])
+        assert costs.tobytes() == own_costs.tobytes() and h.tobytes() == own_h.tobytes()
+        sizes.add(len(h))
+    assert sizes == {3, 4}

@@ -2,10 +2,10 @@
 pymeshlab).
 
 Candidate pairs are triangles whose bounding spheres overlap (one KD-tree query);
-a vectorised plane-separation test drops the pairs where one triangle lies strictly on
-one side of the other's plane, and the rest are confirmed exactly by
 :func:`triangle_pairs_intersect`, the vectorised form of
-:func:`spacemesh.data.validate.triangles_intersect` (a test holds the two together). As in
+:func:`spacemesh.data.validate.triangles_intersect` (a test holds the two together),
+drops the pairs where one triangle lies strictly on one side of the other's plane and
+confirms the rest exactly. As in
 :func:`spacemesh.metrics.quality.self_intersecting_faces`, pairs that share corners are
 shrunk slightly first, so that a shared edge or corner does not count, and triangles of
 the same polygon face are never compared.
@@ -34,19 +34,6 @@ FOLDED_COSINE = 0.999
 def _shrunk(corners: FloatArray, factor: float) -> FloatArray:
     centre = corners.mean(axis=-2, keepdims=True)
     return centre + (corners - centre) * (1.0 - factor)
-
-
-def _separated(ta: FloatArray, tb: FloatArray, eps: float) -> BoolArray:
-    """``(M,)`` pairs where one triangle lies strictly on one side of the other's plane."""
-    out = np.zeros(len(ta), dtype=bool)
-    for s, t in ((ta, tb), (tb, ta)):
-        normal = triangle_normals(s)  # (M, 3)
-        length = np.linalg.norm(normal, axis=1, keepdims=True)
-        normal = normal / np.where(length > 0, length, 1.0)
-        side = np.einsum("mkd,md->mk", t - s[:, None, 0], normal)  # (M, 3)
-        out |= np.all(side > eps, axis=1) | np.all(side < -eps, axis=1)
-        out |= length[:, 0] == 0  # a degenerate triangle intersects nothing
-    return out
 
 
 def _unit_normals(t: FloatArray) -> tuple[FloatArray, BoolArray]:
@@ -124,12 +111,33 @@ def triangle_pairs_intersect(ta: FloatArray, tb: FloatArray, eps: float = 1e-9) 
     size = np.maximum(np.ptp(ta, axis=1).max(axis=1), np.ptp(tb, axis=1).max(axis=1))
     flat = np.maximum(eps, COPLANAR_TOLERANCE * size)[:, None]  # (M, 1)
     coplanar = np.all(np.abs(da) <= flat, axis=1) & np.all(np.abs(db) <= flat, axis=1)
-    crossing = np.zeros(len(ta), dtype=bool)
-    for s, t, normal in ((ta, tb, nb), (tb, ta, na)):
-        for k in range(3):
-            crossing |= _segments_hit(s[:, k], s[:, (k + 1) % 3], t, normal, eps)
-    out = np.where(coplanar, _coplanar_overlap(ta, tb, na, flat[:, 0]), crossing)
-    return out & ~apart & good_a & good_b
+    # the exact tests only for the pairs still open: one triangle is not strictly on one
+    # side of the other's plane, neither is degenerate (every test is row by row)
+    out = np.zeros(len(ta), dtype=bool)
+    live = ~apart & good_a & good_b
+    plane = np.flatnonzero(live & coplanar)
+    if len(plane):
+        out[plane] = _coplanar_overlap(ta[plane], tb[plane], na[plane], flat[plane, 0])
+    cut = np.flatnonzero(live & ~coplanar)
+    if len(cut):
+        out[cut] = _edges_cross(ta[cut], tb[cut], na[cut], nb[cut], eps)
+    return out
+
+
+def _edges_cross(ta: FloatArray, tb: FloatArray, na: FloatArray, nb: FloatArray,
+                 eps: float) -> BoolArray:
+    """``(M,)`` whether an edge of one triangle of each pair crosses the other away from
+    its plane (:func:`_segments_hit`, the six edges of a pair tested in one call)."""
+    m = len(ta)
+    start = np.concatenate([ta, tb], axis=1).transpose(1, 0, 2).reshape(-1, 3)  # (6M, 3)
+    end = np.concatenate([ta[:, [1, 2, 0]], tb[:, [1, 2, 0]]], axis=1)
+    end = end.transpose(1, 0, 2).reshape(-1, 3)
+    other = np.concatenate([np.broadcast_to(tb, (3, m, 3, 3)),
+                            np.broadcast_to(ta, (3, m, 3, 3))]).reshape(-1, 3, 3)
+    normal = np.concatenate([np.broadcast_to(nb, (3, m, 3)),
+                             np.broadcast_to(na, (3, m, 3))]).reshape(-1, 3)
+    hit = _segments_hit(start, end, other, normal, eps)  # (6M,)
+    return np.any(hit.reshape(6, m), axis=0)
 
 
 def intersecting_triangles(vertices: FloatArray, triangles: IntArray,
@@ -292,8 +300,7 @@ def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntAr
     ta, tb = corners[i[keep]], corners[j[keep]]
     ta = np.where(shared[:, None, None], _shrunk(ta, SHRINK), ta)
     tb = np.where(shared[:, None, None], _shrunk(tb, SHRINK), tb)
-    maybe = np.flatnonzero(~_separated(ta, tb, eps))
-    crossing[keep[maybe[triangle_pairs_intersect(ta[maybe], tb[maybe], eps)]]] = True
+    crossing[keep[triangle_pairs_intersect(ta, tb, eps)]] = True
     return crossing
 
 

@@ -165,18 +165,36 @@ def _candidates(quadric: FloatArray, a: FloatArray, b: FloatArray
     """The costs ``(C,)`` of the edge ``a``-``b``'s candidate positions ``(C, 4)``
     (homogeneous): its ends, its midpoint and, when well posed and near the edge, the
     quadric's own minimum."""
-    middle = 0.5 * (a + b)
-    candidates = [a, b, middle]
-    block = quadric[:3, :3]
-    scale = float(block[0, 0] + block[1, 1] + block[2, 2])
-    if scale > 0 and abs(float(np.linalg.det(block))) > WELL_POSED * scale**3:
-        optimum = np.linalg.solve(block, -quadric[:3, 3])
+    return _edge_candidates(quadric[None], a[None], b[None])[0]
+
+
+def _edge_candidates(quadrics: FloatArray, a: FloatArray, b: FloatArray
+                     ) -> list[tuple[FloatArray, FloatArray]]:
+    """:func:`_candidates` of ``E`` edges at once: ``quadrics`` ``(E, 4, 4)``, ends
+    ``a``, ``b`` ``(E, 3)``; the 3x3 solves are made together, every number as one edge
+    alone would have it."""
+    middle = 0.5 * (a + b)  # (E, 3)
+    blocks = quadrics[:, :3, :3]  # (E, 3, 3)
+    scales = (blocks[:, 0, 0] + blocks[:, 1, 1] + blocks[:, 2, 2]).tolist()
+    dets = np.linalg.det(blocks).tolist()  # (E,)
+    posed = np.array([scale > 0 and abs(det) > WELL_POSED * scale**3
+                      for scale, det in zip(scales, dets, strict=True)], dtype=bool).reshape(-1)
+    rows = np.flatnonzero(posed)
+    near = np.zeros(len(a), dtype=bool)
+    optima = np.zeros_like(a)  # (E, 3)
+    if len(rows):
+        optima[rows] = np.linalg.solve(blocks[rows], -quadrics[rows, :3, 3, None])[:, :, 0]
         # the optimum is used only near the edge: a far one is an ill-posed quadric
-        if float(np.sum((optimum - middle) ** 2)) <= float(np.sum((a - b) ** 2)):
-            candidates.append(optimum)
-    h = np.ones((len(candidates), 4))
-    h[:, :3] = candidates
-    return np.einsum("ci,ij,cj->c", h, quadric, h), h
+        near[rows] = (np.sum((optima[rows] - middle[rows]) ** 2, axis=1)
+                      <= np.sum((a[rows] - b[rows]) ** 2, axis=1))
+    out: list[tuple[FloatArray, FloatArray]] = []
+    for e in range(len(a)):
+        h = np.ones((4 if near[e] else 3, 4))
+        h[0, :3], h[1, :3], h[2, :3] = a[e], b[e], middle[e]
+        if near[e]:
+            h[3, :3] = optima[e]
+        out.append((np.einsum("ci,ij,cj->c", h, quadrics[e], h), h))
+    return out
 
 
 class _Collapse(NamedTuple):
@@ -202,6 +220,9 @@ class _Collapser:
         self.quadrics = quadrics
         self.options = options
         self.face_alive = np.ones(len(triangles), dtype=bool)
+        # each face's bounding box, kept up to date for the faces a collapse moves
+        corners = vertices[triangles]  # (T, 3, 3)
+        self.box_low, self.box_high = corners.min(axis=1), corners.max(axis=1)  # (T, 3)
         self.vertex_alive = np.ones(len(vertices), dtype=bool)
         self.version = np.zeros(len(vertices), dtype=np.int64)
         self.faces_of: list[set[int]] = [set() for _ in range(len(vertices))]
@@ -230,20 +251,25 @@ class _Collapser:
 
     def neighbours(self, v: int) -> set[int]:
         """The vertices that share a face with ``v``."""
-        out: set[int] = set()
-        for f in self.faces_of[v]:
-            out.update(int(u) for u in self.triangles[f])
+        out = set(self.triangles[list(self.faces_of[v])].reshape(-1).tolist())
         out.discard(v)
         return out
 
-    def push(self, a: int, b: int) -> None:
-        """Queue the collapse of edge ``a``-``b`` at its current cost."""
-        quadric = self.quadrics[a] + self.quadrics[b]
-        cost, _ = _placement(quadric, self.positions[a], self.positions[b])
-        if self.max_error is not None:
-            cost /= max(float(np.trace(quadric[:3, :3])), 1e-300)
-        lo, hi = min(a, b), max(a, b)
-        heapq.heappush(self.heap, (cost, lo, hi, int(self.version[lo]), int(self.version[hi])))
+    def push(self, edges: list[tuple[int, int]]) -> None:
+        """Queue the collapses of ``edges`` (``a``-``b`` pairs) at their current costs."""
+        if not edges:
+            return
+        ends = np.array(edges, dtype=np.int64).reshape(-1, 2)  # (E, 2)
+        quadrics = self.quadrics[ends[:, 0]] + self.quadrics[ends[:, 1]]  # (E, 4, 4)
+        candidates = _edge_candidates(quadrics, self.positions[ends[:, 0]],
+                                      self.positions[ends[:, 1]])
+        for (a, b), quadric, (costs, _) in zip(edges, quadrics, candidates, strict=True):
+            cost = max(float(costs[int(np.argmin(costs))]), 0.0)
+            if self.max_error is not None:
+                cost /= max(float(np.trace(quadric[:3, :3])), 1e-300)
+            lo, hi = min(a, b), max(a, b)
+            heapq.heappush(self.heap,
+                           (cost, lo, hi, int(self.version[lo]), int(self.version[hi])))
 
     def try_collapse(self, a: int, b: int) -> bool:
         """Collapse ``b`` into ``a`` if every check passes (module docstring); a refused
@@ -258,6 +284,9 @@ class _Collapser:
         self.positions[a] = plan.position
         self.quadrics[a] = self.quadrics[a] + self.quadrics[b]
         self.triangles[plan.moved] = plan.new
+        corners = self.positions[plan.new]  # (K, 3, 3)
+        self.box_low[plan.moved] = corners.min(axis=1)
+        self.box_high[plan.moved] = corners.max(axis=1)
         for f in plan.shared:
             self.face_alive[f] = False
             for u in self.triangles[f]:
@@ -270,13 +299,12 @@ class _Collapser:
         self.version[a] += 1
         self.version[b] += 1
         ring = self.neighbours(a)
-        for u in ring:  # the edges of the merged vertex, at their new costs
-            self.push(a, u)
+        edges = [(a, u) for u in ring]  # the edges of the merged vertex, at their new costs
         for u in ring | {a, b}:  # edges refused near here may pass now
-            for w in self.parked[u]:
-                if self.vertex_alive[u] and self.vertex_alive[w] and w not in ring | {a}:
-                    self.push(u, w)
+            edges += [(u, w) for w in self.parked[u] if self.vertex_alive[u]
+                      and self.vertex_alive[w] and w not in ring | {a}]
             self.parked[u] = set()
+        self.push(edges)
         return True
 
     def _plan(self, a: int, b: int) -> str | _Collapse:
@@ -302,12 +330,13 @@ class _Collapser:
         moved = sorted((self.faces_of[a] | self.faces_of[b]) - shared)  # the new fan
         old = self.triangles[moved]  # (K, 3)
         new = np.where(old == b, a, old)
-        old_corners = self.positions[old]  # (K, 3, 3) copies
+        n_old = triangle_normals(self.positions[old])  # (K, 3)
+        unit_old = n_old / np.maximum(np.linalg.norm(n_old, axis=1, keepdims=True), 1e-300)
         why = "flip"
         for position in positions:
             new_corners = self.positions[new]
             new_corners[new == a] = position
-            if not self._keeps_orientation(old_corners, new_corners):
+            if not self._keeps_orientation(unit_old, new_corners):
                 continue
             if self._crosses(moved, new, a, position, shared):
                 why = "crossing"
@@ -315,14 +344,14 @@ class _Collapser:
             return _Collapse(position, shared, moved, new)
         return why
 
-    def _keeps_orientation(self, old: FloatArray, new: FloatArray) -> bool:
-        """Whether no face of the fan turns by more than the options allow or shrinks
-        below the smallest area."""
-        n_old, n_new = triangle_normals(old), triangle_normals(new)
+    def _keeps_orientation(self, unit_old: FloatArray, new: FloatArray) -> bool:
+        """Whether no face of the fan (unit normals ``unit_old`` ``(K, 3)``, new corners
+        ``new`` ``(K, 3, 3)``) turns by more than the options allow or shrinks below the
+        smallest area."""
+        n_new = triangle_normals(new)
         area_new = 0.5 * np.linalg.norm(n_new, axis=1)
         if np.any(area_new <= self.min_area):
             return False
-        unit_old = n_old / np.maximum(np.linalg.norm(n_old, axis=1, keepdims=True), 1e-300)
         unit_new = n_new / np.maximum(2 * area_new[:, None], 1e-300)
         return bool(np.all(np.einsum("kd,kd->k", unit_old, unit_new)
                            > self.options.max_turn_cosine))
@@ -330,33 +359,37 @@ class _Collapser:
     def _crosses(self, moved: list[int], new: IntArray, a: int, position: FloatArray,
                  removed: set[int]) -> bool:
         """Whether a face of the new fan ``new`` (``(K, 3)``, vertex ``a`` at
-        ``position``) would intersect another face near it, or another face of the fan."""
+        ``position``) would intersect another face near it, or another face of the fan.
+
+        The faces near it are the live ones whose bounding box (kept up to date by
+        :meth:`try_collapse`) meets the fan's, each pair is tested only when their boxes
+        meet (``eps`` apart), and the test is :func:`pairs_cross` of the mesh with ``a``
+        moved."""
         fan = self.positions[new]  # (K, 3, 3)
         fan[new == a] = position
-        lo = fan.min(axis=(0, 1)) - self.eps
-        hi = fan.max(axis=(0, 1)) + self.eps
-        alive = np.flatnonzero(self.face_alive)
-        corners = self.positions[self.triangles[alive]]  # (A, 3, 3)
-        near = (np.all(corners.max(axis=1) >= lo, axis=1)
-                & np.all(corners.min(axis=1) <= hi, axis=1))
-        skip = set(moved) | removed
-        others = [int(f) for f in alive[near] if int(f) not in skip]
+        fan_low, fan_high = fan.min(axis=1), fan.max(axis=1)  # (K, 3)
+        lo = fan_low.min(axis=0) - self.eps
+        hi = fan_high.max(axis=0) + self.eps
+        near = (self.face_alive & np.all(self.box_high >= lo, axis=1)
+                & np.all(self.box_low <= hi, axis=1))  # (T,)
+        near[moved] = False
+        near[list(removed)] = False
+        others = np.flatnonzero(near)  # (O,)
         k = len(moved)
-        local = np.concatenate([new, self.triangles[others].reshape(-1, 3)])  # (K + O, 3)
-        ids, inverse = np.unique(local, return_inverse=True)
-        local_positions = self.positions[ids]  # a copy
-        local_positions[ids == a] = position
-        local_tri = inverse.reshape(-1, 3)
+        low = np.concatenate([fan_low, self.box_low[others]]) - self.eps  # (K + O, 3)
+        high = np.concatenate([fan_high, self.box_high[others]]) + self.eps
         i_fan, j_fan = np.triu_indices(k, 1)
         i = np.concatenate([i_fan, np.repeat(np.arange(k), len(others))])
         j = np.concatenate([j_fan, k + np.tile(np.arange(len(others)), k)])
         # only pairs whose bounding boxes overlap can meet
-        box = local_positions[local_tri]  # (K + O, 3, 3)
-        low, high = box.min(axis=1) - self.eps, box.max(axis=1) + self.eps
         overlap = np.all((high[i] >= low[j]) & (high[j] >= low[i]), axis=1)
         i, j = i[overlap], j[overlap]
-        return len(i) > 0 and bool(pairs_cross(local_positions, local_tri, i, j,
-                                               self.eps).any())
+        if len(i) == 0:
+            return False
+        moved_positions = self.positions.copy()  # (V, 3)
+        moved_positions[a] = position
+        local = np.concatenate([new, self.triangles[others]])  # (K + O, 3)
+        return bool(pairs_cross(moved_positions, local, i, j, self.eps).any())
 
     def mesh(self) -> tuple[PolygonMesh, IntArray]:
         """The current mesh, its vertices renumbered in their old order, and the output
@@ -423,8 +456,7 @@ def simplify(mesh: PolygonMesh, points: FloatArray | None, normals: FloatArray |
             float(np.trace(faces[:, :3, :3], axis1=1, axis2=2).sum()), 1e-300)
         quadrics += options.face_weight * mean_weight * faces
     state = _Collapser(vertices, triangles, quadrics, options, max_error)
-    for a, b in mesh.edges:
-        state.push(int(a), int(b))
+    state.push([(int(a), int(b)) for a, b in mesh.edges])
     alive = mesh.n_vertices
     while alive > target_vertices and state.heap:
         if stats["collapsed"] % CHECK_EVERY == 0:
