@@ -197,6 +197,12 @@ def _edge_candidates(quadrics: FloatArray, a: FloatArray, b: FloatArray
     return out
 
 
+def _weight(quadric: FloatArray) -> float:
+    """A quadric's weight, the trace of its 3x3 block (at least 1e-300): a cost over it
+    is a mean squared distance (``max_error``'s unit, see the module docstring)."""
+    return max(float(np.trace(quadric[:3, :3])), 1e-300)
+
+
 class _Collapse(NamedTuple):
     """A collapse that passed its checks: where the merged vertex goes, the two faces
     that go away, and the faces around it (indices) with their new corners."""
@@ -266,7 +272,7 @@ class _Collapser:
         for (a, b), quadric, (costs, _) in zip(edges, quadrics, candidates, strict=True):
             cost = max(float(costs[int(np.argmin(costs))]), 0.0)
             if self.max_error is not None:
-                cost /= max(float(np.trace(quadric[:3, :3])), 1e-300)
+                cost /= _weight(quadric)
             lo, hi = min(a, b), max(a, b)
             heapq.heappush(self.heap,
                            (cost, lo, hi, int(self.version[lo]), int(self.version[hi])))
@@ -323,7 +329,7 @@ class _Collapser:
             positions = [_placement(quadric, self.positions[a], self.positions[b])[1]]
         else:  # every candidate within the error, the cheapest first
             costs, h = _candidates(quadric, self.positions[a], self.positions[b])
-            costs /= max(float(np.trace(quadric[:3, :3])), 1e-300)
+            costs /= _weight(quadric)
             order = np.argsort(costs, kind="stable")
             positions = [h[c, :3] for c in order[:1]] + [
                 h[c, :3] for c in order[1:] if costs[c] <= self.max_error]

@@ -24,7 +24,7 @@ import numpy as np
 from spacemesh.cancel import checkpoint
 from spacemesh.geometry.intersections import CrossingFaces
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import uniform_adjacency
+from spacemesh.primitives import uniform_adjacency, vertices_of
 
 #: Most smoothing rounds.
 MAX_ROUNDS = 30
@@ -66,13 +66,11 @@ def untangle(mesh: PolygonMesh, *, max_rounds: int = MAX_ROUNDS
     n = mesh.n_vertices
     adjacency = uniform_adjacency(n, mesh.halfedges)  # (V, V) symmetric, 1 per edge
     degree = np.maximum(np.asarray(adjacency.sum(axis=1)).ravel(), 1.0)  # (V,)
-    face_of_corner = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)  # (S,)
     positions = mesh.vertices.astype(np.float64).copy()  # (V, 3)
     best, best_share, rounds = mesh, before, 0
     for rounds in range(1, max_rounds + 1):
         checkpoint()  # abandoned work stops here (spacemesh.cancel)
-        crossing = np.zeros(n, dtype=bool)
-        crossing[mesh.face_indices[hit[face_of_corner]]] = True
+        crossing = vertices_of(mesh, hit)  # (V,)
         if rounds > RING_AFTER:
             crossing |= (adjacency @ crossing.astype(np.float64)) > 0
         centroid = (adjacency @ positions) / degree[:, None]  # (V, 3)
@@ -115,13 +113,11 @@ def _pushed(mesh: PolygonMesh, sign: float, *, max_rounds: int
     best, best_share, best_round = mesh, float(hit.mean()), 0
     edges = mesh.vertices[mesh.halfedges]  # (S, 2, 3)
     step = PUSH_STEP * float(np.linalg.norm(edges[:, 1] - edges[:, 0], axis=1).mean())
-    face_of_corner = mesh.face_of_corner
     positions = mesh.vertices.astype(np.float64).copy()  # (V, 3)
     current = mesh
     for rounds in range(1, max_rounds + 1):
         checkpoint()  # abandoned work stops here (spacemesh.cancel)
-        crossing = np.zeros(mesh.n_vertices, dtype=bool)
-        crossing[mesh.face_indices[hit[face_of_corner]]] = True
+        crossing = vertices_of(mesh, hit)  # (V,)
         positions[crossing] += sign * step * current.vertex_normals()[crossing]
         current = mesh.with_vertices(positions.copy())
         hit = tracker.move(positions)

@@ -153,6 +153,12 @@ class Estimate:
         return {"seconds": round(self.seconds, 2), "memory_mb": round(self.memory_mb, 1)}
 
 
+def _final_count(spec: ModelSpec, options: GenerateOptions) -> int:
+    """The vertices a request's mesh is estimated at: the count asked for with
+    ``start=points``, the model's tokens from noise (the network picks the count)."""
+    return vertex_count(spec, options) if options.start == "points" else spec.max_vertices
+
+
 @dataclass(frozen=True)
 class CostModel:
     """The calibrated coefficients (the module docstring's formula) and the estimates.
@@ -237,9 +243,7 @@ class CostModel:
         base_mb = (self.report_mb_per_point * min(points, REPORT_POINTS)
                    + self.points_mb * points)
         if options.face_type == "polygons":  # once, on the chosen mesh
-            count = vertex_count(spec, options) if options.start == "points" else (
-                spec.max_vertices)
-            prepare += self.polygons_s2 * float(count) ** 2
+            prepare += self.polygons_s2 * float(_final_count(spec, options)) ** 2
         if options.tolerance is None or options.start != "points":
             seconds, memory = self._seeds(spec, options, points, expected_seeds)
             return prepare + seconds, base_mb + memory
@@ -258,14 +262,14 @@ class CostModel:
     def _seeds(self, spec: ModelSpec, options: GenerateOptions, points: int, seeds: float
                ) -> tuple[float, float]:
         """Seconds and MB of ``seeds`` seeds with ``options`` (no tolerance)."""
+        wanted = _final_count(spec, options)
         if options.start == "points":
-            wanted = vertex_count(spec, options)
             dense = decode_count(spec, options)  # ``wanted`` for raw or without one
             tokens = network_vertices(dense, spec.max_vertices, spec.large_meshes,
                                       raw=options.raw)
             start = float(options.start_time or 0.0)
         else:  # from noise the network places the model's tokens and picks the count
-            wanted = dense = tokens = spec.max_vertices
+            dense = tokens = spec.max_vertices
             start = 1.0
         steps = denoiser_steps(spec, sampler_key(options))
         n, v, d = float(tokens), float(wanted), float(dense)
