@@ -301,3 +301,29 @@ def test_a_coarse_sphere_fitted_to_a_fine_one_lies_closer_than_one_laid_on_it():
     radius = np.linalg.norm(fitted[moving], axis=1)
     assert radius.min() > 1.0  # the fitted vertices stand off the surface, outwards
     np.testing.assert_array_equal(fitted[~moving], coarse.vertices[~moving])
+
+
+def test_the_guard_scales_the_whole_fit_back_before_dropping_it():
+    """When moving the crossing faces' corners back does not keep the share of crossing
+    faces, the guard takes the largest fraction of every vertex's move that does
+    (stage._scaled_back), and gives up only when none does."""
+    from spacemesh.geometry.stage import GUARD_FRACTIONS, _intersection_share, _scaled_back
+
+    a, b = icosphere(2), icosphere(2)
+    tri = np.concatenate([_triangles(a), _triangles(b) + a.n_vertices])
+    shift = np.array([2.0, 0.0, 0.0])
+    apart = np.concatenate([a.vertices - shift, b.vertices + shift])
+    mesh = _mesh(apart, tri)
+    moved = apart.copy()
+    moved[: a.n_vertices] += [2.5, 0, 0]  # the first sphere driven into the second
+    assert _intersection_share(mesh, moved, tri, None)[0] > 0
+    stats: dict = {}
+    scaled = _scaled_back(mesh, moved, apart, tri, None, 0.0, stats)
+    assert scaled is not None and stats["guard_fraction"] == GUARD_FRACTIONS[0]
+    assert scaled[1] == 0.0
+    assert np.allclose(scaled[0], apart + GUARD_FRACTIONS[0] * (moved - apart))
+    # from spheres that already cross, no fraction has fewer crossing faces than none
+    overlapping = apart.copy()
+    overlapping[: a.n_vertices] += [3.5, 0, 0]
+    nudged = overlapping + np.array([0.0, 0.01, 0.0])
+    assert _scaled_back(mesh, nudged, overlapping, tri, None, 0.0, {}) is None

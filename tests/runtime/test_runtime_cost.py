@@ -88,9 +88,23 @@ def test_retry_seeds_and_tolerance_tries_count(spec):
     assert len(tries) > 1 and tries[0] == spec.vertices
     alone = estimate(spec, target_vertices=tries[-1])
     assert estimate(spec, tolerance=0.001).seconds > alone.seconds
-    raw = replace(model, retry_chance=0.0)
+    raw = replace(model, retry_chance=0.0, fewer_chance=0.0)
     assert estimate(spec, model=raw, samples=4).seconds == pytest.approx(
         4 * estimate(spec, model=raw).seconds - 3 * model.prepare_s_per_point * 2048)
+
+
+def test_a_remake_from_fewer_vertices_counts_and_grows_with_the_count(spec):
+    """A mesh that still crosses is made again from fewer vertices and split back up
+    (MeshGenerator._from_fewer): counted at a chance, more for larger counts, never for
+    raw requests or from noise."""
+    model = DEFAULT_COST_MODEL
+    none = replace(model, fewer_chance=0.0)
+    extra = [estimate(spec, target_vertices=v).seconds
+             - estimate(spec, model=none, target_vertices=v).seconds for v in (100, 200, 2048)]
+    assert 0 < extra[0] < extra[1] < extra[2]
+    assert estimate(spec, raw=True).seconds == estimate(spec, model=none, raw=True).seconds
+    assert (estimate(spec, start="noise").seconds
+            == estimate(spec, model=none, start="noise").seconds)
 
 
 def test_the_refusal_names_the_dominant_option_and_a_value_that_fits(spec):

@@ -10,8 +10,10 @@ normalised frame, :func:`refine_geometry`
    diagonal flips toward the points (:func:`spacemesh.decode.refinement.flip_diagonals` with
    the point fit only), each a manifold-keeping local operation;
 3. guards self-intersections: vertices of faces that intersect after the fit but did
-   not before go back toward where they were (halfway, then all the way), and if the
-   share of self-intersecting faces still grew, the stage's result is dropped.
+   not before go back toward where they were (halfway, then all the way); if the
+   share of self-intersecting faces still grew, the whole fit is scaled back
+   (:data:`GUARD_FRACTIONS` of each vertex's move) and, when no fraction keeps the
+   share, the stage's result is dropped.
 
 Edge splits and flips keep a closed oriented manifold closed, oriented and manifold,
 and the fit moves positions only, so the decode's guarantee holds for the output.
@@ -40,6 +42,9 @@ MAX_DENSE_VERTICES = 1024
 GUARD_ROUNDS = 3
 #: Rounds of the guard's full reverts after those.
 MAX_REVERT_ROUNDS = 8
+#: Fractions of every vertex's move the guard tries, largest first, when moving the
+#: crossing faces' corners back did not keep the share of crossing faces.
+GUARD_FRACTIONS = (0.5, 0.25, 0.125)
 
 
 @dataclass(frozen=True)
@@ -235,6 +240,22 @@ def _backtrack(mesh: PolygonMesh, positions: FloatArray, unfitted: FloatArray,
     return positions, share
 
 
+def _scaled_back(mesh: PolygonMesh, positions: FloatArray, unfitted: FloatArray,
+                 tri: IntArray, source: IntArray | None, limit: float,
+                 stats: dict[str, Any]) -> tuple[FloatArray, float] | None:
+    """The largest of :data:`GUARD_FRACTIONS` of every vertex's move from ``unfitted``
+    whose share of intersecting triangles is at most ``limit``, with that share
+    (``stats["guard_fraction"]`` says which); None when no fraction keeps it."""
+    for fraction in GUARD_FRACTIONS:
+        checkpoint()
+        trial = unfitted + fraction * (positions - unfitted)
+        share, _ = _intersection_share(mesh, trial, tri, source)
+        if share <= limit:
+            stats["guard_fraction"] = fraction
+            return trial, share
+    return None
+
+
 def refine_geometry(
     mesh: PolygonMesh,
     points: FloatArray,
@@ -309,6 +330,10 @@ def refine_geometry(
     if options.guard and share > before_share:
         positions, share = _backtrack(mesh, positions, unfitted, tri, source, hit,
                                       before_share, stats)
+    if options.guard and share > before_share:
+        scaled = _scaled_back(mesh, positions, unfitted, tri, source, before_share, stats)
+        if scaled is not None:
+            positions, share = scaled
     if options.guard and share > before_share:
         stats["kept"] = False
         share = before_share

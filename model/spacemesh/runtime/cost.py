@@ -9,7 +9,8 @@ peak memory (MB), and, per input the request can lower, what lowering it would s
 The formula, in seconds on the reference machine (2 CPU cores, one onnxruntime thread per
 core; ``bench/bench_cost_model.py`` times the real pipeline against it)::
 
-    seconds  = 1.05e-5 P + once + seeds * per_seed(N, V) (tolerance: a sum over its tries)
+    seconds  = 1.05e-5 P + once + seeds * per_seed(N, V) + fewer
+               (tolerance: a sum over its tries)
     per_seed = 7.3e-7 P + 5.6e-5 N                       farthest-point start
              + D (7.8e-6 N + 3.67e-8 N^2)                the denoiser steps that run
              + 1.3e-4 N                                  connectivity network
@@ -18,6 +19,7 @@ core; ``bench/bench_cost_model.py`` times the real pipeline against it)::
              + 5.6e-6 min(P, 20000) + 4e-5 V             fit report
     once     = 5e-6 V^2                                  face_type=polygons: the flat collapses
     seeds    = max over k <= samples of k + R(k) 0.5 ** k,   R(k) = max(0, 1 + retry_seeds - k)
+    fewer    = 0.25 ((samples + 0.5 R(samples)) per_seed(at F) + 0.25 + 1.61e-3 V + 1.86e-7 V^2)
     MB       = 3.5e-3 min(P, 20000) + 5.2e-4 P + 1.7e-4 (1 + 1.5 s) N^2 + 0.02 V + 0.006 N seeds
 
 ``P``: input points (after the reduction), ``V``: vertices asked for (``target_vertices``,
@@ -31,11 +33,14 @@ and the geometry stage take about twice as long on them. The model's retry seeds
 when none of the request's seeds passes the topology check, and only to top the request
 up to ``1 + retry_seeds`` seeds (``R``); the estimate counts them at
 an even chance per seed (``0.5 ** samples``), and never estimates more samples cheaper
-than fewer. A ``tolerance`` search counts as 8 tries
-(:meth:`CostModel.tolerance_tries`): the doubling ladder from the model's count to the
-count whose mesh is expected within the tolerance (a mean distance of ``0.5 / V`` of the
-diagonal: twice the example torus's), the other tries at that count, each costing the
-request's seeds. A repair::
+than fewer. A mesh that still crosses after the untangling is made again from ``F``
+vertices (:func:`spacemesh.runtime.network.fewer_vertices`: the model's count, or half
+the count asked for) and split back up to ``V``; the estimate counts it at a chance of
+0.25 (absent with ``raw``, from noise, or where no count is left). A ``tolerance``
+search counts as 8 tries (:meth:`CostModel.tolerance_tries`): the doubling ladder from
+the model's count to the count whose mesh is expected within the tolerance (a mean
+distance of ``0.5 / V`` of the diagonal: twice the example torus's), the other tries at
+that count, each costing the request's seeds. A repair::
 
     seconds = 1.75 passes (0.0165 D N / 256 + 0.35) + 2e-6 F
             + fills (0.58 + 2.2e-6 F) + 1.5e-4 sum(h^2) + 5.6e-6 F auto
@@ -61,7 +66,13 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from spacemesh.runtime.large import network_vertices
-from spacemesh.runtime.network import decode_count, denoiser_steps, sampler_key, vertex_count
+from spacemesh.runtime.network import (
+    decode_count,
+    denoiser_steps,
+    fewer_vertices,
+    sampler_key,
+    vertex_count,
+)
 from spacemesh.runtime.options import MAX_TOLERANCE, MIN_TARGET_VERTICES, GenerateOptions
 from spacemesh.runtime.spec import ModelSpec
 from spacemesh.runtime.tolerance import (
@@ -184,6 +195,7 @@ class CostModel:
     report_s_per_vertex: float = 4e-5
     denoised_slowdown: float = 1.3
     retry_chance: float = 0.5
+    fewer_chance: float = 0.25
     tolerance_scale: float = 0.5
     report_mb_per_point: float = 3.5e-3
     points_mb: float = 5.2e-4
@@ -246,14 +258,14 @@ class CostModel:
             prepare += self.polygons_s2 * float(_final_count(spec, options)) ** 2
         if options.tolerance is None or options.start != "points":
             seconds, memory = self._seeds(spec, options, points, expected_seeds)
-            return prepare + seconds, base_mb + memory
+            return prepare + seconds + self._fewer(spec, options, points), base_mb + memory
         tries = self.tolerance_tries(spec, float(options.tolerance))
         seconds, memory = 0.0, 0.0
         for count in tries:
-            try_s, try_mb = self._seeds(spec, replace(options, tolerance=None,
-                                                      target_vertices=count),
-                                        points, options.samples)
-            seconds, memory = seconds + try_s, max(memory, try_mb)
+            attempt = replace(options, tolerance=None, target_vertices=count)
+            try_s, try_mb = self._seeds(spec, attempt, points, options.samples)
+            seconds += try_s + self._fewer(spec, attempt, points)
+            memory = max(memory, try_mb)
         found = replace(options, tolerance=None, target_vertices=tries[-1])
         retry_s, retry_mb = self._seeds(spec, found, points,
                                         expected_seeds - options.samples)
@@ -290,6 +302,20 @@ class CostModel:
         memory = (self.tokens_mb * (1 + self.denoised_tokens_mb * start) * n * n
                   + self.vertex_mb * v + self.seed_mb_per_token * n * seeds)
         return seeds * per_seed, memory
+
+    def _fewer(self, spec: ModelSpec, options: GenerateOptions, points: int) -> float:
+        """Seconds a request's mesh made again from fewer vertices is expected to add
+        (at ``fewer_chance``): the request at the fewer count, then the geometry stage
+        at the count asked for."""
+        fewer = fewer_vertices(spec, options) if spec.retry_seeds else None
+        if fewer is None or options.tolerance is not None:
+            return 0.0
+        lower = replace(options, target_vertices=fewer)
+        seeds = options.samples + spec.retries_for(options.samples) * self.retry_chance
+        seconds, _ = self._seeds(spec, lower, points, seeds)
+        v = float(vertex_count(spec, options))
+        geometry = self.geometry_s0 + self.geometry_s1 * v + self.geometry_s2 * v * v
+        return self.fewer_chance * (seconds + geometry)
 
     def tolerance_tries(self, spec: ModelSpec, tolerance: float) -> list[int]:
         """The vertex counts a ``tolerance`` search is counted as, the found count last.

@@ -23,7 +23,7 @@ from spacemesh.geometry.surface import shape_surface
 from spacemesh.mesh import PolygonMesh
 from spacemesh.runtime.backend import Backend, ConnectivityOutputs, denoiser_fn
 from spacemesh.runtime.large import needs_split, network_vertices
-from spacemesh.runtime.options import GenerateOptions
+from spacemesh.runtime.options import MIN_TARGET_VERTICES, GenerateOptions
 from spacemesh.runtime.request import GenerateResult, PreparedInput
 from spacemesh.runtime.sampler import ProgressFn, StageFn, sample, split_tokens, start_steps
 from spacemesh.runtime.spec import DUPLICATE_TOLERANCE, ModelSpec
@@ -60,6 +60,20 @@ def decode_count(spec: ModelSpec, options: GenerateOptions) -> int:
     with ``raw``), which the geometry stage simplifies back to :func:`vertex_count`."""
     wanted = vertex_count(spec, options)
     return wanted if options.raw else spec.geometry.decode_vertices(wanted)
+
+
+def fewer_vertices(spec: ModelSpec, options: GenerateOptions) -> int | None:
+    """The vertex count a mesh whose faces still cross after every other mend is made
+    again from, before its edges are split back up to :func:`vertex_count`
+    (:meth:`spacemesh.runtime.MeshGenerator._from_fewer`): the model's default count
+    when the request asks for more (no output at that count crossed on any evaluation
+    set), else half the count; None with ``raw``, from noise (the network picks the
+    count), or below :data:`MIN_TARGET_VERTICES` (a tetrahedron cannot cross)."""
+    if options.raw or options.start != "points":
+        return None
+    wanted = vertex_count(spec, options)
+    fewer = spec.vertices if wanted > spec.vertices else wanted // 2
+    return fewer if fewer >= MIN_TARGET_VERTICES else None
 
 
 def plain_spec(spec: ModelSpec) -> ModelSpec:

@@ -47,6 +47,7 @@ from spacemesh.runtime.network import (
     SamplerKey,
     decode_count,
     denoiser_steps,
+    fewer_vertices,
     plain_spec,
     run_group,
     sampler_key,
@@ -251,8 +252,56 @@ class MeshGenerator:
                     results.append(plain)
                     continue
                 chosen.timings = plain.timings
+            if spec.retry_seeds and crosses(chosen):
+                chosen = self._from_fewer(chosen, prepared, options, progress, stage,
+                                          retry=retry)
             results.append(self._faced(chosen, prepared))
         return results
+
+    def _from_fewer(self, chosen: GenerateResult, prepared: PreparedInput,
+                    options: GenerateOptions, progress: ProgressFn | None,
+                    stage: StageFn | None, *, retry: bool) -> GenerateResult:
+        """A chosen mesh whose faces still cross after every other mend, made again from
+        fewer vertices: the same request at :func:`fewer_vertices` (its seeds, retries,
+        untangling and, when that one crosses too, this again with fewer still), then its
+        edges split up to the count asked for and fitted (:func:`finish_geometry`). The
+        geometry stage's guard lets no fitted face cross that the split mesh did not, and
+        splitting a mesh that does not cross makes none, so the result does not cross
+        (stage ``fewer``; its timings count every run; ``geometry_stats`` gives
+        ``fewer_vertices``). ``chosen`` is kept when no count is left to try or the
+        fewer-vertex mesh crosses too or is an open surface (a closed mesh's is made
+        closed again; an open one has its crossing faces dropped instead)."""
+        count = vertex_count(self.spec, options)
+        fewer = fewer_vertices(self.spec, options)
+        if fewer is None:
+            return chosen
+        if stage is not None:
+            stage("fewer", 1, 1)
+        surface = _decided(chosen.fit) if chosen.fit is not None else None
+        closed = surface is not None and not surface.open  # the same decision below
+        lower_options = replace(options, target_vertices=fewer, face_type="triangles",
+                                surface="closed" if closed else options.surface)
+        lower = self._generate_prepared([(prepared, lower_options)], progress, stage,
+                                        retry=retry)[0]
+        lower.timings = summed_timings([chosen, lower])  # both ran
+        lower_surface = _decided(lower.fit) if lower.fit is not None else None
+        if crosses(lower) or lower_surface is None or lower_surface.open:
+            chosen.timings = lower.timings
+            return chosen
+        started = time.perf_counter()
+        unit = lower.mesh.with_vertices((lower.mesh.vertices - prepared.centre) / prepared.scale)
+        points, normals = prepared.fit_points()
+        refitted, stats = finish_geometry(unit, points, normals, plain_spec(self.spec).geometry,
+                                          target_vertices=count)
+        mesh = refitted.with_vertices(refitted.vertices * prepared.scale + prepared.centre)
+        lower.mesh = mesh
+        lower.fit = prepared.report(mesh, lower_surface)
+        lower.options = replace(options, seed=lower.seed)
+        lower.geometry_stats = {**lower.geometry_stats, "fewer_vertices": fewer,
+                                "fewer_split": int(stats.get("n_split", 0)),
+                                "fewer_kept": bool(stats.get("kept", False))}
+        _add_geometry_time(lower, time.perf_counter() - started)
+        return lower
 
     def _untangled(self, result: GenerateResult, prepared: PreparedInput,
                    stage: StageFn | None) -> GenerateResult:

@@ -1,0 +1,84 @@
+"""No output crosses: a mesh whose faces still cross after the seeds, the untangling and
+the dense fallback is made again from fewer vertices, then split back up to the count
+asked for and fitted (MeshGenerator._from_fewer; docs/GEOMETRY.md, "No crossing")."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+pytest.importorskip("onnxruntime")
+
+from spacemesh.geometry.intersections import self_intersection_fraction
+from spacemesh.runtime import MeshGenerator
+from spacemesh.runtime.network import fewer_vertices, plain_spec
+from spacemesh.runtime.options import GenerateOptions
+from spacemesh.runtime.spec import ModelSpec
+from tests.validity import assert_valid_mesh
+
+
+@pytest.fixture(scope="module")
+def spec(shipped):
+    return ModelSpec.from_manifest(shipped.manifest)
+
+
+def test_the_fewer_count_is_the_models_or_half(spec):
+    def fewer(**fields):
+        return fewer_vertices(spec, GenerateOptions(**fields).resolve(spec))
+
+    assert spec.vertices == 200
+    assert fewer(target_vertices=2000) == 200
+    assert fewer(target_vertices=201) == 200
+    assert fewer() == 100  # the default count: half of it
+    assert fewer(target_vertices=60) == 30
+    assert fewer(target_vertices=8) == 4
+    assert fewer(target_vertices=7) is None  # a tetrahedron cannot cross
+    assert fewer(target_vertices=2000, raw=True) is None
+    assert fewer(start="noise") is None
+
+
+def test_a_mesh_that_still_crosses_is_made_from_fewer_vertices(shipped, spec, monkeypatch):
+    """Every mesh of 60 vertices or more is said to cross: the request is made again at
+    30 and split back up to 60, and the exact test finds no crossing in it."""
+    import spacemesh.runtime.pipeline as pipeline
+
+    generator = MeshGenerator(shipped.backend, plain_spec(spec))
+    real = pipeline.crosses
+    monkeypatch.setattr(pipeline, "crosses",
+                        lambda r: r.mesh.n_vertices >= 60 or real(r))
+    stages: list[str] = []
+    rng = np.random.default_rng(5)
+    points = rng.normal(size=(2048, 3))
+    points = points / np.linalg.norm(points, axis=1, keepdims=True) * [1.0, 0.8, 0.5]
+    result = generator.generate(points, target_vertices=60,
+                                stage=lambda name, done, total: stages.append(name))
+    assert "fewer" in stages
+    assert result.geometry_stats["fewer_vertices"] == 30
+    assert result.geometry_stats["fewer_split"] == 30
+    assert result.mesh.n_vertices == 60 and result.options.target_vertices == 60
+    assert result.n_sampled_vertices <= 30  # the networks placed the fewer vertices
+    assert_valid_mesh(result.mesh)
+    assert self_intersection_fraction(result.mesh) == 0.0
+    assert result.fit.self_intersections == 0
+    assert result.fit.points_to_mesh_mean_rel < 0.02
+    # both ran, and the timings say so
+    assert stages.count("encoder") >= 2
+    monkeypatch.setattr(pipeline, "crosses", real)
+    kept = generator.generate(points, target_vertices=60)
+    assert "fewer_vertices" not in kept.geometry_stats
+
+
+def test_below_the_smallest_count_the_mesh_is_kept(shipped, spec, monkeypatch):
+    """With nothing left to try (every mesh said to cross, down to 4 vertices), the
+    request's own mesh is returned, its fit report saying that it crosses."""
+    import spacemesh.runtime.pipeline as pipeline
+
+    generator = MeshGenerator(shipped.backend, replace(plain_spec(spec), retry_seeds=1))
+    monkeypatch.setattr(pipeline, "crosses", lambda r: True)
+    points = np.random.default_rng(6).normal(size=(1024, 3))
+    result = generator.generate(points, target_vertices=16)
+    assert "fewer_vertices" not in result.geometry_stats
+    assert result.mesh.n_vertices <= 16
+    assert_valid_mesh(result.mesh)
