@@ -122,3 +122,29 @@ def test_new_vertices_far_from_every_threshold_are_removed():
     assert fill.stats["n_pruned"] == 3 and spliced.n_new_vertices == 0
     assert fill.stats["polygon_loops"] == 1
     assert_closed_manifold(spliced.mesh)
+
+
+def test_new_crossings_counts_the_new_faces_that_cross():
+    """The repair samples a region again while its fitted patch's new faces cross a face
+    (spacemesh.repair.api.new_crossings): new faces crossing kept or new ones count, kept
+    faces crossing each other do not."""
+    from spacemesh.mesh import PolygonMesh
+    from spacemesh.repair.api import new_crossings
+    from spacemesh.repair.splice import Spliced
+
+    a, b = icosphere(2), icosphere(2)
+
+    def spliced(offset, new_first):
+        vertices = np.concatenate([a.vertices, b.vertices + np.array(offset)])
+        faces = [list(f) for f in a.faces] + [[i + a.n_vertices for i in f] for f in b.faces]
+        mesh = PolygonMesh.from_faces(vertices, faces)
+        source = np.arange(mesh.n_faces)
+        source[a.n_faces:] = -1  # the second sphere's faces are new ...
+        if new_first:  # ... or the first's
+            source = np.where(source < 0, np.arange(mesh.n_faces), -1)
+        return Spliced(mesh, np.arange(mesh.n_vertices), source, b.n_vertices, b.n_faces)
+
+    assert new_crossings(spliced([3.0, 0, 0], False)) == 0
+    crossing = new_crossings(spliced([0.8, 0.1, 0], False))
+    assert 0 < crossing < b.n_faces
+    assert 0 < new_crossings(spliced([0.8, 0.1, 0], True)) < a.n_faces

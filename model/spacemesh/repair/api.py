@@ -29,6 +29,7 @@ import numpy as np
 from spacemesh.cancel import checkpoint
 from spacemesh.decode import Embeddings
 from spacemesh.geometry import refine_geometry
+from spacemesh.geometry.intersections import crossing_pairs
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import fan_volumes, triangles_of
 from spacemesh.primitives.closest import nearest_triangles
@@ -155,8 +156,10 @@ class RepairStats:
         The whole mesh was inside out and was reversed.
     samplings : int
         Samplings of the region run: more than 1 where a fill that added a handle (its
-        Euler characteristic below the region's) was sampled again, up to
-        :data:`TOPOLOGY_ATTEMPTS` (summed over the passes of an automatic region).
+        Euler characteristic below the region's) or whose new faces cross a face was
+        sampled again, up to :data:`TOPOLOGY_ATTEMPTS` (summed over the passes of an
+        automatic region); the fewest handles win, then the fewest crossing faces (of
+        the fitted patch: not with ``fit_patch=False``).
     handles_added : int
         Handles the fill kept adds to the mesh (half the drop of its Euler characteristic
         below the region's): 0 unless every sampling added one, and then the sampling
@@ -487,6 +490,21 @@ def surface_normals(points: FloatArray, surface: PolygonMesh) -> FloatArray:
     return normal / np.where(length > 0, length, 1.0)
 
 
+def new_crossings(spliced: Spliced) -> int:
+    """How many of a spliced mesh's new faces cross a face (new or kept), by the exact
+    test (:func:`spacemesh.geometry.intersections.crossing_pairs` from the new faces'
+    triangles only, so its cost grows with the patch, not the mesh, beyond one
+    KD-tree)."""
+    new = spliced.face_source < 0  # (F,)
+    if not new.any():
+        return 0
+    triangles, source = triangles_of(spliced.mesh)  # (T, 3), (T,)
+    pairs = crossing_pairs(spliced.mesh.vertices, triangles, source,
+                           among=np.flatnonzero(new[source]))  # (P, 2)
+    faces = np.unique(source[pairs.reshape(-1)])
+    return int(new[faces].sum())
+
+
 def fit_new_vertices(spliced: Spliced, points: FloatArray, normals: FloatArray,
                      spec: ModelSpec) -> PolygonMesh:
     """The spliced mesh with its new vertices fitted to ``points`` (the region's original
@@ -515,7 +533,8 @@ def fit_new_vertices(spliced: Spliced, points: FloatArray, normals: FloatArray,
 
 #: Samplings tried for a region whose fill has a lower Euler characteristic than the
 #: region's faces (a handle spliced in: 4 of 48 random regions on the dev split,
-#: experiments/check_repair_genus.py); the seed's own sampling first.
+#: experiments/check_repair_genus.py) or whose new faces cross a face (6 of 27 dev
+#: regions, experiments/repair_crossings.py); the seed's own sampling first.
 TOPOLOGY_ATTEMPTS = 3
 
 
@@ -651,23 +670,27 @@ def repair_mesh(
         timings["splice"] = time.perf_counter() - t0
 
         drop = expected_euler - policy.euler(spliced.mesh, spliced.face_source < 0)
-        if fewest is None or drop < fewest[0]:  # the sampling with the fewest handles
-            fewest = (drop, samples, candidates, dropped, fill, spliced)
-        if drop <= 0:
-            break  # no handle spliced in (a handle lowers the Euler characteristic by 2)
-    assert fewest is not None  # set by the first of the TOPOLOGY_ATTEMPTS (at least one)
-    drop, samples, candidates, dropped, fill, spliced = fewest
 
-    checkpoint()
-    t0 = time.perf_counter()
-    if fit_patch and spliced.n_new_vertices:
-        cloud = patch.from_unit(np.concatenate([samples.hole, samples.kept]))
-        kept = patch.faces[~cut.region[patch.faces]]
-        surface = PolygonMesh.from_faces(plan.hole.vertices,
-                                         plan.hole.faces + sub_mesh(mesh, kept).faces)
-        spliced = replace(spliced, mesh=fit_new_vertices(
-            spliced, cloud, surface_normals(cloud, surface), spec))
-    timings["geometry"] = time.perf_counter() - t0
+        checkpoint()
+        t0 = time.perf_counter()
+        if fit_patch and spliced.n_new_vertices:
+            cloud = patch.from_unit(np.concatenate([samples.hole, samples.kept]))
+            kept = patch.faces[~cut.region[patch.faces]]
+            surface = PolygonMesh.from_faces(plan.hole.vertices,
+                                             plan.hole.faces + sub_mesh(mesh, kept).faces)
+            spliced = replace(spliced, mesh=fit_new_vertices(
+                spliced, cloud, surface_normals(cloud, surface), spec))
+        timings["geometry"] = time.perf_counter() - t0
+        # of the fitted patch, what the user gets (the networks' own patch is not judged)
+        crossing = new_crossings(spliced) if fit_patch else 0
+        rank = (max(drop, 0), crossing)  # the fewest handles, then the fewest crossings
+        if fewest is None or rank < fewest[0]:
+            fewest = (rank, drop, candidates, dropped, fill, spliced)
+        if drop <= 0 and crossing == 0:
+            break  # no handle spliced in (a handle lowers the Euler characteristic by 2)
+            # and no new face crossing
+    assert fewest is not None  # set by the first of the TOPOLOGY_ATTEMPTS (at least one)
+    _, drop, candidates, dropped, fill, spliced = fewest
     timings["total"] = time.perf_counter() - t_start + (plan.seconds if plan_given else 0.0)
 
     fs = fill.stats
