@@ -492,16 +492,21 @@ def surface_normals(points: FloatArray, surface: PolygonMesh) -> FloatArray:
 
 def new_crossings(spliced: Spliced) -> int:
     """How many of a spliced mesh's new faces cross a face (new or kept), by the exact
-    test (:func:`spacemesh.geometry.intersections.crossing_pairs` from the new faces'
-    triangles only, so its cost grows with the patch, not the mesh, beyond one
-    KD-tree)."""
+    test (:func:`spacemesh.geometry.intersections.crossing_pairs` among the triangles
+    whose bounding boxes meet the new faces' box, from the new faces' triangles only).
+    """
     new = spliced.face_source < 0  # (F,)
     if not new.any():
         return 0
     triangles, source = triangles_of(spliced.mesh)  # (T, 3), (T,)
-    pairs = crossing_pairs(spliced.mesh.vertices, triangles, source,
-                           among=np.flatnonzero(new[source]))  # (P, 2)
-    faces = np.unique(source[pairs.reshape(-1)])
+    corners = spliced.mesh.vertices[triangles]  # (T, 3, 3)
+    fresh = new[source]  # (T,)
+    low, high = corners[fresh].min(axis=(0, 1)), corners[fresh].max(axis=(0, 1))
+    near = np.flatnonzero(np.all(corners.max(axis=1) >= low, axis=1)
+                          & np.all(corners.min(axis=1) <= high, axis=1))  # boxes overlap
+    pairs = crossing_pairs(spliced.mesh.vertices, triangles[near], source[near],
+                           among=np.flatnonzero(fresh[near]))  # (P, 2) into ``near``
+    faces = np.unique(source[near][pairs.reshape(-1)])
     return int(new[faces].sum())
 
 
