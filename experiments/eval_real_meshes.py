@@ -103,6 +103,15 @@ def main() -> int:
     return 0
 
 
+def split_parser(doc: str, split: str = "dev") -> argparse.ArgumentParser:
+    """A parser for a script over one split of the real meshes: the first line of
+    ``doc`` as its description, with ``--meshes`` (../shared/meshes) and ``--split``."""
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    parser.add_argument("--meshes", type=Path, default=ROOT.parent / "shared" / "meshes")
+    parser.add_argument("--split", choices=("dev", "test", "all"), default=split)
+    return parser
+
+
 def split_meshes(meshes: Path, split: str, wanted: set[str]) -> tuple[list[Path], list[str]]:
     """The closed oriented manifold meshes of one split (``dev``, ``test`` or ``all``) and
     categories, sorted by category and vertex count, with their categories."""

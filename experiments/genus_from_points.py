@@ -13,25 +13,20 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "experiments"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from eval_real_meshes import CATEGORIES, split_meshes, split_parser
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--meshes", type=Path, default=ROOT.parent / "shared" / "meshes")
-    parser.add_argument("--split", choices=("dev", "test", "all"), default="dev")
+    parser = split_parser(__doc__)
     parser.add_argument("--scales", default="1.5,2,3")
     parser.add_argument("--points", type=int, default=2048)
     args = parser.parse_args()
-    from eval_real_meshes import CATEGORIES, split_meshes
-
     from spacemesh.evaluate.runner import mesh_shapes
     from spacemesh.geometry.pieces import point_pieces
     from spacemesh.topology import check_topology

@@ -13,28 +13,23 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import statistics
 import sys
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "experiments"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from eval_real_meshes import CATEGORIES, split_meshes, split_parser
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--meshes", type=Path, default=ROOT.parent / "shared" / "meshes")
-    parser.add_argument("--split", choices=("dev", "test", "all"), default="dev")
+    parser = split_parser(__doc__)
     parser.add_argument("--noise", type=float, default=0.01)
     args = parser.parse_args()
     from spacemesh.evaluate.runner import pin_threads
 
     pin_threads(1)
-    from eval_real_meshes import CATEGORIES, split_meshes
-
     from spacemesh.evaluate.runner import corrupt_points, mesh_shapes
     from spacemesh.geometry.finishing import finish_geometry
     from spacemesh.metrics.compare import Reference, score_mesh

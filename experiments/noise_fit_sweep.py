@@ -14,7 +14,6 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import json
 import statistics
 import sys
@@ -24,14 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "experiments"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from eval_real_meshes import CATEGORIES, split_meshes, split_parser
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--meshes", type=Path, default=ROOT.parent / "shared" / "meshes")
-    parser.add_argument("--split", choices=("dev", "test", "all"), default="dev")
+    parser = split_parser(__doc__)
     parser.add_argument("--noise", type=float, default=0.01)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--limit", type=int, default=None)
@@ -41,8 +38,6 @@ def main() -> int:
     from spacemesh.evaluate.runner import pin_threads
 
     pin_threads(1)
-    from eval_real_meshes import CATEGORIES, split_meshes
-
     from spacemesh.evaluate.runner import corrupt_points, mesh_shapes
     from spacemesh.metrics.compare import Reference, score_mesh
     from spacemesh.metrics.sampling import apply_normalisation, normalisation

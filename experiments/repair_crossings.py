@@ -15,21 +15,18 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "experiments"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from eval_real_meshes import CATEGORIES, split_meshes, split_parser
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--meshes", type=Path, default=ROOT.parent / "shared" / "meshes")
-    parser.add_argument("--split", choices=("dev", "test", "all"), default="dev")
+    parser = split_parser(__doc__)
     parser.add_argument("--fraction", type=float, default=0.03)
     parser.add_argument("--cap", type=int, default=40)
     parser.add_argument("--seed", type=int, default=0)
@@ -38,7 +35,6 @@ def main() -> int:
     from spacemesh.evaluate.runner import pin_threads
 
     pin_threads(1)
-    from eval_real_meshes import CATEGORIES, split_meshes
     from eval_repair import random_region
 
     from spacemesh.geometry.intersections import self_intersecting_faces
