@@ -31,7 +31,7 @@ from spacemesh.decode import Embeddings
 from spacemesh.geometry import refine_geometry
 from spacemesh.geometry.intersections import crossing_pairs
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import fan_volumes, triangles_of
+from spacemesh.primitives import faces_subset, fan_volumes, triangles_of
 from spacemesh.primitives.closest import nearest_triangles
 from spacemesh.repair.auto import AutoPlan, plan_auto, repair_auto
 from spacemesh.repair.cut import Cut, cut_region
@@ -492,21 +492,25 @@ def surface_normals(points: FloatArray, surface: PolygonMesh) -> FloatArray:
 
 def new_crossings(spliced: Spliced) -> int:
     """How many of a spliced mesh's new faces cross a face (new or kept), by the exact
-    test (:func:`spacemesh.geometry.intersections.crossing_pairs` among the triangles
-    whose bounding boxes meet the new faces' box, from the new faces' triangles only).
-    """
+    test (:func:`spacemesh.geometry.intersections.crossing_pairs` from the new faces'
+    triangles, among the faces whose bounding boxes meet the new faces' box: its cost
+    grows with the patch, not the mesh)."""
+    mesh = spliced.mesh
     new = spliced.face_source < 0  # (F,)
     if not new.any():
         return 0
-    triangles, source = triangles_of(spliced.mesh)  # (T, 3), (T,)
-    corners = spliced.mesh.vertices[triangles]  # (T, 3, 3)
-    fresh = new[source]  # (T,)
-    low, high = corners[fresh].min(axis=(0, 1)), corners[fresh].max(axis=(0, 1))
-    near = np.flatnonzero(np.all(corners.max(axis=1) >= low, axis=1)
-                          & np.all(corners.min(axis=1) <= high, axis=1))  # boxes overlap
-    pairs = crossing_pairs(spliced.mesh.vertices, triangles[near], source[near],
-                           among=np.flatnonzero(fresh[near]))  # (P, 2) into ``near``
-    faces = np.unique(source[near][pairs.reshape(-1)])
+    corners = mesh.vertices[mesh.face_indices]  # (C, 3)
+    starts = mesh.face_offsets[:-1]
+    low = np.minimum.reduceat(corners, starts, axis=0)  # (F, 3) each face's box
+    high = np.maximum.reduceat(corners, starts, axis=0)
+    near = np.flatnonzero(np.all(high >= low[new].min(axis=0), axis=1)
+                          & np.all(low <= high[new].max(axis=0), axis=1))  # (K,)
+    local = np.zeros(mesh.n_faces, dtype=bool)
+    local[near] = True
+    triangles, source = triangles_of(faces_subset(mesh, local))  # source: into ``near``
+    pairs = crossing_pairs(mesh.vertices, triangles, source,
+                           among=np.flatnonzero(new[near][source]))  # (P, 2)
+    faces = near[np.unique(source[pairs.reshape(-1)])]
     return int(new[faces].sum())
 
 
