@@ -126,10 +126,10 @@ def test_new_vertices_far_from_every_threshold_are_removed():
 
 def test_new_crossings_counts_the_new_faces_that_cross():
     """The repair samples a region again while its fitted patch's new faces cross a face
-    (spacemesh.repair.api.new_crossings): new faces crossing kept or new ones count, kept
+    (spacemesh.repair.crossings.new_crossings): new faces crossing kept or new ones count, kept
     faces crossing each other do not."""
     from spacemesh.mesh import PolygonMesh
-    from spacemesh.repair.api import new_crossings
+    from spacemesh.repair.crossings import new_crossings
     from spacemesh.repair.splice import Spliced
 
     a, b = icosphere(2), icosphere(2)

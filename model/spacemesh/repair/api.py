@@ -29,11 +29,11 @@ import numpy as np
 from spacemesh.cancel import checkpoint
 from spacemesh.decode import Embeddings
 from spacemesh.geometry import refine_geometry
-from spacemesh.geometry.intersections import crossing_pairs
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import faces_subset, fan_volumes, triangles_of
+from spacemesh.primitives import fan_volumes, triangles_of
 from spacemesh.primitives.closest import nearest_triangles
 from spacemesh.repair.auto import AutoPlan, plan_auto, repair_auto
+from spacemesh.repair.crossings import new_crossings
 from spacemesh.repair.cut import Cut, cut_region
 from spacemesh.repair.fill.kinds import FilledBy, FillKind
 from spacemesh.repair.fill.loops import patch_euler
@@ -488,30 +488,6 @@ def surface_normals(points: FloatArray, surface: PolygonMesh) -> FloatArray:
     normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     length = np.linalg.norm(normal, axis=1, keepdims=True)
     return normal / np.where(length > 0, length, 1.0)
-
-
-def new_crossings(spliced: Spliced) -> int:
-    """How many of a spliced mesh's new faces cross a face (new or kept), by the exact
-    test (:func:`spacemesh.geometry.intersections.crossing_pairs` from the new faces'
-    triangles, among the faces whose bounding boxes meet the new faces' box: its cost
-    grows with the patch, not the mesh)."""
-    mesh = spliced.mesh
-    new = spliced.face_source < 0  # (F,)
-    if not new.any():
-        return 0
-    corners = mesh.vertices[mesh.face_indices]  # (C, 3)
-    starts = mesh.face_offsets[:-1]
-    low = np.minimum.reduceat(corners, starts, axis=0)  # (F, 3) each face's box
-    high = np.maximum.reduceat(corners, starts, axis=0)
-    near = np.flatnonzero(np.all(high >= low[new].min(axis=0), axis=1)
-                          & np.all(low <= high[new].max(axis=0), axis=1))  # (K,)
-    local = np.zeros(mesh.n_faces, dtype=bool)
-    local[near] = True
-    triangles, source = triangles_of(faces_subset(mesh, local))  # source: into ``near``
-    pairs = crossing_pairs(mesh.vertices, triangles, source,
-                           among=np.flatnonzero(new[near][source]))  # (P, 2)
-    faces = near[np.unique(source[pairs.reshape(-1)])]
-    return int(new[faces].sum())
 
 
 def fit_new_vertices(spliced: Spliced, points: FloatArray, normals: FloatArray,
