@@ -308,7 +308,7 @@ class CostModel:
         (at ``fewer_chance``): the request at the fewer count, then the geometry stage
         at the count asked for."""
         fewer = fewer_vertices(spec, options) if spec.retry_seeds else None
-        if fewer is None or options.tolerance is not None:
+        if fewer is None:
             return 0.0
         lower = replace(options, target_vertices=fewer)
         seeds = options.samples + spec.retries_for(options.samples) * self.retry_chance

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from spacemesh.geometry import FitReport, SurfaceFacts
+from spacemesh.geometry import FitReport, GeometryOptions, SurfaceFacts
 from spacemesh.geometry.finishing import finish_geometry
 from spacemesh.geometry.polygons import collapse_flat, merge_coplanar
 from spacemesh.geometry.surface import drop_crossing_faces
@@ -289,11 +289,8 @@ class MeshGenerator:
             chosen.timings = lower.timings
             return chosen
         started = time.perf_counter()
-        unit = lower.mesh.with_vertices((lower.mesh.vertices - prepared.centre) / prepared.scale)
-        points, normals = prepared.fit_points()
-        refitted, stats = finish_geometry(unit, points, normals, plain_spec(self.spec).geometry,
-                                          target_vertices=count)
-        mesh = refitted.with_vertices(refitted.vertices * prepared.scale + prepared.centre)
+        mesh, stats = _refitted(lower.mesh, prepared, plain_spec(self.spec).geometry,
+                                target_vertices=count)
         lower.mesh = mesh
         lower.fit = prepared.report(mesh, lower_surface)
         lower.options = replace(options, seed=lower.seed)
@@ -327,10 +324,7 @@ class MeshGenerator:
         if stats["crossing_after"] >= stats["crossing_before"]:
             mesh = result.mesh  # smoothing did not help
         elif not opened:  # an open mesh has no outside to refit to
-            unit = mesh.with_vertices((mesh.vertices - prepared.centre) / prepared.scale)
-            points, normals = prepared.fit_points()
-            refitted, refit_stats = finish_geometry(unit, points, normals, self.spec.geometry)
-            mesh = refitted.with_vertices(refitted.vertices * prepared.scale + prepared.centre)
+            mesh, refit_stats = _refitted(mesh, prepared, self.spec.geometry)
             stats["untangle_refit_kept"] = bool(refit_stats.get("kept", False))
         if opened and stats["crossing_after"] > 0:
             mesh, stats["crossing_faces_dropped"] = drop_crossing_faces(mesh)
@@ -482,6 +476,18 @@ class MeshGenerator:
     def vertex_count(self, options: GenerateOptions) -> int:
         """Vertices ``start=points`` chooses: the target, else the model's default."""
         return vertex_count(self.spec, options)
+
+
+def _refitted(mesh: PolygonMesh, prepared: PreparedInput, options: GeometryOptions, *,
+              target_vertices: int | None = None) -> tuple[PolygonMesh, dict[str, Any]]:
+    """``mesh`` (in the upload's frame) through the geometry stage again
+    (:func:`finish_geometry` on the request's fit points, in the normalised frame, edges
+    split up to ``target_vertices`` when given), and its statistics."""
+    unit = mesh.with_vertices((mesh.vertices - prepared.centre) / prepared.scale)
+    points, normals = prepared.fit_points()
+    refitted, stats = finish_geometry(unit, points, normals, options,
+                                      target_vertices=target_vertices)
+    return refitted.with_vertices(refitted.vertices * prepared.scale + prepared.centre), stats
 
 
 def _decided(fit: FitReport) -> SurfaceFacts | None:
