@@ -33,7 +33,7 @@ from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import fan_volumes, triangles_of
 from spacemesh.primitives.closest import nearest_triangles
 from spacemesh.repair.auto import AutoPlan, plan_auto, repair_auto
-from spacemesh.repair.crossings import new_crossings
+from spacemesh.repair.crossings import new_crossings, uncross_polygons
 from spacemesh.repair.cut import Cut, cut_region
 from spacemesh.repair.fill.kinds import FilledBy, FillKind
 from spacemesh.repair.fill.loops import patch_euler
@@ -132,7 +132,9 @@ class RepairStats:
         ``removed-new-vertices`` when faces visiting a vertex twice or detached groups
         cost new vertices; ``polygon`` when at least one loop was closed by one polygon.
     fill : dict
-        :attr:`spacemesh.repair.splice.Fill.stats`.
+        :attr:`spacemesh.repair.splice.Fill.stats`, and ``uncrossed_faces`` where every
+        sampling's new faces crossed a face: how many of them
+        :func:`spacemesh.repair.crossings.uncross_polygons` replaced.
     inpaint : dict
         ``alive`` (free tokens alive by the mask), and of those dropped:
         ``outside_hole``, ``duplicates`` and ``over_limit`` (beyond the expected count).
@@ -658,11 +660,11 @@ def repair_mesh(
 
         checkpoint()
         t0 = time.perf_counter()
+        kept = patch.faces[~cut.region[patch.faces]]
+        surface = PolygonMesh.from_faces(plan.hole.vertices,
+                                         plan.hole.faces + sub_mesh(mesh, kept).faces)
         if fit_patch and spliced.n_new_vertices:
             cloud = patch.from_unit(np.concatenate([samples.hole, samples.kept]))
-            kept = patch.faces[~cut.region[patch.faces]]
-            surface = PolygonMesh.from_faces(plan.hole.vertices,
-                                             plan.hole.faces + sub_mesh(mesh, kept).faces)
             spliced = replace(spliced, mesh=fit_new_vertices(
                 spliced, cloud, surface_normals(cloud, surface), spec))
         timings["geometry"] = time.perf_counter() - t0
@@ -670,18 +672,24 @@ def repair_mesh(
         crossing = new_crossings(spliced) if fit_patch else 0
         rank = (max(drop, 0), crossing)  # the fewest handles, then the fewest crossings
         if fewest is None or rank < fewest[0]:
-            fewest = (rank, drop, candidates, dropped, fill, spliced)
+            fewest = (rank, drop, candidates, dropped, fill, spliced, surface)
         if drop <= 0 and crossing == 0:
             break  # no handle spliced in (a handle lowers the Euler characteristic by 2)
             # and no new face crossing
     assert fewest is not None  # set by the first of the TOPOLOGY_ATTEMPTS (at least one)
-    _, drop, candidates, dropped, fill, spliced = fewest
+    (_, crossing), drop, candidates, dropped, fill, spliced, surface = fewest
+    fill_stats = dict(fill.stats)
+    if crossing:  # every sampling crossed: its crossing polygons triangulated again
+        t0 = time.perf_counter()
+        spliced, fill_stats["uncrossed_faces"] = uncross_polygons(spliced, surface)
+        timings["uncross"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start + (plan.seconds if plan_given else 0.0)
 
-    fs = fill.stats
+    fs = fill_stats
     fallback = ("polygon" if fs["polygon_loops"] else
                 "removed-new-vertices" if fs["n_unpinched"] or fs["n_detached"] else "none")
-    sizes, counts = np.unique(np.diff(fill.face_offsets), return_counts=True)
+    sizes, counts = np.unique(spliced.mesh.face_sizes[spliced.face_source < 0],
+                              return_counts=True)
     stats = RepairStats(
         requested_faces=int(cut.requested.sum()), region_faces=int(cut.region.sum()),
         grown_faces=cut.n_grown, removed_vertices=len(cut.removed_vertices),
