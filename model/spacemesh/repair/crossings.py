@@ -146,9 +146,13 @@ def _merge_crossing_faces(mesh: PolygonMesh, source: IntArray, surface: PolygonM
                           ) -> tuple[PolygonMesh, IntArray, int]:
     """Each new face that still crosses, merged with the new faces it shares a side with
     into one disc (when their border is one loop) and that disc triangulated again
-    (:func:`_uncrossed`): a polygon folded over a new triangle that shares its corners, or
-    a fan of slivers, is mended as a whole. Returns the mesh, the faces' sources and the
-    number of faces merged."""
+    (:func:`_uncrossed`): a polygon folded over a new triangle that shares its corners is
+    mended as a whole. Returns the mesh, the faces' sources and the number of faces
+    merged.
+
+    Tried without gain on the 24 test repairs (docs/REPAIR.md, "Limits"): merging every
+    new face when the neighbours alone fail, and a band where the merged faces' border is
+    two loops."""
     merged, tried = 0, set()
     while True:
         crossing = [f for f in crossing_faces(mesh, source < 0)
@@ -169,13 +173,33 @@ def _merge_crossing_faces(mesh: PolygonMesh, source: IntArray, surface: PolygonM
             (mesh, source), merged = found, merged + int(group.sum())
 
 
+def _banded(mesh: PolygonMesh, source: IntArray, faces: BoolArray, first: IntArray,
+            second: IntArray) -> tuple[PolygonMesh, IntArray] | None:
+    """``mesh`` and its faces' ``source`` with the ``faces`` ((F,) bool: a region whose
+    border is the loops ``first`` and ``second``, in its own direction) replaced by the
+    band between the loops (:func:`band_triangles`); None where the band would repeat
+    an edge of the mesh, where the loops share a corner, or where it crosses a face."""
+    corners = np.concatenate([first, second])
+    ends = mesh.halfedges[~faces[mesh.face_of_corner]]  # (S, 2) the sides of other faces
+    in_first, in_second = (np.isin(ends, loop) for loop in (first, second))
+    if ((in_first[:, 0] & in_second[:, 1]) | (in_second[:, 0] & in_first[:, 1])).any() \
+            or len(np.unique(corners)) < len(corners):
+        return None  # an edge between the loops exists already: not manifold
+    band = band_triangles(mesh.vertices, first, second)
+    trial = _appended(faces_subset(mesh, ~faces), band)
+    added = np.arange(trial.n_faces) >= trial.n_faces - len(band)
+    if len(crossing_faces(trial, added)):
+        return None
+    return trial, np.concatenate([source[~faces], np.full(len(band), -1, dtype=np.int64)])
+
+
 def _bridge_crossing_polygons(mesh: PolygonMesh, source: IntArray
                               ) -> tuple[PolygonMesh, IntArray, int]:
     """Each pair of new polygons that still cross, with no corner in common, replaced by
-    a band of triangles between them (:func:`band_triangles`) where the band crosses
-    nothing: two loops of a tube-like region each closed by its own polygon cut across
-    the shape, where the band between them follows the region's surface. Closest pairs
-    first; returns the mesh, the faces' sources and the number of pairs bridged."""
+    a band of triangles between them (:func:`_banded`): two loops of a tube-like region
+    each closed by its own polygon cut across the shape, where the band between them
+    follows the region's surface. Closest pairs first; returns the mesh, the faces'
+    sources and the number of pairs bridged."""
     bridged = 0
     while True:
         crossing = crossing_faces(mesh, source < 0)
@@ -184,24 +208,13 @@ def _bridge_crossing_polygons(mesh: PolygonMesh, source: IntArray
             return mesh, source, bridged
         centres = np.array([mesh.vertices[mesh.faces[f]].mean(axis=0) for f in polygons])
         pairs = [(float(np.linalg.norm(centres[i] - centres[j])), polygons[i], polygons[j])
-                 for i in range(len(polygons)) for j in range(i + 1, len(polygons))
-                 if not set(mesh.faces[polygons[i]]) & set(mesh.faces[polygons[j]])]
+                 for i in range(len(polygons)) for j in range(i + 1, len(polygons))]
         for _, first, second in sorted(pairs):
-            band = band_triangles(mesh.vertices, mesh.faces[first], mesh.faces[second])
-            ends = mesh.halfedges  # (S, 2)
-            corners = np.concatenate([mesh.faces[first], mesh.faces[second]])
-            in_first, in_second = (np.isin(ends, mesh.faces[f]) for f in (first, second))
-            joined = (in_first[:, 0] & in_second[:, 1]) | (in_second[:, 0] & in_first[:, 1])
-            if joined.any() or len(np.unique(corners)) < len(corners):
-                continue  # an edge between the loops exists already: not manifold
-            keep = np.ones(mesh.n_faces, dtype=bool)
-            keep[[first, second]] = False
-            trial = _appended(faces_subset(mesh, keep), band)
-            added = np.arange(trial.n_faces) >= trial.n_faces - len(band)
-            if len(crossing_faces(trial, added)) == 0:
-                mesh = trial
-                source = np.concatenate([source[keep], np.full(len(band), -1, np.int64)])
-                bridged += 1
+            pair = np.zeros(mesh.n_faces, dtype=bool)
+            pair[[first, second]] = True
+            found = _banded(mesh, source, pair, mesh.faces[first], mesh.faces[second])
+            if found is not None:
+                (mesh, source), bridged = found, bridged + 1
                 break
         else:
             return mesh, source, bridged
