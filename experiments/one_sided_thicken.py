@@ -65,14 +65,14 @@ def main() -> int:
                 meshes[f"t{t}"] = first.mesh
                 continue
             normals = estimate_point_normals(points)  # (P', 3) unoriented
-            triangles, source = triangles_of(first.mesh)
+            triangles, _ = triangles_of(first.mesh)
             owner, _ = nearest_triangles(points, first.mesh.vertices, triangles)
             corners = first.mesh.vertices[triangles[owner]]
             facing = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
             normals *= np.where(np.sum(normals * facing, axis=1) < 0, -1.0, 1.0)[:, None]
             slab = np.concatenate([points, points - t * diagonal * normals])
             closed = generator.generate(slab, seed=args.seed, surface="closed")
-            trimmed, facts, _ = shape_surface(closed.mesh, points, None, "open",
+            trimmed, _, _ = shape_surface(closed.mesh, points, None, "open",
                                               generator.spec.geometry)
             meshes[f"t{t}"] = trimmed
         line = [f"{shape.shape_id[:40]:40s} open {opened!s:5s}"]

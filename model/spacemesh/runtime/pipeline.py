@@ -36,6 +36,7 @@ import numpy as np
 
 from spacemesh.geometry import FitReport, GeometryOptions, SurfaceFacts
 from spacemesh.geometry.finishing import finish_geometry
+from spacemesh.geometry.hull import hull_mesh
 from spacemesh.geometry.polygons import collapse_flat, merge_coplanar
 from spacemesh.geometry.surface import drop_crossing_faces
 from spacemesh.geometry.untangle import untangle
@@ -273,12 +274,14 @@ class MeshGenerator:
         closed again; an open one has its crossing faces dropped instead)."""
         count = vertex_count(self.spec, options)
         fewer = fewer_vertices(self.spec, options)
+        surface = _decided(chosen.fit) if chosen.fit is not None else None
+        closed = surface is not None and not surface.open  # the same decision below
         if fewer is None:
+            if closed and options.start == "points" and not options.raw:
+                return self._hull_instead(chosen, prepared, count, surface, stage)
             return chosen
         if stage is not None:
             stage("fewer", 1, 1)
-        surface = _decided(chosen.fit) if chosen.fit is not None else None
-        closed = surface is not None and not surface.open  # the same decision below
         lower_options = replace(options, target_vertices=fewer, face_type="triangles",
                                 surface="closed" if closed else options.surface)
         lower = self._generate_prepared([(prepared, lower_options)], progress, stage,
@@ -299,6 +302,32 @@ class MeshGenerator:
                                 "fewer_kept": bool(stats.get("kept", False))}
         _add_geometry_time(lower, time.perf_counter() - started)
         return lower
+
+    def _hull_instead(self, chosen: GenerateResult, prepared: PreparedInput, count: int,
+                      surface: SurfaceFacts | None, stage: StageFn | None) -> GenerateResult:
+        """The last resort of :meth:`_from_fewer`, below the fewest vertices a request may
+        ask for: the convex hull of the fit points (:func:`spacemesh.geometry.hull.
+        hull_mesh`, at most ``count`` corners), its edges split up to ``count`` and fitted
+        (stage ``hull``; ``geometry_stats["convex_hull"]``). A convex polyhedron does not
+        cross, and neither the split nor the guarded fit makes a crossing. ``chosen`` is
+        kept where the points span no volume."""
+        points, _ = prepared.fit_points()  # (P, 3) in the normalised frame
+        hull = hull_mesh(points, count)
+        if hull is None:
+            return chosen
+        if stage is not None:
+            stage("hull", 1, 1)
+        started = time.perf_counter()
+        hull = hull.with_vertices(hull.vertices * prepared.scale + prepared.centre)
+        mesh, stats = _refitted(hull, prepared, plain_spec(self.spec).geometry,
+                                target_vertices=count)
+        chosen.mesh = mesh
+        chosen.fit = prepared.report(mesh, surface)
+        chosen.geometry_stats = {**chosen.geometry_stats, "convex_hull": True,
+                                 "hull_split": int(stats.get("n_split", 0)),
+                                 "hull_kept": bool(stats.get("kept", False))}
+        _add_geometry_time(chosen, time.perf_counter() - started)
+        return chosen
 
     def _untangled(self, result: GenerateResult, prepared: PreparedInput,
                    stage: StageFn | None) -> GenerateResult:
