@@ -307,6 +307,7 @@ def test_the_guard_scales_the_whole_fit_back_before_dropping_it():
     """When moving the crossing faces' corners back does not keep the share of crossing
     faces, the guard takes the largest fraction of every vertex's move that does
     (stage._scaled_back), and gives up only when none does."""
+    from spacemesh.geometry.intersections import CrossingFaces
     from spacemesh.geometry.stage import GUARD_FRACTIONS, _intersection_share, _scaled_back
 
     a, b = icosphere(2), icosphere(2)
@@ -318,7 +319,8 @@ def test_the_guard_scales_the_whole_fit_back_before_dropping_it():
     moved[: a.n_vertices] += [2.5, 0, 0]  # the first sphere driven into the second
     assert _intersection_share(mesh, moved, tri, None)[0] > 0
     stats: dict = {}
-    scaled = _scaled_back(mesh, moved, apart, tri, None, 0.0, stats)
+    scaled = _scaled_back(CrossingFaces(mesh.with_vertices(moved)), moved, apart, None, 0.0,
+                          stats)
     assert scaled is not None and stats["guard_fraction"] == GUARD_FRACTIONS[0]
     assert scaled[1] == 0.0
     assert np.allclose(scaled[0], apart + GUARD_FRACTIONS[0] * (moved - apart))
@@ -326,4 +328,5 @@ def test_the_guard_scales_the_whole_fit_back_before_dropping_it():
     overlapping = apart.copy()
     overlapping[: a.n_vertices] += [3.5, 0, 0]
     nudged = overlapping + np.array([0.0, 0.01, 0.0])
-    assert _scaled_back(mesh, nudged, overlapping, tri, None, 0.0, {}) is None
+    assert _scaled_back(CrossingFaces(mesh.with_vertices(nudged)), nudged, overlapping, None,
+                        0.0, {}) is None

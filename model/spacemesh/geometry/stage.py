@@ -30,7 +30,11 @@ from spacemesh.cancel import checkpoint
 from spacemesh.decode.refinement import flip_diagonals
 from spacemesh.encode import connectivity_from_faces
 from spacemesh.geometry.fitting import VertexFitOptions, fit_vertices, plane_fits
-from spacemesh.geometry.intersections import intersecting_triangles, self_intersecting_faces
+from spacemesh.geometry.intersections import (
+    CrossingFaces,
+    intersecting_triangles,
+    self_intersecting_faces,
+)
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangle_areas, triangles_of
 from spacemesh.typed import FloatArray, IntArray
@@ -218,7 +222,17 @@ def _flip_toward(positions: FloatArray, tri: IntArray, points: FloatArray, gain:
     return np.stack(flipped.to_mesh(positions).faces).astype(np.int64), count
 
 
-def _backtrack(mesh: PolygonMesh, positions: FloatArray, unfitted: FloatArray,
+def _tracked_share(tracker: CrossingFaces, positions: FloatArray, source: IntArray | None
+                   ) -> tuple[float, np.ndarray]:
+    """:func:`_intersection_share` of the tracked mesh moved to ``positions``
+    (:class:`~spacemesh.geometry.intersections.CrossingFaces`: only the triangles that
+    touch a moved vertex are tested again; the same answer)."""
+    faces = tracker.move(positions)  # (F,)
+    return (float(faces.mean()) if len(faces) else 0.0), (faces if source is None
+                                                          else faces[source])
+
+
+def _backtrack(tracker: CrossingFaces, positions: FloatArray, unfitted: FloatArray,
                tri: IntArray, source: IntArray | None, hit: np.ndarray, limit: float,
                stats: dict[str, Any]) -> tuple[FloatArray, float]:
     """Move the corners of intersecting triangles back toward their unfitted positions
@@ -233,23 +247,23 @@ def _backtrack(mesh: PolygonMesh, positions: FloatArray, unfitted: FloatArray,
         guarded[corners] = True
         weight = 0.5 if round_index < GUARD_ROUNDS else 1.0
         positions[corners] += weight * (unfitted[corners] - positions[corners])
-        share, hit = _intersection_share(mesh, positions, tri, source)
+        share, hit = _tracked_share(tracker, positions, source)
         if share <= limit or not hit.any():
             break
     stats["n_guarded"] = int(guarded.sum())
     return positions, share
 
 
-def _scaled_back(mesh: PolygonMesh, positions: FloatArray, unfitted: FloatArray,
-                 tri: IntArray, source: IntArray | None, limit: float,
-                 stats: dict[str, Any]) -> tuple[FloatArray, float] | None:
+def _scaled_back(tracker: CrossingFaces, positions: FloatArray, unfitted: FloatArray,
+                 source: IntArray | None, limit: float, stats: dict[str, Any]
+                 ) -> tuple[FloatArray, float] | None:
     """The largest of :data:`GUARD_FRACTIONS` of every vertex's move from ``unfitted``
     whose share of intersecting triangles is at most ``limit``, with that share
     (``stats["guard_fraction"]`` says which); None when no fraction keeps it."""
     for fraction in GUARD_FRACTIONS:
         checkpoint()
         trial = unfitted + fraction * (positions - unfitted)
-        share, _ = _intersection_share(mesh, trial, tri, source)
+        share, _ = _tracked_share(tracker, trial, source)
         if share <= limit:
             stats["guard_fraction"] = fraction
             return trial, share
@@ -326,12 +340,15 @@ def refine_geometry(
     stats.update(energy_before=energies[0] if energies else None,
                  energy_after=energies[-1] if energies else None,
                  intersections_before=before_share)
-    share, hit = _intersection_share(mesh, positions, tri, source)
+    fitted_mesh = (mesh.with_vertices(positions) if source is not None else
+                   PolygonMesh(positions, tri.reshape(-1), np.arange(0, 3 * len(tri) + 1, 3)))
+    tracker = CrossingFaces(fitted_mesh)  # the guard's rounds test only what they move
+    share, hit = _tracked_share(tracker, positions, source)
     if options.guard and share > before_share:
-        positions, share = _backtrack(mesh, positions, unfitted, tri, source, hit,
+        positions, share = _backtrack(tracker, positions, unfitted, tri, source, hit,
                                       before_share, stats)
     if options.guard and share > before_share:
-        scaled = _scaled_back(mesh, positions, unfitted, tri, source, before_share, stats)
+        scaled = _scaled_back(tracker, positions, unfitted, source, before_share, stats)
         if scaled is not None:
             positions, share = scaled
     if options.guard and share > before_share:
