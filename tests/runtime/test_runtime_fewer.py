@@ -19,6 +19,12 @@ from spacemesh.runtime.spec import ModelSpec
 from tests.validity import assert_valid_mesh
 
 
+def _ellipsoid(count: int, seed: int) -> np.ndarray:
+    """(count, 3) points on an ellipsoid of semi-axes 1, 0.8 and 0.5."""
+    points = np.random.default_rng(seed).normal(size=(count, 3))
+    return points / np.linalg.norm(points, axis=1, keepdims=True) * [1.0, 0.8, 0.5]
+
+
 @pytest.fixture(scope="module")
 def spec(shipped):
     return ModelSpec.from_manifest(shipped.manifest)
@@ -49,9 +55,7 @@ def test_a_mesh_that_still_crosses_is_made_from_fewer_vertices(shipped, spec, mo
     monkeypatch.setattr(pipeline, "crosses",
                         lambda r: r.mesh.n_vertices >= 60 or real(r))
     stages: list[str] = []
-    rng = np.random.default_rng(5)
-    points = rng.normal(size=(2048, 3))
-    points = points / np.linalg.norm(points, axis=1, keepdims=True) * [1.0, 0.8, 0.5]
+    points = _ellipsoid(2048, seed=5)
     result = generator.generate(points, target_vertices=60,
                                 stage=lambda name, done, total: stages.append(name))
     assert "fewer" in stages
@@ -81,9 +85,7 @@ def test_below_the_smallest_count_the_hull_is_made(shipped, spec, monkeypatch):
     monkeypatch.setattr(pipeline, "crosses",
                         lambda r: "convex_hull" not in r.geometry_stats)
     stages: list[str] = []
-    rng = np.random.default_rng(6)
-    points = rng.normal(size=(1024, 3))
-    points = points / np.linalg.norm(points, axis=1, keepdims=True) * [1.0, 0.8, 0.5]
+    points = _ellipsoid(1024, seed=6)
     result = generator.generate(points, target_vertices=16,
                                 stage=lambda name, done, total: stages.append(name))
     assert stages.count("hull") == 1 and "fewer" in stages
