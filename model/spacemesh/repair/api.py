@@ -660,11 +660,11 @@ def repair_mesh(
 
         checkpoint()
         t0 = time.perf_counter()
-        kept = patch.faces[~cut.region[patch.faces]]
-        surface = PolygonMesh.from_faces(plan.hole.vertices,
-                                         plan.hole.faces + sub_mesh(mesh, kept).faces)
         if fit_patch and spliced.n_new_vertices:
             cloud = patch.from_unit(np.concatenate([samples.hole, samples.kept]))
+            kept = patch.faces[~cut.region[patch.faces]]
+            surface = PolygonMesh.from_faces(plan.hole.vertices,
+                                             plan.hole.faces + sub_mesh(mesh, kept).faces)
             spliced = replace(spliced, mesh=fit_new_vertices(
                 spliced, cloud, surface_normals(cloud, surface), spec))
         timings["geometry"] = time.perf_counter() - t0
@@ -672,16 +672,16 @@ def repair_mesh(
         crossing = new_crossings(spliced) if fit_patch else 0
         rank = (max(drop, 0), crossing)  # the fewest handles, then the fewest crossings
         if fewest is None or rank < fewest[0]:
-            fewest = (rank, drop, candidates, dropped, fill, spliced, surface)
+            fewest = (rank, drop, candidates, dropped, fill, spliced)
         if drop <= 0 and crossing == 0:
             break  # no handle spliced in (a handle lowers the Euler characteristic by 2)
             # and no new face crossing
     assert fewest is not None  # set by the first of the TOPOLOGY_ATTEMPTS (at least one)
-    (_, crossing), drop, candidates, dropped, fill, spliced, surface = fewest
+    (_, crossing), drop, candidates, dropped, fill, spliced = fewest
     fill_stats = dict(fill.stats)
     if crossing:  # every sampling crossed: its crossing polygons triangulated again
         t0 = time.perf_counter()
-        spliced, fill_stats["uncrossed_faces"] = uncross_polygons(spliced, surface)
+        spliced, fill_stats["uncrossed_faces"] = uncross_polygons(spliced, plan.hole)
         timings["uncross"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start + (plan.seconds if plan_given else 0.0)
 
