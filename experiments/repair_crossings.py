@@ -11,9 +11,14 @@ already crossed the region's faces in the input (an input whose surfaces pass th
 each other there) is counted apart, as inherited. Prints one line per mesh and the
 totals.
 
+With ``--holes``, the sphere's faces are removed instead (a hole punched in the mesh)
+and the open mesh is repaired with ``{"auto": "holes"}``: the model's passes, then the
+fairing or the fallback fills of :mod:`spacemesh.repair.fill` (no inherited count).
+
 Usage::
 
     python experiments/repair_crossings.py --split dev [--fraction 0.03] [--cap 40]
+        [--holes]
 """
 
 from __future__ import annotations
@@ -34,6 +39,8 @@ def main() -> int:
     parser.add_argument("--cap", type=int, default=40)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--limit", type=int, default=None)
+    parser.add_argument("--holes", action="store_true",
+                        help="punch the region out and repair {'auto': 'holes'}")
     args = parser.parse_args()
     from spacemesh.evaluate.runner import pin_threads
 
@@ -42,8 +49,8 @@ def main() -> int:
 
     from spacemesh.geometry.intersections import crossing_pairs, self_intersecting_faces
     from spacemesh.io import load_mesh
-    from spacemesh.primitives import normalize, triangles_of
-    from spacemesh.repair import repair_mesh
+    from spacemesh.primitives import faces_subset, normalize, triangles_of
+    from spacemesh.repair import Region, repair_mesh
     from spacemesh.runtime import MeshGenerator
 
     paths, _ = split_meshes(args.meshes, args.split, set(CATEGORIES))
@@ -53,6 +60,10 @@ def main() -> int:
         mesh, _, _ = normalize(load_mesh(path))
         region = random_region(mesh, np.random.default_rng([args.seed, index]), args.fraction,
                                args.cap)
+        if args.holes:  # the region's faces punched out, the holes found automatically
+            punched = Region.sphere(**region["sphere"]).face_mask(mesh)
+            mesh, _ = faces_subset(mesh, ~punched).remove_unreferenced_vertices()
+            region = {"auto": "holes"}
         before = self_intersecting_faces(mesh)  # (F,)
         started = time.perf_counter()
         try:
@@ -66,7 +77,7 @@ def main() -> int:
         kept_now = ~new & after
         kept_added = int(np.sum(kept_now & ~before[np.maximum(result.face_source, 0)]))
         inherited = (inherited_faces(mesh, result, crossing_pairs, triangles_of)
-                     if np.any(after & new) else 0)
+                     if np.any(after & new) and not args.holes else 0)
         new_crossing = int(np.sum(after & new)) - inherited
         added_meshes += (kept_added + new_crossing) > 0
         new_total += new_crossing

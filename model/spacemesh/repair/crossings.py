@@ -106,23 +106,24 @@ def uncross_polygons(spliced: Spliced, surface: PolygonMesh) -> tuple[Spliced, i
     mended += 2 * bridged + merged
     if not mended:
         return spliced, 0
-    mesh = _without_unused_new_vertices(mesh, spliced.mesh.n_vertices - spliced.n_new_vertices)
+    mesh, vertex_map = _without_unused_vertices(mesh, spliced.vertex_map)
     added_vertices = mesh.n_vertices - spliced.mesh.n_vertices
-    return Spliced(mesh, spliced.vertex_map, source, spliced.n_new_vertices + added_vertices,
+    return Spliced(mesh, vertex_map, source, spliced.n_new_vertices + added_vertices,
                    int(np.sum(source < 0))), mended
 
 
-def _without_unused_new_vertices(mesh: PolygonMesh, n_kept: int) -> PolygonMesh:
-    """``mesh`` without the new vertices (index ``n_kept`` on) that no face uses any more
-    (inside faces merged by :func:`_merge_crossing_faces`); kept vertices keep their
-    indices."""
+def _without_unused_vertices(mesh: PolygonMesh, vertex_map: IntArray
+                             ) -> tuple[PolygonMesh, IntArray]:
+    """``mesh`` without the vertices no face uses any more (new vertices inside faces
+    merged by :func:`_merge_crossing_faces`; a kept vertex is always on a kept face), and
+    ``vertex_map`` (input vertex -> output vertex, -1: removed) renumbered to match."""
     used = np.zeros(mesh.n_vertices, dtype=bool)
     used[mesh.face_indices] = True
-    used[:n_kept] = True
     if used.all():
-        return mesh
-    remap = np.cumsum(used) - 1  # (V,) new index of each used vertex
-    return PolygonMesh(mesh.vertices[used], remap[mesh.face_indices], mesh.face_offsets)
+        return mesh, vertex_map
+    remap = np.where(used, np.cumsum(used) - 1, -1)  # (V,) new index, -1: dropped
+    return (PolygonMesh(mesh.vertices[used], remap[mesh.face_indices], mesh.face_offsets),
+            np.where(vertex_map >= 0, remap[np.maximum(vertex_map, 0)], -1))
 
 
 def _uncrossed(mesh: PolygonMesh, source: IntArray, faces: BoolArray, corners: IntArray,
