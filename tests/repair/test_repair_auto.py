@@ -96,8 +96,9 @@ def test_holes_are_filled_closed_and_the_rest_is_unchanged():
 
 
 def test_a_hole_too_large_for_one_pass_is_filled_in_wedges():
-    # the flat disk over the equator would be MeshFix's fill; the wedges are tested here
-    policy = FillPolicy(meshfix_fairings=(), unchecked_fills=False)
+    # the flat disk over the equator would be MeshFix's fill, and the stand-in model's
+    # wedges cross (a crossing fill would give way to the fan); the wedges are tested here
+    policy = FillPolicy(meshfix_fairings=(), unchecked_fills=False, uncrossed_fills=False)
     mesh = hemisphere(4)  # one loop of 96 vertices; the stand-in model holds 56
     plan = plan_repair(mesh, {"auto": "holes"}, SPEC.max_vertices)
     assert isinstance(plan, AutoPlan)

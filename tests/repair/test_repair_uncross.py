@@ -167,3 +167,49 @@ def test_a_repair_whose_samplings_all_cross_is_uncrossed(monkeypatch):
     assert_closed_manifold(result.mesh)
     assert new_crossings(api.Spliced(result.mesh, result.vertex_map, result.face_source,
                                      result.stats.new_vertices, result.stats.new_faces)) == 0
+
+
+def test_a_crossing_hole_fill_is_replaced_by_one_that_crosses_nothing():
+    """An automatic region's fill (here the flat one over a sphere's polar hole) that
+    cuts through a small sphere inside: the faired fan over the same loop, which
+    continues the sphere's surface, replaces it (spacemesh.repair.fill.finish.
+    uncrossed_fill), and nothing the region made crosses any more."""
+    from spacemesh.geometry.intersections import crossing_faces
+    from spacemesh.repair.fill import DEFAULT_POLICY, FilledBy
+    from spacemesh.repair.fill.finish import uncrossed_fill
+    from spacemesh.repair.fill.flat import min_area_triangles
+    from spacemesh.repair.fill.passes import Passes
+
+    sphere = icosphere(2)
+    removed = np.array([sphere.vertices[f][:, 2].min() > 0.75 for f in sphere.faces])
+    loop = patch_loops(sphere, removed)[0]
+    small = icosphere(1)
+    inner = small.vertices * 0.12 + np.array([0.0, 0.0, 0.78])
+    kept = [list(f) for f in faces_subset(sphere, ~removed).faces]
+    kept += [[v + sphere.n_vertices for v in f] for f in small.faces]
+    flat = loop[min_area_triangles(sphere.vertices[loop])].tolist()
+    mesh, _ = PolygonMesh.from_faces(np.concatenate([sphere.vertices, inner]),
+                                     kept + flat).remove_unreferenced_vertices()
+    state = Passes.of(mesh)
+    state.made_by = np.where(np.arange(mesh.n_faces) >= len(kept), 0, -1)
+    assert len(crossing_faces(mesh, state.made_by == 0)) > 0
+
+    assert uncrossed_fill(state, 0, DEFAULT_POLICY) == FilledBy.FALLBACK
+
+    assert len(crossing_faces(state.mesh, state.made_by == 0)) == 0
+    assert_closed_manifold(state.mesh)
+    made = state.mesh.vertices[np.unique(np.concatenate(
+        [state.mesh.faces[f] for f in np.flatnonzero(state.made_by == 0)]))]
+    assert made[:, 2].max() > 0.95  # the fan follows the sphere up to its pole
+
+
+def test_a_hole_fill_that_does_not_cross_is_left_alone():
+    from spacemesh.repair.fill import DEFAULT_POLICY
+    from spacemesh.repair.fill.finish import uncrossed_fill
+    from spacemesh.repair.fill.passes import Passes
+
+    sphere = icosphere(2)
+    state = Passes.of(sphere)
+    state.made_by = np.where(np.arange(sphere.n_faces) < 5, 0, -1)
+    mesh_before = state.mesh
+    assert uncrossed_fill(state, 0, DEFAULT_POLICY) is None and state.mesh is mesh_before

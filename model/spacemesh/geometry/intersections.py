@@ -17,7 +17,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import cross_rows, triangle_normals, triangles_of
+from spacemesh.primitives import cross_rows, faces_subset, triangle_normals, triangles_of
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
 #: Shrink of triangles that share corners, as a fraction of their size (large enough
@@ -322,6 +322,28 @@ def self_intersecting_faces(mesh: PolygonMesh) -> BoolArray:
     hit = intersecting_triangles(mesh.vertices, triangles, source)
     faces[source[hit]] = True
     return faces
+
+
+def crossing_faces(mesh: PolygonMesh, among: BoolArray) -> IntArray:
+    """The faces of ``among`` ((F,) bool) that cross a face of ``mesh`` (of ``among`` or
+    not), by the exact test (:func:`spacemesh.geometry.intersections.crossing_pairs` from
+    their triangles, among the faces whose bounding boxes meet the box of ``among``: its
+    cost grows with ``among``, not with the mesh). Sorted face indices (K,)."""
+    if not among.any():
+        return np.zeros(0, dtype=np.int64)
+    corners = mesh.vertices[mesh.face_indices]  # (C, 3)
+    starts = mesh.face_offsets[:-1]
+    low = np.minimum.reduceat(corners, starts, axis=0)  # (F, 3) each face's box
+    high = np.maximum.reduceat(corners, starts, axis=0)
+    near = np.flatnonzero(np.all(high >= low[among].min(axis=0), axis=1)
+                          & np.all(low <= high[among].max(axis=0), axis=1))  # (N,)
+    local = np.zeros(mesh.n_faces, dtype=bool)
+    local[near] = True
+    triangles, source = triangles_of(faces_subset(mesh, local))  # source: into ``near``
+    pairs = crossing_pairs(mesh.vertices, triangles, source,
+                           among=np.flatnonzero(among[near][source]))  # (P, 2)
+    faces = near[np.unique(source[pairs.reshape(-1)])]
+    return faces[among[faces]]
 
 
 def self_intersection_fraction(mesh: PolygonMesh) -> float:

@@ -27,7 +27,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from spacemesh.geometry.intersections import crossing_pairs
+from spacemesh.geometry.intersections import crossing_faces
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import faces_subset, triangles_of
 from spacemesh.primitives.closest import closest_points_on_triangles, nearest_triangles
@@ -35,28 +35,6 @@ from spacemesh.repair.fill.flat import min_area_triangles
 from spacemesh.repair.fill.loops import patch_loops
 from spacemesh.repair.splice import Spliced
 from spacemesh.typed import BoolArray, FloatArray, IntArray
-
-
-def crossing_faces(mesh: PolygonMesh, among: BoolArray) -> IntArray:
-    """The faces of ``among`` ((F,) bool) that cross a face of ``mesh`` (of ``among`` or
-    not), by the exact test (:func:`spacemesh.geometry.intersections.crossing_pairs` from
-    their triangles, among the faces whose bounding boxes meet the box of ``among``: its
-    cost grows with ``among``, not with the mesh). Sorted face indices (K,)."""
-    if not among.any():
-        return np.zeros(0, dtype=np.int64)
-    corners = mesh.vertices[mesh.face_indices]  # (C, 3)
-    starts = mesh.face_offsets[:-1]
-    low = np.minimum.reduceat(corners, starts, axis=0)  # (F, 3) each face's box
-    high = np.maximum.reduceat(corners, starts, axis=0)
-    near = np.flatnonzero(np.all(high >= low[among].min(axis=0), axis=1)
-                          & np.all(low <= high[among].max(axis=0), axis=1))  # (N,)
-    local = np.zeros(mesh.n_faces, dtype=bool)
-    local[near] = True
-    triangles, source = triangles_of(faces_subset(mesh, local))  # source: into ``near``
-    pairs = crossing_pairs(mesh.vertices, triangles, source,
-                           among=np.flatnonzero(among[near][source]))  # (P, 2)
-    faces = near[np.unique(source[pairs.reshape(-1)])]
-    return faces[among[faces]]
 
 
 def new_crossings(spliced: Spliced) -> int:
@@ -338,4 +316,4 @@ def _triangulations(mesh: PolygonMesh, corners: IntArray, surface: PolygonMesh
     return [least_area, lambda: fan(True), lambda: fan(False)]
 
 
-__all__ = ["crossing_faces", "new_crossings", "uncross_polygons"]
+__all__ = ["band_triangles", "new_crossings", "uncross_polygons"]

@@ -8,12 +8,14 @@ numpy and scipy only (MeshFix's fill: the optional ``pymeshfix``).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from spacemesh.cancel import checkpoint
+from spacemesh.geometry.intersections import crossing_faces
 from spacemesh.primitives import faces_subset, triangulate_faces
 from spacemesh.repair.fill.fan import faired_fan, fan_fill
 from spacemesh.repair.fill.flat import flat_surface
@@ -39,8 +41,33 @@ def finish_holes(state: Passes, index: int, by: FilledBy, policy: FillPolicy, *,
     if fan_if_not_discs(state, index, policy, passes):
         return FilledBy.FALLBACK
     if fair:
-        return replaced_by(fair_region(state, index, policy), by)
+        by = replaced_by(fair_region(state, index, policy), by)
+        return uncrossed_fill(state, index, policy) or by
     return by
+
+
+def uncrossed_fill(state: Passes, index: int, policy: FillPolicy) -> FilledBy | None:
+    """Where the faces the region ``index`` ended with cross a face (the fairing's
+    membrane through the surface near a thin or concave part), the first of the faired
+    fan, the least-area flat fill and MeshFix's fill whose faces cross nothing replaces
+    them; its ``filled_by``, or None (none needed, none found, or not with the policy's
+    ``uncrossed_fills``: the fill stays)."""
+    if (not policy.uncrossed_fills
+            or not len(crossing_faces(state.mesh, state.made_by == index))):
+        return None
+    tries: list[tuple[FilledBy, Callable[[], bool]]] = [
+        (FilledBy.FALLBACK, lambda: fan_instead(state, index, policy)),
+        (FilledBy.FALLBACK, lambda: flat_instead(state, index, state.made_by == index,
+                                                 policy) is not None),
+        (FilledBy.MESHFIX, lambda: meshfix_instead(state, index, policy)),
+    ]
+    for filled_by, attempt in tries:
+        checkpoint()
+        before = replace(state)  # every fill reassigns the state's fields, never mutates
+        if attempt() and not len(crossing_faces(state.mesh, state.made_by == index)):
+            return filled_by
+        state.__dict__.update(before.__dict__)
+    return None
 
 
 def replaced_by(replaced: FillKind | None, by: FilledBy) -> FilledBy:

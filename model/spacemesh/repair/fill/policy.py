@@ -54,6 +54,11 @@ class FillPolicy:
         A hole whose patch could be faired only part of the way, and around which no
         probe hole fits, takes MeshFix's fill (or the flat one)
         (:func:`spacemesh.repair.fill.finish.probe_choice`).
+    uncrossed_fills : bool
+        A region whose finished fill crosses a face takes the first of the faired fan,
+        the flat fill and MeshFix's fill that crosses nothing
+        (:func:`spacemesh.repair.fill.finish.uncrossed_fill`; issue 35, "Repairs add no
+        crossings").
     meshfix_fairings : tuple of Fairing
         The fairings (the ``fairing`` :func:`fair_patch` reports) whose patch MeshFix's
         fill of the same loops replaces: the least-area flat fill, used where both thin
@@ -90,6 +95,7 @@ class FillPolicy:
     fit_laid: bool = True
     probe_fills: bool = True
     unchecked_fills: bool = True
+    uncrossed_fills: bool = True
     meshfix_fairings: tuple[Fairing, ...] = (Fairing.FLAT,)
     meshfix_margin: float = 0.8
     probe_margin: float = 0.8
