@@ -54,7 +54,7 @@ def hull_mesh(points: FloatArray, max_vertices: int) -> PolygonMesh | None:
                       vertices[triangles[:, 2]] - vertices[triangles[:, 0]])  # (T, 3)
     inward = np.sum(normal * hull.equations[:, :3], axis=1) < 0
     triangles[inward] = triangles[inward][:, ::-1]
-    return PolygonMesh.from_faces(vertices, triangles.tolist())
+    return PolygonMesh.from_faces(vertices, triangles)
 
 
 __all__ = ["hull_mesh"]

@@ -341,7 +341,7 @@ def refine_geometry(
                  energy_after=energies[-1] if energies else None,
                  intersections_before=before_share)
     fitted_mesh = (mesh.with_vertices(positions) if source is not None else
-                   PolygonMesh(positions, tri.reshape(-1), np.arange(0, 3 * len(tri) + 1, 3)))
+                   PolygonMesh.from_faces(positions, tri))
     tracker = CrossingFaces(fitted_mesh)  # the guard's rounds test only what they move
     share, hit = _tracked_share(tracker, positions, source)
     if options.guard and share > before_share:
@@ -358,5 +358,5 @@ def refine_geometry(
     stats["intersections_after"] = share
     if not triangle_mesh:
         return GeometryResult(mesh.with_vertices(positions), stats)
-    out = PolygonMesh(positions, tri.reshape(-1), np.arange(0, 3 * len(tri) + 1, 3))
+    out = PolygonMesh.from_faces(positions, tri)
     return GeometryResult(out, stats)

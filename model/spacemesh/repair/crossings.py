@@ -111,14 +111,29 @@ def _uncrossed(mesh: PolygonMesh, source: IntArray, faces: BoolArray, corners: I
     whose triangles cross nothing; None when each crosses."""
     for make in _triangulations(mesh, corners, surface):
         triangles, centre = make()
-        if triangles is None:
-            continue
-        trial = _replaced(mesh, faces, triangles, centre)
-        added = np.arange(trial.n_faces) >= trial.n_faces - len(triangles)
-        if len(crossing_faces(trial, added)) == 0:
-            return trial, np.concatenate([source[~faces],
-                                          np.full(len(triangles), -1, dtype=np.int64)])
+        found = None if triangles is None else _clear(mesh, source, faces, triangles, centre)
+        if found is not None:
+            return found
     return None
+
+
+def _clear(mesh: PolygonMesh, source: IntArray, faces: BoolArray, triangles: IntArray,
+           centre: FloatArray | None = None) -> tuple[PolygonMesh, IntArray] | None:
+    """``mesh`` without the ``faces`` ((F,) bool), the ``triangles`` (T, 3) appended as
+    new faces (and ``centre`` (3,), when given, as a new vertex), with its faces'
+    ``source`` (-1 for the triangles); None when a triangle crosses a face."""
+    kept = faces_subset(mesh, ~faces)
+    if centre is not None:
+        kept = PolygonMesh(np.concatenate([kept.vertices, centre[None]]), kept.face_indices,
+                           kept.face_offsets)
+    sizes = np.concatenate([kept.face_sizes, np.full(len(triangles), 3, dtype=np.int64)])
+    trial = PolygonMesh(kept.vertices, np.concatenate([kept.face_indices,
+                                                       triangles.reshape(-1)]),
+                        np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64))
+    added = np.arange(trial.n_faces) >= kept.n_faces
+    if len(crossing_faces(trial, added)):
+        return None
+    return trial, np.concatenate([source[~faces], np.full(len(triangles), -1, np.int64)])
 
 
 def _merge_crossing_faces(mesh: PolygonMesh, source: IntArray, surface: PolygonMesh
@@ -164,12 +179,7 @@ def _banded(mesh: PolygonMesh, source: IntArray, faces: BoolArray, first: IntArr
     if ((in_first[:, 0] & in_second[:, 1]) | (in_second[:, 0] & in_first[:, 1])).any() \
             or len(np.unique(corners)) < len(corners):
         return None  # an edge between the loops exists already: not manifold
-    band = band_triangles(mesh.vertices, first, second)
-    trial = _appended(faces_subset(mesh, ~faces), band)
-    added = np.arange(trial.n_faces) >= trial.n_faces - len(band)
-    if len(crossing_faces(trial, added)):
-        return None
-    return trial, np.concatenate([source[~faces], np.full(len(band), -1, dtype=np.int64)])
+    return _clear(mesh, source, faces, band_triangles(mesh.vertices, first, second))
 
 
 def _bridge_crossing_polygons(mesh: PolygonMesh, source: IntArray
@@ -223,12 +233,14 @@ def band_triangles(vertices: FloatArray, first: IntArray, second: IntArray) -> I
     cost[0, 0] = 0.0
     for i in range(n + 1):
         for j in range(m + 1):
-            if i and cost[i - 1, j] + area(a_at[i - 1], a_at[i], b_at[j]) < cost[i, j]:
-                cost[i, j] = cost[i - 1, j] + area(a_at[i - 1], a_at[i], b_at[j])
-                came[i, j] = 1
-            if j and cost[i, j - 1] + area(b_at[j], b_at[j - 1], a_at[i]) < cost[i, j]:
-                cost[i, j] = cost[i, j - 1] + area(b_at[j], b_at[j - 1], a_at[i])
-                came[i, j] = 2
+            if i:  # a step along the first polygon
+                step = cost[i - 1, j] + area(a_at[i - 1], a_at[i], b_at[j])
+                if step < cost[i, j]:
+                    cost[i, j], came[i, j] = step, 1
+            if j:  # a step along the second
+                step = cost[i, j - 1] + area(b_at[j], b_at[j - 1], a_at[i])
+                if step < cost[i, j]:
+                    cost[i, j], came[i, j] = step, 2
     triangles, i, j = [], n, m
     while i or j:
         if came[i, j] == 1:
@@ -238,14 +250,6 @@ def band_triangles(vertices: FloatArray, first: IntArray, second: IntArray) -> I
             triangles.append((b_at[j], b_at[j - 1], a_at[i]))
             j -= 1
     return np.asarray(triangles[::-1], dtype=np.int64).reshape(-1, 3)
-
-
-def _appended(mesh: PolygonMesh, triangles: IntArray) -> PolygonMesh:
-    """``mesh`` with the ``triangles`` (T, 3) appended as faces."""
-    sizes = np.concatenate([mesh.face_sizes, np.full(len(triangles), 3, dtype=np.int64)])
-    return PolygonMesh(mesh.vertices, np.concatenate([mesh.face_indices,
-                                                      triangles.reshape(-1)]),
-                       np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64))
 
 
 def _suspect_polygons(mesh: PolygonMesh, crossing: IntArray, polygons: BoolArray) -> IntArray:
@@ -270,17 +274,6 @@ def _face_index(mesh: PolygonMesh, corners: IntArray) -> int:
         if np.array_equal(mesh.face_indices[start:start + len(corners)], corners):
             return int(face)
     raise ValueError("no such face")  # a polygon is only replaced after it is found
-
-
-def _replaced(mesh: PolygonMesh, faces: BoolArray, triangles: IntArray,
-              centre: FloatArray | None) -> PolygonMesh:
-    """``mesh`` without the ``faces`` ((F,) bool), with the ``triangles`` (T, 3) appended
-    as faces and ``centre`` (3,), when given, appended as a vertex."""
-    kept = faces_subset(mesh, ~faces)
-    if centre is not None:
-        kept = PolygonMesh(np.concatenate([kept.vertices, centre[None]]), kept.face_indices,
-                           kept.face_offsets)
-    return _appended(kept, triangles)
 
 
 def _triangulations(mesh: PolygonMesh, corners: IntArray, surface: PolygonMesh
