@@ -16,7 +16,7 @@ with every step <= 2 s per mesh (``--threads 0``).
 Usage::
 
     python bench/bench_geometry.py [--threads 0] [--repeats 5] [--model MODEL_DIR]
-        [--meshes FILE ...]
+        [--meshes FILE ...] [--modes default,tolerance=0.002]
 """
 
 from __future__ import annotations
@@ -36,6 +36,9 @@ def main() -> None:
     parser.add_argument("--model", default=None)
     parser.add_argument("--meshes", nargs="*", default=[],
                         help="mesh files to time as well (the default path)")
+    parser.add_argument("--modes", default=None,
+                        help="comma-separated modes to time (default: all), e.g. "
+                             "'default,tolerance=0.002'")
     args = parser.parse_args()
     from spacemesh.evaluate.runner import pin_threads
 
@@ -54,6 +57,12 @@ def main() -> None:
              "target_vertices=2000": {"target_vertices": 2000},
              "tolerance=0.002": {"tolerance": 0.002}, "dense_factor=1": {},
              "dense_factor=4": {}}
+    if args.modes is not None:
+        wanted = args.modes.split(",")
+        unknown = sorted(set(wanted) - set(modes))
+        if unknown:
+            parser.error(f"unknown modes {unknown}; known: {', '.join(modes)}")
+        modes = {mode: modes[mode] for mode in wanted}
     print(f"model {generator.name} ({generator.repository.path}), {args.threads} threads, "
           f"{args.repeats} seeds per shape")
     print(f"{'mode':<22}{'total s':>9}{'wall s':>9}{'retried':>9}  median stage seconds")

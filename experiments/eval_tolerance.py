@@ -39,6 +39,12 @@ def main() -> int:
     parser.add_argument("--margin", type=float, default=None,
                         help="the search's aim as a fraction of the tolerance (default: "
                              "spacemesh.runtime.tolerance.TOLERANCE_MARGIN)")
+    parser.add_argument("--simplify-share", type=float, default=None,
+                        help="the simplified mesh's distance before its fit, in aims "
+                             "(default: spacemesh.geometry.finishing.SIMPLIFY_SHARE)")
+    parser.add_argument("--local-share", type=float, default=None,
+                        help="the most one collapse may cost, in aims (default: "
+                             "spacemesh.geometry.simplify.LOCAL_DISTANCE_SHARE)")
     args = parser.parse_args()
     if not (args.meshes / "manifest.csv").is_file():
         print(f"skipped: {args.meshes / 'manifest.csv'} not found")
@@ -56,6 +62,13 @@ def main() -> int:
 
     if args.margin is not None:
         tolerance_search.TOLERANCE_MARGIN = args.margin
+    from spacemesh.geometry import finishing
+
+    if args.simplify_share is not None:
+        finishing.SIMPLIFY_SHARE = args.simplify_share
+    if args.local_share is not None:
+        from spacemesh.geometry import simplify as simplification
+        simplification.LOCAL_DISTANCE_SHARE = args.local_share
 
     paths, categories = split_meshes(args.meshes, args.split, set(args.categories.split(",")))
     shapes = mesh_shapes(paths, categories=categories, seed=args.seed)[: args.limit]
@@ -78,7 +91,8 @@ def main() -> int:
         counts.append(result.mesh.n_vertices)
         print(f"{shape.shape_id[:48]:48s} {shape.category:11s} truth->mesh {distance:.5f} "
               f"({'ok' if within[-1] else 'OVER'}), fit met {met[-1]}, "
-              f"{counts[-1]} vertices, {seconds[-1]:.1f} s", flush=True)
+              f"{counts[-1]} vertices, {len(result.tolerance_tries)} tries, "
+              f"{seconds[-1]:.1f} s", flush=True)
     print(f"\n{args.split} split, tolerance {args.tolerance:g}, margin "
           f"{tolerance_search.TOLERANCE_MARGIN:g}, {len(shapes)} meshes: "
           f"truth->mesh within it on {100 * np.mean(within):.0f}%, fit report met on "

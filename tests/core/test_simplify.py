@@ -154,6 +154,30 @@ def test_stop_at_error_collapses_a_box_onto_its_corners_and_no_further():
     assert simplify(mesh, points, max_error=1e-9).mesh.n_vertices > 8
 
 
+@pytest.mark.parametrize("max_distance", [0.005, 0.02])
+def test_stop_at_distance_keeps_the_points_within_it(max_distance):
+    """``max_distance``: the mesh returned keeps the mean distance from the points
+    within it (measured as the fit report does), and a larger one allows more
+    collapses; below the input's own distance nothing collapses."""
+    from spacemesh.geometry.report import points_to_mesh_mean
+
+    mesh = icosphere(4)
+    mesh = mesh.with_vertices(mesh.vertices * [1.0, 0.6, 0.3])
+    points, _ = _points(mesh)
+    result = simplify(mesh, points, max_distance=max_distance)
+    _check(mesh, result)
+    assert 0 < result.stats["collapsed"] < mesh.n_vertices - 4
+    assert points_to_mesh_mean(result.mesh, points) <= max_distance
+    assert result.stats["mean_distance"] == pytest.approx(
+        points_to_mesh_mean(result.mesh, points))
+    assert simplify(mesh, points, max_distance=2 * max_distance).mesh.n_vertices < (
+        result.mesh.n_vertices)
+    unchanged = simplify(mesh, points, max_distance=1e-9)
+    assert unchanged.mesh is mesh and unchanged.vertex_map is None
+    with pytest.raises(ValueError, match="points"):
+        simplify(mesh, None, max_distance=max_distance)
+
+
 def test_an_open_mesh_keeps_its_boundary():
     mesh = _fine_box()
     centres = mesh.vertices[mesh.face_indices.reshape(-1, 3)].mean(axis=1)

@@ -19,12 +19,20 @@ from typing import Any
 import numpy as np
 
 from spacemesh.geometry.pieces import drop_fragments
-from spacemesh.geometry.report import fit_score
+from spacemesh.geometry.report import fit_score, points_to_mesh_mean
 from spacemesh.geometry.simplify import simplify
-from spacemesh.geometry.stage import GeometryOptions, refine_geometry
+from spacemesh.geometry.stage import GeometryOptions, GeometryResult, refine_geometry
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import flip_faces, signed_volume
 from spacemesh.typed import FloatArray
+
+#: ``max_distance``: the collapses may first leave the mesh this many times that distance
+#: from the points (its fit brings it closer; tuned on the dev split) ...
+SIMPLIFY_SHARE = 1.5
+#: ... and while the fitted mesh misses it, they run again from the dense mesh with the
+#: allowance shrunk by the miss (at least by this factor), at most this many times in all.
+SHRINK = 0.8
+SIMPLIFY_TRIES = 3
 
 
 def outward(mesh: PolygonMesh) -> PolygonMesh:
@@ -39,6 +47,7 @@ def finish_geometry(
     options: GeometryOptions,
     *,
     target_vertices: int | None = None,
+    max_distance: float | None = None,
 ) -> tuple[PolygonMesh, dict[str, Any]]:
     """Drop fragments, then run the geometry stage (see the module docstring).
 
@@ -57,6 +66,11 @@ def finish_geometry(
         mesh with more is simplified to this many first
         (:func:`spacemesh.geometry.simplify.simplify`); one with fewer gets its edges
         split up to it.
+    max_distance : float, optional
+        Simplify to a distance instead (``tolerance``): the decode, fitted, is collapsed
+        for as long as the mean distance from the points to it stays within this
+        (:func:`spacemesh.geometry.simplify.simplify`'s ``max_distance``), whatever
+        ``target_vertices`` and the dense decode, then fitted at its own count.
 
     Returns
     -------
@@ -68,7 +82,14 @@ def finish_geometry(
     """
     mesh, dropped = drop_fragments(mesh)
     simplified: dict[str, Any] = {}
-    if (options.dense_factor > 1 and target_vertices is not None
+    fitted_with_normals: GeometryResult | None = None  # a fit made already
+    if max_distance is not None:
+        # simplified to a distance: the count follows the shape
+        dense = refine_geometry(mesh, points, normals, options).mesh
+        mesh, simplified, fitted_with_normals = _simplified_within(
+            dense, points, normals, options, max_distance)
+        target_vertices = None
+    elif (options.dense_factor > 1 and target_vertices is not None
             and mesh.n_vertices > target_vertices):
         # a dense decode: fitted to the points first (the collapses' placements and
         # costs read the fitted surface), then collapsed to the count asked for, the
@@ -79,7 +100,9 @@ def finish_geometry(
     tries = [normals] if normals is None else [normals, None]
     best: tuple[float, PolygonMesh, dict[str, Any]] | None = None
     for given in tries:
-        refined = refine_geometry(mesh, points, given, options, target_vertices=target_vertices)
+        refined = (fitted_with_normals if fitted_with_normals is not None and given is normals
+                   else refine_geometry(mesh, points, given, options,
+                                        target_vertices=target_vertices))
         fitted = outward(refined.mesh)
         stats = dict(refined.stats, n_fragments_dropped=dropped, **simplified)
         if normals is not None:
@@ -90,3 +113,36 @@ def finish_geometry(
             best = (score, fitted, stats)
     assert best is not None  # at least one try
     return best[1], best[2]
+
+
+def _simplified_within(dense: PolygonMesh, points: FloatArray, normals: FloatArray | None,
+                       options: GeometryOptions, max_distance: float
+                       ) -> tuple[PolygonMesh, dict[str, Any], GeometryResult]:
+    """``dense`` (fitted) collapsed for as long as the mean distance from ``points``
+    stays within :data:`SIMPLIFY_SHARE` times ``max_distance``, then fitted; while the
+    fitted mesh's mean distance (:func:`spacemesh.geometry.report.points_to_mesh_mean`)
+    misses ``max_distance``, collapsed again from ``dense`` with the allowance shrunk by
+    the miss, at most :data:`SIMPLIFY_TRIES` times in all.
+
+    Returns
+    -------
+    mesh : PolygonMesh
+        The collapsed mesh, before its fit.
+    stats : dict
+        ``{"simplify": ...}``: the last collapse's statistics, ``tries`` and the fitted
+        mesh's ``fitted_distance``.
+    fitted : GeometryResult
+        Its fit (with ``normals``).
+    """
+    allowed = SIMPLIFY_SHARE * max_distance
+    tries = 0
+    while True:
+        tries += 1
+        reduced = simplify(dense, points, normals, max_distance=allowed)
+        fitted = refine_geometry(reduced.mesh, points, normals, options)
+        distance = points_to_mesh_mean(fitted.mesh, points)
+        if distance <= max_distance or reduced.mesh is dense or tries == SIMPLIFY_TRIES:
+            break
+        allowed *= min(max_distance / distance, SHRINK)
+    stats = {**reduced.stats, "tries": tries, "fitted_distance": distance}
+    return reduced.mesh, {"simplify": stats}, fitted

@@ -156,6 +156,17 @@ def _distances(mesh: PolygonMesh, points: FloatArray) -> tuple[FloatArray, Float
     return to_mesh, np.asarray(to_points, dtype=np.float64)
 
 
+def points_to_mesh_mean(mesh: PolygonMesh, points: FloatArray) -> float:
+    """:attr:`FitReport.points_to_mesh_mean` alone: the mean distance from the points
+    the report measures to ``mesh`` (infinite for a mesh without faces or no points)."""
+    points, _ = _report_points(points)
+    if mesh.n_faces == 0 or len(points) == 0:
+        return float("inf")
+    triangles, _ = triangles_of(mesh)
+    _, gap = nearest_triangles(points, mesh.vertices, triangles)
+    return float(np.sqrt(np.maximum(gap, 0.0)).mean())
+
+
 def fit_score(mesh: PolygonMesh, points: FloatArray) -> float:
     """:attr:`FitReport.score` alone, without the topology and the intersection test.
 

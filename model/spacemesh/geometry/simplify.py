@@ -24,9 +24,14 @@ Every collapse keeps what the decode guaranteed, and more:
 * **the same boundary**: on an open mesh no edge that touches a boundary vertex
   collapses (the link condition above is the one of a closed surface).
 
-It stops at a vertex count (``target_vertices``, the dense decode's use) or at an error
-(``max_error``, ``face_type=polygons``: :func:`spacemesh.geometry.polygons.collapse_flat`),
-whichever comes first. With ``max_error`` the error of a collapse is its quadric's cost
+It stops at a vertex count (``target_vertices``, the dense decode's use), at an error
+(``max_error``, ``face_type=polygons``: :func:`spacemesh.geometry.polygons.collapse_flat`)
+or at a distance (``max_distance``, ``tolerance``), whichever comes first. With
+``max_distance`` the mean distance from the points to the collapsed mesh is measured
+every :data:`DISTANCE_EVERY` collapses, and the last mesh within it is returned; no
+single collapse may then cost more than :data:`LOCAL_DISTANCE_SHARE` times it (its
+``max_error``, unless given), so a small feature is not cut away because the mean
+hides it. With ``max_error`` the error of a collapse is its quadric's cost
 per unit of its weight (the trace of its 3x3 block): the weighted mean squared distance
 of the merged vertex from the planes its quadric has gathered (the points', or with no
 points the mesh's own faces'), so a collapse in a flat region costs about nothing, one
@@ -52,11 +57,18 @@ from spacemesh.geometry.fitting import plane_fits
 from spacemesh.geometry.intersections import pairs_cross
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangle_normals
+from spacemesh.primitives.closest import nearest_triangles
 from spacemesh.topology import edge_connected_faces, surface_topology
 from spacemesh.typed import FloatArray, IntArray
 
 #: Collapses between two cancellation checkpoints (spacemesh.cancel).
 CHECK_EVERY = 32
+#: With ``max_distance``: collapses between two measurements of the mean distance from
+#: the points to the mesh.
+DISTANCE_EVERY = 16
+#: With ``max_distance`` (and no ``max_error``): a collapse's error may be at most this
+#: many times it (root mean square over the points its quadric gathered).
+LOCAL_DISTANCE_SHARE = 3.0
 #: A quadric's 3x3 block is solved for its minimum only when its determinant exceeds this
 #: share of its trace cubed (else the ends and the midpoint are compared).
 WELL_POSED = 1e-9
@@ -414,12 +426,19 @@ class _Collapser:
                            np.arange(0, 3 * len(tri) + 1, 3))
         return mesh, index[root]
 
+    def mean_distance(self, points: FloatArray) -> float:
+        """The mean distance from ``points`` to the current mesh."""
+        _, gap = nearest_triangles(points, self.positions, self.triangles[self.face_alive])
+        return float(np.sqrt(np.maximum(gap, 0.0)).mean())
+
 
 def simplify(mesh: PolygonMesh, points: FloatArray | None, normals: FloatArray | None = None, *,
              target_vertices: int = 4, options: SimplifyOptions | None = None,
-             max_error: float | None = None) -> SimplifyResult:
+             max_error: float | None = None, max_distance: float | None = None
+             ) -> SimplifyResult:
     """Collapse edges of a closed triangle mesh, cheapest first, down to
-    ``target_vertices`` or up to ``max_error`` (see the module docstring).
+    ``target_vertices``, up to ``max_error`` or up to ``max_distance`` (see the module
+    docstring).
 
     Parameters
     ----------
@@ -439,6 +458,11 @@ def simplify(mesh: PolygonMesh, points: FloatArray | None, normals: FloatArray |
         Make no collapse whose error (its cost per unit of quadric weight, a mean
         squared distance: the module docstring) exceeds this; None: costs are summed
         squared distances and only ``target_vertices`` stops.
+    max_distance : float, optional
+        Stop before the mean distance from ``points`` to the mesh exceeds this (measured
+        every :data:`DISTANCE_EVERY` collapses; the last mesh within it is returned, the
+        input when none was); ``max_error`` defaults to
+        ``(LOCAL_DISTANCE_SHARE * max_distance) ** 2``. Needs ``points``.
 
     Returns
     -------
@@ -446,6 +470,11 @@ def simplify(mesh: PolygonMesh, points: FloatArray | None, normals: FloatArray |
         The input unchanged when it is not a triangle mesh or already small enough.
     """
     options = options or SimplifyOptions()
+    if max_distance is not None:
+        if points is None:
+            raise ValueError("max_distance needs the points")
+        if max_error is None:
+            max_error = (LOCAL_DISTANCE_SHARE * max_distance) ** 2
     stats: dict[str, Any] = {"collapsed": 0, "refused": {}, "max_error": 0.0,
                              "kept_topology": True}
     if (not mesh.is_triangle_mesh() or mesh.n_vertices <= target_vertices
@@ -464,6 +493,7 @@ def simplify(mesh: PolygonMesh, points: FloatArray | None, normals: FloatArray |
     state = _Collapser(vertices, triangles, quadrics, options, max_error)
     state.push([(int(a), int(b)) for a, b in mesh.edges])
     alive = mesh.n_vertices
+    within: tuple[PolygonMesh, IntArray | None, dict[str, Any]] = (mesh, None, dict(stats))
     while alive > target_vertices and state.heap:
         if stats["collapsed"] % CHECK_EVERY == 0:
             checkpoint()  # abandoned work stops here (spacemesh.cancel)
@@ -477,13 +507,40 @@ def simplify(mesh: PolygonMesh, points: FloatArray | None, normals: FloatArray |
             alive -= 1
             stats["collapsed"] += 1
             stats["max_error"] = max(stats["max_error"], cost)
+            if max_distance is not None and stats["collapsed"] % DISTANCE_EVERY == 0:
+                if not _within(state, points, max_distance, stats, within):
+                    break
+                within = (*state.mesh(), dict(stats))
     stats["refused"] = dict(state.refused)
-    out, vertex_map = state.mesh()
+    if max_distance is not None and (stats.get("stopped_at_distance") or not _within(
+            state, points, max_distance, stats, within)):
+        out, vertex_map, kept = within  # the last mesh within the distance
+        stats.update(collapsed=kept["collapsed"], max_error=kept["max_error"])
+        if vertex_map is None:
+            return SimplifyResult(mesh, stats)
+    else:
+        out, vertex_map = state.mesh()
     before, after = surface_topology(mesh), surface_topology(out)
     if (before.pieces, before.genus) != (after.pieces, after.genus):
         stats["kept_topology"] = False
         return SimplifyResult(mesh, stats)
     return SimplifyResult(out, stats, vertex_map)
+
+
+def _within(state: _Collapser, points: FloatArray | None, max_distance: float,
+            stats: dict[str, Any], last: tuple[PolygonMesh, IntArray | None, dict[str, Any]]
+            ) -> bool:
+    """Whether the mean distance from ``points`` to ``state``'s mesh is within
+    ``max_distance``; ``stats["mean_distance"]`` is the measurement (``last``'s, the mesh
+    kept, when it is not)."""
+    assert points is not None
+    distance = state.mean_distance(points)
+    if distance <= max_distance:
+        stats["mean_distance"] = distance
+        return True
+    stats["mean_distance"] = last[2].get("mean_distance")
+    stats["stopped_at_distance"] = True
+    return False
 
 
 __all__ = ["SimplifyOptions", "SimplifyResult", "face_quadrics", "point_quadrics",

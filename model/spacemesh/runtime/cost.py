@@ -37,7 +37,8 @@ than fewer. A mesh that still crosses after the untangling is made again from ``
 vertices (:func:`spacemesh.runtime.network.fewer_vertices`: the model's count, or half
 the count asked for) and split back up to ``V``; the estimate counts it at a chance of
 0.25 (absent with ``raw``, from noise, or where no count is left). A ``tolerance``
-search counts as 8 tries (:meth:`CostModel.tolerance_tries`): the doubling ladder from
+request counts as 8 tries (its simplified generate and the search that may follow it;
+:meth:`CostModel.tolerance_tries`): the doubling ladder from
 the model's count to the count whose mesh is expected within the tolerance (a mean
 distance of ``0.5 / V`` of the diagonal: twice the example torus's), the other tries at
 that count, each costing the request's seeds. A repair::

@@ -27,6 +27,7 @@ from spacemesh.runtime.options import MIN_TARGET_VERTICES, GenerateOptions
 from spacemesh.runtime.request import GenerateResult, PreparedInput
 from spacemesh.runtime.sampler import ProgressFn, StageFn, sample, split_tokens, start_steps
 from spacemesh.runtime.spec import DUPLICATE_TOLERANCE, ModelSpec
+from spacemesh.runtime.tolerance import simplify_distance
 from spacemesh.topology import surface_topology
 from spacemesh.typed import FloatArray
 
@@ -238,9 +239,12 @@ def run_group(backend: Backend, spec: ModelSpec,
         if not options.raw:
             stage("geometry", b + 1, len(jobs))
             unit, normals = prepared.fit_points()
+            within = None  # with a tolerance: simplified to it (runtime.tolerance)
+            if options.tolerance is not None and start == "points":
+                within = simplify_distance(options.tolerance, unit)
             mesh, geometry_stats = finish_geometry(
                 mesh, unit, normals, spec.geometry,
-                target_vertices=wanted if start == "points" else None,
+                target_vertices=wanted if start == "points" else None, max_distance=within,
             )
             # last: trimming only removes faces, and the seeds' checks see the result
             mesh, surface, trimmed = shape_surface(mesh, unit, normals, str(options.surface),

@@ -65,7 +65,13 @@ from spacemesh.runtime.request import (
 )
 from spacemesh.runtime.sampler import ProgressFn, StageFn
 from spacemesh.runtime.spec import ModelSpec
-from spacemesh.runtime.tolerance import aim, attempt_options, distance_of, search_vertex_count
+from spacemesh.runtime.tolerance import (
+    MAX_TRIES,
+    aim,
+    attempt_options,
+    distance_of,
+    search_vertex_count,
+)
 from spacemesh.typed import FloatArray
 
 #: ``face_type=polygons``: the largest distance of a polygon's corner from its plane, a
@@ -451,15 +457,28 @@ class MeshGenerator:
                           progress: ProgressFn | None, stage: StageFn | None
                           ) -> GenerateResult:
         """The smallest mesh within ``options.tolerance`` (resolved options), every try
-        on the same prepared points. The tries run without the model's retry seeds (the
-        search's time); the count found gets them when its mesh fails the topology
-        check, and a retry's mesh is taken only if it keeps the tolerance met. The mesh
-        found is the one a generate at its count gives (untangled and faced once, as
-        :meth:`_generate_prepared` finishes it); a retry seed's is finished likewise."""
+        on the same prepared points.
+
+        First one generate whose decode, fitted, is simplified for as long as no collapse
+        costs more than the tolerance allows (:func:`collapse_error`; the model's seeds,
+        retries and mends as any generate), taken when its points are within the aim.
+        Else a search over vertex counts (:func:`search_vertex_count`, the first try
+        counted among its :data:`MAX_TRIES`). The search's tries run without the model's
+        retry seeds (the search's time); the count found gets them when its mesh fails
+        the topology check, and a retry's mesh is taken only if it keeps the tolerance
+        met. The mesh found is the one a generate at its count gives (untangled and faced
+        once, as :meth:`_generate_prepared` finishes it); a retry seed's is finished
+        likewise."""
         assert options.tolerance is not None
         tolerance = float(options.tolerance)
-
-        ran: list[GenerateResult] = []  # every try and retry, for the timings
+        if stage is not None:
+            stage("tolerance", 1, MAX_TRIES)
+        simplified = self._generate_prepared([(prepared, options)], progress, stage)[0]
+        ran: list[GenerateResult] = [simplified]  # every try and retry, for the timings
+        if distance_of(simplified) <= aim(tolerance):
+            simplified.tolerance_tries = [(simplified.mesh.n_vertices,
+                                           distance_of(simplified))]
+            return simplified
 
         def run(count: int) -> GenerateResult:
             attempt = attempt_options(options, count)  # resolved: the request's are
@@ -469,10 +488,11 @@ class MeshGenerator:
 
         def on_try(done: int, total: int) -> None:
             if stage is not None:
-                stage("tolerance", done, total)
+                stage("tolerance", done + 1, total + 1)
 
         found, _, tried = search_vertex_count(run, aim(tolerance), self.vertex_count(options),
-                                              on_try=on_try)
+                                              on_try=on_try, max_tries=MAX_TRIES - 1)
+        tried = [(simplified.mesh.n_vertices, distance_of(simplified)), *tried]
         expected = prepared.pieces
         searched = found  # a generate's mesh: untangled and faced already
         if self.spec.retry_seeds and not acceptable(found, expected):

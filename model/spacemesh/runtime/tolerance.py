@@ -4,10 +4,17 @@ A request with ``tolerance = t`` asks for the smallest mesh whose mean distance 
 input points to the mesh (the fit report's ``points_to_mesh_mean_rel``, a fraction of
 the input's bounding-box diagonal) is at most ``t``. The points are a sample of the
 surface and the geometry stage fits the mesh to exactly them, so the distance from the
-rest of the surface is larger than theirs: the search aims at
-``TOLERANCE_MARGIN * t`` (:func:`aim`). The distance falls as vertices are added, though
-not strictly, so :func:`search_vertex_count` brackets the count on a doubling ladder from
-the model's default count and bisects the bracket geometrically:
+rest of the surface is larger than theirs: it aims at ``TOLERANCE_MARGIN * t``
+(:func:`aim`).
+
+First, one generate: its decode (the model's dense one), fitted, is collapsed for as long
+as the mean distance from the points stays within the aim (:func:`simplify_distance`,
+:func:`spacemesh.geometry.finishing.finish_geometry`'s ``max_distance``), then fitted;
+it is taken when its points are within the aim. Only where it misses (a tolerance tighter
+than the dense decode reaches, or a fit that moved away) does a search run, the first
+generate counted among its :data:`MAX_TRIES`. The distance falls as vertices are added,
+though not strictly, so :func:`search_vertex_count` brackets the count on a doubling
+ladder from the model's default count and bisects the bracket geometrically:
 
 1. generate at the default count (200 for the shipped model);
 2. within the aim: halve the count until it is not (or :data:`MIN_SEARCH_VERTICES`);
@@ -18,8 +25,8 @@ the model's default count and bisects the bracket geometrically:
 The smallest mesh within the aim is returned; when none was (the cap or the tries ran
 out), the one closest to it. Its fit report's ``tolerance_met`` says whether its points
 are within ``t`` itself.
-Each try is a whole generate at ``target_vertices = count`` with the request's other
-options, so the result is the same mesh a request for that count would get.
+Each search try is a whole generate at ``target_vertices = count`` with the request's
+other options, so its result is the same mesh a request for that count would get.
 """
 
 from __future__ import annotations
@@ -32,6 +39,7 @@ from typing import TypeVar
 import numpy as np
 
 from spacemesh.runtime.options import GenerateOptions
+from spacemesh.typed import FloatArray
 
 #: Fewest and most vertices the search tries.
 MIN_SEARCH_VERTICES = 8
@@ -64,6 +72,7 @@ def search_vertex_count(
     start: int,
     *,
     on_try: Callable[[int, int], None] | None = None,
+    max_tries: int = MAX_TRIES,
 ) -> tuple[Result, bool, list[tuple[int, float]]]:
     """Find the smallest vertex count whose mesh fits within ``tolerance``.
 
@@ -76,7 +85,9 @@ def search_vertex_count(
     start : int
         The first count tried (clipped to the search's range).
     on_try : callable, optional
-        ``on_try(k, MAX_TRIES)`` before the ``k``-th try (1-based).
+        ``on_try(k, max_tries)`` before the ``k``-th try (1-based).
+    max_tries : int
+        Most tries (:data:`MAX_TRIES`).
 
     Returns
     -------
@@ -91,9 +102,9 @@ def search_vertex_count(
     tried: list[tuple[int, float]] = []
     smallest_met: int | None = None
     largest_missed: int | None = None
-    for k in range(1, MAX_TRIES + 1):
+    for k in range(1, max_tries + 1):
         if on_try is not None:
-            on_try(k, MAX_TRIES)
+            on_try(k, max_tries)
         result = run(count)
         results[count] = result
         distance = distance_of(result)
@@ -127,6 +138,26 @@ def _next_count(smallest_met: int | None, largest_missed: int | None) -> int | N
         return None  # bracketed (or the distance went up with the count: stop there)
     middle = round(math.sqrt(smallest_met * largest_missed))
     return middle if largest_missed < middle < smallest_met else None
+
+
+def simplify_distance(tolerance: float, points: FloatArray) -> float:
+    """The mean distance a mesh simplified to ``tolerance`` may keep from ``points``
+    (:func:`spacemesh.geometry.finishing.finish_geometry`'s ``max_distance``): the
+    :func:`aim`, in the units of ``points``.
+
+    Parameters
+    ----------
+    tolerance : float
+        The request's tolerance, a fraction of the points' bounding-box diagonal.
+    points : (P, 3) float
+        The points the mesh is fitted to (the normalised frame).
+
+    Returns
+    -------
+    float
+    """
+    diagonal = float(np.linalg.norm(np.ptp(np.asarray(points, np.float64), axis=0)))
+    return aim(tolerance) * diagonal
 
 
 def aim(tolerance: float) -> float:
