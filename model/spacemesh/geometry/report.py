@@ -50,7 +50,7 @@ from spacemesh.geometry.polygons import face_planarity
 from spacemesh.io.reduce import reduction_indices
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangle_areas, triangles_of
-from spacemesh.primitives.closest import nearest_triangles
+from spacemesh.primitives.closest import mean_distance, nearest_triangles
 from spacemesh.topology import surface_topology, vertex_connected_faces
 from spacemesh.typed import FloatArray
 
@@ -163,8 +163,7 @@ def points_to_mesh_mean(mesh: PolygonMesh, points: FloatArray) -> float:
     if mesh.n_faces == 0 or len(points) == 0:
         return float("inf")
     triangles, _ = triangles_of(mesh)
-    _, gap = nearest_triangles(points, mesh.vertices, triangles)
-    return float(np.sqrt(np.maximum(gap, 0.0)).mean())
+    return mean_distance(points, mesh.vertices, triangles)
 
 
 def fit_score(mesh: PolygonMesh, points: FloatArray) -> float:

@@ -57,7 +57,7 @@ from spacemesh.geometry.fitting import plane_fits
 from spacemesh.geometry.intersections import pairs_cross
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangle_normals
-from spacemesh.primitives.closest import nearest_triangles
+from spacemesh.primitives.closest import mean_distance
 from spacemesh.topology import edge_connected_faces, surface_topology
 from spacemesh.typed import FloatArray, IntArray
 
@@ -428,8 +428,7 @@ class _Collapser:
 
     def mean_distance(self, points: FloatArray) -> float:
         """The mean distance from ``points`` to the current mesh."""
-        _, gap = nearest_triangles(points, self.positions, self.triangles[self.face_alive])
-        return float(np.sqrt(np.maximum(gap, 0.0)).mean())
+        return mean_distance(points, self.positions, self.triangles[self.face_alive])
 
 
 def simplify(mesh: PolygonMesh, points: FloatArray | None, normals: FloatArray | None = None, *,

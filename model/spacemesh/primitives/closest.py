@@ -189,3 +189,22 @@ def nearest_triangles(points: FloatArray, positions: FloatArray, triangles: IntA
     best = np.argmin(gap, axis=1)
     rows = np.arange(len(points))
     return near[rows, best], gap[rows, best]
+
+
+def mean_distance(points: FloatArray, positions: FloatArray, triangles: IntArray) -> float:
+    """The mean distance from ``points`` to the surface of ``triangles`` (exact, through
+    :func:`nearest_triangles`).
+
+    Parameters
+    ----------
+    points : (P, 3) float
+    positions : (N, 3) float
+    triangles : (T, 3) int
+        At least one.
+
+    Returns
+    -------
+    float
+    """
+    _, gap = nearest_triangles(points, positions, triangles)
+    return float(np.sqrt(np.maximum(gap, 0.0)).mean())
