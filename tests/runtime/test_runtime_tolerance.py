@@ -13,6 +13,7 @@ from spacemesh.runtime.tolerance import (
     MAX_TRIES,
     MIN_SEARCH_VERTICES,
     attempt_options,
+    most_vertices,
     search_vertex_count,
 )
 
@@ -54,6 +55,17 @@ def test_an_unreachable_tolerance_returns_the_closest_mesh_unmet():
     run, calls = made(lambda n: 0.0)
     result, met, _ = search_vertex_count(run, 0.01, 200)
     assert met and result.count == MIN_SEARCH_VERTICES
+
+
+def test_the_search_tries_no_more_vertices_than_the_points():
+    run, calls = made(lambda n: 0.5 + 1.0 / n)  # never met: the ladder climbs to the cap
+    result, met, _ = search_vertex_count(run, 0.01, 200, most=most_vertices(2048))
+    assert not met and result.count == max(calls) == 2048
+    run, calls = made(lambda n: 1.0 / n)  # met at 1,000: bracketed below the cap
+    result, met, _ = search_vertex_count(run, 0.001, 200, most=most_vertices(2048))
+    assert met and 1000 <= result.count <= 2048 and max(calls) <= 2048
+    assert most_vertices(3) == MIN_SEARCH_VERTICES
+    assert most_vertices(200_000) == MAX_SEARCH_VERTICES
 
 
 def test_a_distance_that_is_not_monotone_or_not_finite_still_ends():

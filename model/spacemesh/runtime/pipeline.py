@@ -70,6 +70,7 @@ from spacemesh.runtime.tolerance import (
     aim,
     attempt_options,
     distance_of,
+    most_vertices,
     search_vertex_count,
 )
 from spacemesh.typed import FloatArray
@@ -463,7 +464,8 @@ class MeshGenerator:
         costs more than the tolerance allows (:func:`collapse_error`; the model's seeds,
         retries and mends as any generate), taken when its points are within the aim.
         Else a search over vertex counts (:func:`search_vertex_count`, the first try
-        counted among its :data:`MAX_TRIES`). The search's tries run without the model's
+        counted among its :data:`MAX_TRIES`, no count above the points'
+        :func:`most_vertices`). The search's tries run without the model's
         retry seeds (the search's time); the count found gets them when its mesh fails
         the topology check, and a retry's mesh is taken only if it keeps the tolerance
         met. The mesh found is the one a generate at its count gives (untangled and faced
@@ -491,7 +493,8 @@ class MeshGenerator:
                 stage("tolerance", done + 1, total + 1)
 
         found, _, tried = search_vertex_count(run, aim(tolerance), self.vertex_count(options),
-                                              on_try=on_try, max_tries=MAX_TRIES - 1)
+                                              on_try=on_try, max_tries=MAX_TRIES - 1,
+                                              most=most_vertices(len(prepared.unit)))
         tried = [(simplified.mesh.n_vertices, distance_of(simplified)), *tried]
         expected = prepared.pieces
         searched = found  # a generate's mesh: untangled and faced already
