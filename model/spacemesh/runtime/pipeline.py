@@ -289,7 +289,8 @@ class MeshGenerator:
             return chosen
         if stage is not None:
             stage("fewer", 1, 1)
-        lower_options = replace(options, target_vertices=fewer, face_type="triangles",
+        lower_options = replace(options, target_vertices=fewer, tolerance=None,
+                                face_type="triangles",
                                 surface="closed" if closed else options.surface)
         lower = self._generate_prepared([(prepared, lower_options)], progress, stage,
                                         retry=retry)[0]
