@@ -270,9 +270,10 @@ class MeshGenerator:
                     options: GenerateOptions, progress: ProgressFn | None,
                     stage: StageFn | None, *, retry: bool) -> GenerateResult:
         """A chosen mesh whose faces still cross after every other mend, made again from
-        fewer vertices: the same request at :func:`fewer_vertices` (its seeds, retries,
-        untangling and, when that one crosses too, this again with fewer still), then its
-        edges split up to the count asked for and fitted (:func:`finish_geometry`). The
+        fewer vertices: the same request at :func:`fewer_vertices` (a ``tolerance``
+        request's at that count alone; its seeds, retries, untangling and, when that one
+        crosses too, this again with fewer still), then its edges split up to the count
+        asked for and fitted (:func:`finish_geometry`). The
         geometry stage's guard lets no fitted face cross that the split mesh did not, and
         splitting a mesh that does not cross makes none, so the result does not cross
         (stage ``fewer``; its timings count every run; ``geometry_stats`` gives
