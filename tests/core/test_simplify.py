@@ -237,7 +237,7 @@ def _reference_crosses(state, moved, new, a, position, removed) -> bool:
     return len(i) > 0 and bool(pairs_cross(local_positions, local_tri, i, j, state.eps).any())
 
 
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("seed", [0])  # one noisy ellipsoid: ~9 s (the suite is near 15 min)
 def test_the_crossing_check_answers_as_the_plain_search_does(monkeypatch, seed):
     """Every crossing check of both modes (kept face boxes, no local renumbering) gives
     the plain search's answer, and the kept boxes are the live faces' boxes."""
