@@ -82,11 +82,11 @@ def finish_geometry(
     """
     mesh, dropped = drop_fragments(mesh)
     simplified: dict[str, Any] = {}
-    fitted_with_normals: GeometryResult | None = None  # a fit made already
+    fitted_already: GeometryResult | None = None  # the fit with ``normals``, when made
     if max_distance is not None:
         # simplified to a distance: the count follows the shape
         dense = refine_geometry(mesh, points, normals, options).mesh
-        mesh, simplified, fitted_with_normals = _simplified_within(
+        mesh, simplified, fitted_already = _simplified_within(
             dense, points, normals, options, max_distance)
         target_vertices = None
     elif (options.dense_factor > 1 and target_vertices is not None
@@ -100,7 +100,7 @@ def finish_geometry(
     tries = [normals] if normals is None else [normals, None]
     best: tuple[float, PolygonMesh, dict[str, Any]] | None = None
     for given in tries:
-        refined = (fitted_with_normals if fitted_with_normals is not None and given is normals
+        refined = (fitted_already if fitted_already is not None and given is normals
                    else refine_geometry(mesh, points, given, options,
                                         target_vertices=target_vertices))
         fitted = outward(refined.mesh)

@@ -462,9 +462,9 @@ class MeshGenerator:
         """The smallest mesh within ``options.tolerance`` (resolved options), every try
         on the same prepared points.
 
-        First one generate whose decode, fitted, is simplified for as long as no collapse
-        costs more than the tolerance allows (:func:`collapse_error`; the model's seeds,
-        retries and mends as any generate), taken when its points are within the aim.
+        First one generate whose decode, fitted, is collapsed for as long as the points
+        stay within the aim (:func:`simplify_distance`; the model's seeds, retries and
+        mends as any generate), taken when its points are within the aim.
         Else a search over vertex counts (:func:`search_vertex_count`, the first try
         counted among its :data:`MAX_TRIES`, no count above the points'
         :func:`most_vertices`). The search's tries run without the model's
