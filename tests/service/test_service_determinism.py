@@ -1,5 +1,5 @@
 """One request gives the same bytes in any process: ``spacemesh generate`` at 1 and 2
-threads under four hash seeds, and two servers started with different thread counts, all
+threads under three hash seeds, and two servers started with different thread counts, all
 give byte-identical meshes of the shipped model (issue 46).
 
 The input is a trefoil knot tube, asked for with ``samples=2``, so its seeds run as one
@@ -22,9 +22,8 @@ pytestmark = pytest.mark.slow
 
 #: Runs the real command line.
 CLI = "from spacemesh.cli import main; main()"
-#: (PYTHONHASHSEED, --threads) of the command-line runs: 4 hash seeds, each thread count
-#: twice.
-RUNS = [("0", 1), ("1", 2), ("2", 1), ("3", 2)]
+#: (PYTHONHASHSEED, --threads) of the command-line runs: 3 hash seeds, 1 and 2 threads.
+RUNS = [("0", 1), ("1", 2), ("2", 2)]
 
 
 def knot_points(count: int = 2048, seed: int = 1) -> np.ndarray:
