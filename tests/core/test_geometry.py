@@ -70,10 +70,10 @@ def test_blocked_farthest_points_are_the_plain_loops():
     size, with weights, duplicates, exact ties (a grid), flat and tiny clouds."""
     rng = np.random.default_rng(3)
     grid = torus_grid(12, 6).vertices
-    clouds = {"random": rng.random((1500, 3)), "one": rng.random((1, 3)),
+    clouds = {"random": rng.random((600, 3)), "one": rng.random((1, 3)),
               "duplicates": np.concatenate([grid, grid, grid[:20]]),
-              "flat": np.c_[rng.random((800, 2)), np.zeros(800)],
-              "lattice": rng.integers(0, 4, (600, 3)).astype(float)}
+              "flat": np.c_[rng.random((400, 2)), np.zeros(400)],
+              "lattice": rng.integers(0, 4, (300, 3)).astype(float)}
     for name, points in clouds.items():
         boosted = 1 + 2.0 * (rng.random(len(points)) < 0.2)
         for seed, weights in [(0, None), (1, boosted), (2, rng.random(len(points)))]:
