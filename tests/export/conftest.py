@@ -57,3 +57,14 @@ def base_run(toy_model, tmp_path_factory):
     finally:
         torch.set_num_threads(before)
     return base, run
+
+
+@pytest.fixture(scope="session")
+def exported_base_run(base_run):
+    """``base_run``'s connectivity-only model exported next to its base (one export,
+    shared by the export and the fine-tuning tests): its version folder."""
+    from spacemesh.export.repository import export_run
+
+    base, run = base_run
+    return export_run(run, base.parent.parent, name="spacemesh-tiny-conn", version=1,
+                      threads=1)

@@ -53,9 +53,9 @@ def test_resume_keeps_the_base(toy_model, base_run, tmp_path):
     assert "train_epsilon" not in rows[-1]
 
 
-def test_export_copies_the_base_graphs_and_matches_torch(base_run, tmp_path):
+def test_export_copies_the_base_graphs_and_matches_torch(base_run, exported_base_run):
     base, run = base_run
-    directory = export_run(run, tmp_path / "models", version=2, threads=1)
+    directory = exported_base_run
     for graph in ("encoder.onnx", "denoiser.onnx"):
         assert (directory / graph).read_bytes() == (base / graph).read_bytes()
     new, old = (directory / "connectivity.onnx").read_bytes(), (base / "connectivity.onnx")
@@ -65,7 +65,8 @@ def test_export_copies_the_base_graphs_and_matches_torch(base_run, tmp_path):
     assert training["steps"] == 0 and training["connectivity_steps"] > 0
     assert training["base"]["name"] == "spacemesh-tiny" and "base_training" in training
     assert repo.manifest["data"]["base"]["files"] == training["base"]["files"]
-    assert str(tmp_path.parent) not in json.dumps(repo.manifest)  # no machine paths
+    assert str(directory.parent.parent) not in json.dumps(repo.manifest)  # no machine paths
+    assert str(base.parent.parent) not in json.dumps(repo.manifest)
     model, _ = load_trained_model(run)
     rng = np.random.default_rng(0)
     points = rng.uniform(-1, 1, (2, 50, 3)).astype(np.float32)

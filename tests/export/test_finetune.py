@@ -122,16 +122,16 @@ def test_the_cli_false_positive_weight_reaches_the_run_and_its_loss(toy_model, t
 
 
 def test_a_fine_tune_starts_from_an_exported_connectivity_only_model(toy_model, base_run,
+                                                                     exported_base_run,
                                                                      tmp_path):
     import json
     import shutil
 
-    from spacemesh.export.repository import export_run
     from spacemesh.train.onnx_import import init_from_repository
 
     base, run = base_run
-    root = base.parent.parent  # the base's repository root: the model goes next to it
-    exported = export_run(run, root, name="spacemesh-tiny-conn", version=1)
+    root = base.parent.parent  # the base's repository root: the model is next to it
+    exported = exported_base_run
     source = load_checkpoint(latest_checkpoint(run))
     init = init_from_repository(exported)
     # the weights read back from the graph are the run's own
