@@ -194,6 +194,32 @@ def test_the_vectorised_pair_test_agrees_with_the_reference():
     assert 0.1 < ours.mean() < 0.9  # both answers are exercised
 
 
+def test_a_pairs_verdict_does_not_depend_on_the_rest_of_the_mesh():
+    """Two triangles 3e-9 apart (a standing one above a lying one) do not touch at their
+    own size; a third triangle far away, which makes the mesh 100 times larger, does not
+    make them touch (a repair's kept faces keep their verdict as its new faces come)."""
+    from spacemesh.geometry.intersections import CrossingFaces, pairs_cross
+
+    gap = 3e-9
+    corners = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.3, 0.3, gap], [0.5, 0.3, 1],
+               [0.3, 0.5, 1]]
+    pair = _mesh(corners, [[0, 1, 2], [3, 4, 5]])
+    far = _mesh([*corners, [100, 0, 0], [101, 0, 0], [100, 1, 0]],
+                [[0, 1, 2], [3, 4, 5], [6, 7, 8]])
+    assert not self_intersecting_faces(pair).any()
+    assert not self_intersecting_faces(far).any()
+    touching = _mesh([*corners[:3], [0.3, 0.3, 0.0], *corners[4:]], [[0, 1, 2], [3, 4, 5]])
+    assert self_intersecting_faces(touching).all()  # and at 0 apart they do touch
+    # the tracker agrees as the far triangle moves further away
+    tracker = CrossingFaces(far)
+    moved = far.vertices.copy()
+    moved[6:] *= 10.0
+    assert not tracker.move(moved).any()
+    i, j = np.array([0]), np.array([1])
+    triangles = pair.face_indices.reshape(-1, 3)
+    assert not pairs_cross(pair.vertices, triangles, i, j)[0]
+
+
 def test_coplanar_neighbours_are_not_intersections():
     grid = np.stack(np.meshgrid(np.linspace(0, 1, 5), np.linspace(0, 1, 5)), -1).reshape(-1, 2)
     positions = np.c_[grid, np.zeros(len(grid))]

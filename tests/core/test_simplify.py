@@ -234,7 +234,7 @@ def _reference_crosses(state, moved, new, a, position, removed) -> bool:
     low, high = box.min(axis=1) - state.eps, box.max(axis=1) + state.eps
     overlap = np.all((high[i] >= low[j]) & (high[j] >= low[i]), axis=1)
     i, j = i[overlap], j[overlap]
-    return len(i) > 0 and bool(pairs_cross(local_positions, local_tri, i, j, state.eps).any())
+    return len(i) > 0 and bool(pairs_cross(local_positions, local_tri, i, j).any())
 
 
 @pytest.mark.parametrize("seed", [0])  # one noisy ellipsoid: ~9 s (the suite is near 15 min)

@@ -29,6 +29,11 @@ COPLANAR_TOLERANCE = 1e-5
 #: Two triangles on one edge are compared only when folded onto each other: their
 #: normals' dot product is below minus this.
 FOLDED_COSINE = 0.999
+#: Two triangles closer than this fraction of their own extent touch (count as
+#: crossing). Each pair's verdict depends on that pair alone, so two triangles that stay
+#: as they are keep their verdict whatever else the mesh gains or loses (a repair's kept
+#: faces, a collapse's neighbours).
+TOUCHING_SHARE = 1e-9
 
 
 def _shrunk(corners: FloatArray, factor: float) -> FloatArray:
@@ -43,9 +48,10 @@ def _unit_normals(t: FloatArray) -> tuple[FloatArray, BoolArray]:
 
 
 def _segments_hit(p0: FloatArray, p1: FloatArray, t: FloatArray, normal: FloatArray,
-                  eps: float) -> BoolArray:
+                  eps: FloatArray) -> BoolArray:
     """``(M,)`` whether segments ``p0 - p1`` cross triangles ``t`` (M, 3, 3) away from
-    their plane (a segment in the plane is left to the coplanar test)."""
+    their plane (a segment in the plane is left to the coplanar test; ``eps`` ``(M,)``
+    the touching distance of each)."""
     s0 = np.einsum("md,md->m", p0 - t[:, 0], normal)
     s1 = np.einsum("md,md->m", p1 - t[:, 0], normal)
     apart = ((s0 > eps) & (s1 > eps)) | ((s0 < -eps) & (s1 < -eps))
@@ -85,27 +91,31 @@ def _coplanar_overlap(ta: FloatArray, tb: FloatArray, normal: FloatArray, eps: F
     return overlap
 
 
-def triangle_pairs_intersect(ta: FloatArray, tb: FloatArray, eps: float = 1e-9) -> BoolArray:
+def triangle_pairs_intersect(ta: FloatArray, tb: FloatArray,
+                             eps: float | FloatArray = 1e-9) -> BoolArray:
     """:func:`spacemesh.data.validate.triangles_intersect` for many pairs at once.
 
     Parameters
     ----------
     ta, tb : (M, 3, 3) float
         Corner positions of the pairs (pairs that share corners: shrink them first).
-    eps : float
-        Distance below which touching counts as intersecting.
+    eps : float or (M,) float
+        Distance below which touching counts as intersecting (one for all pairs, or one
+        per pair).
 
     Returns
     -------
     (M,) bool
     """
     ta, tb = np.asarray(ta, dtype=np.float64), np.asarray(tb, dtype=np.float64)
+    eps = np.broadcast_to(np.asarray(eps, dtype=np.float64), (len(ta),))  # (M,)
     na, good_a = _unit_normals(ta)
     nb, good_b = _unit_normals(tb)
     da = np.einsum("mkd,md->mk", tb - ta[:, None, 0], na)  # b's corners from a's plane
     db = np.einsum("mkd,md->mk", ta - tb[:, None, 0], nb)
-    apart = (np.all(da > eps, axis=1) | np.all(da < -eps, axis=1)
-             | np.all(db > eps, axis=1) | np.all(db < -eps, axis=1))
+    column = eps[:, None]  # (M, 1)
+    apart = (np.all(da > column, axis=1) | np.all(da < -column, axis=1)
+             | np.all(db > column, axis=1) | np.all(db < -column, axis=1))
     # within rounding of one plane (float32 files): the in-plane test decides, since a
     # crossing point of nearly parallel planes is ill-conditioned
     size = np.maximum(np.ptp(ta, axis=1).max(axis=1), np.ptp(tb, axis=1).max(axis=1))
@@ -120,14 +130,15 @@ def triangle_pairs_intersect(ta: FloatArray, tb: FloatArray, eps: float = 1e-9) 
         out[plane] = _coplanar_overlap(ta[plane], tb[plane], na[plane], flat[plane, 0])
     cut = np.flatnonzero(live & ~coplanar)
     if len(cut):
-        out[cut] = _edges_cross(ta[cut], tb[cut], na[cut], nb[cut], eps)
+        out[cut] = _edges_cross(ta[cut], tb[cut], na[cut], nb[cut], eps[cut])
     return out
 
 
 def _edges_cross(ta: FloatArray, tb: FloatArray, na: FloatArray, nb: FloatArray,
-                 eps: float) -> BoolArray:
+                 eps: FloatArray) -> BoolArray:
     """``(M,)`` whether an edge of one triangle of each pair crosses the other away from
-    its plane (:func:`_segments_hit`, the six edges of a pair tested in one call)."""
+    its plane (:func:`_segments_hit`, the six edges of a pair tested in one call; ``eps``
+    ``(M,)``)."""
     m = len(ta)
     start = np.concatenate([ta, tb], axis=1).transpose(1, 0, 2).reshape(-1, 3)  # (6M, 3)
     end = np.concatenate([ta[:, [1, 2, 0]], tb[:, [1, 2, 0]]], axis=1)
@@ -136,7 +147,7 @@ def _edges_cross(ta: FloatArray, tb: FloatArray, na: FloatArray, nb: FloatArray,
                             np.broadcast_to(ta, (3, m, 3, 3))]).reshape(-1, 3, 3)
     normal = np.concatenate([np.broadcast_to(nb, (3, m, 3)),
                              np.broadcast_to(na, (3, m, 3))]).reshape(-1, 3)
-    hit = _segments_hit(start, end, other, normal, eps)  # (6M,)
+    hit = _segments_hit(start, end, other, normal, np.tile(eps, 6))  # (6M,)
     return np.any(hit.reshape(6, m), axis=0)
 
 
@@ -163,9 +174,12 @@ def intersecting_triangles(vertices: FloatArray, triangles: IntArray,
 
 
 def touching_eps(vertices: FloatArray, triangles: IntArray) -> float:
-    """The distance below which two triangles touch: 1e-9 of the extent of ``vertices``
-    used by ``triangles``."""
-    return 1e-9 * (float(np.ptp(vertices[triangles.reshape(-1)], axis=0).max()) or 1.0)
+    """The largest distance below which two of the triangles can touch
+    (:data:`TOUCHING_SHARE` of the extent of ``vertices`` used by ``triangles``): the
+    margin of the candidate search, never smaller than a pair's own
+    (:func:`pairs_cross`)."""
+    extent = float(np.ptp(vertices[triangles.reshape(-1)], axis=0).max())
+    return TOUCHING_SHARE * (extent or 1.0)
 
 
 def crossing_pairs(vertices: FloatArray, triangles: IntArray,
@@ -212,7 +226,7 @@ def crossing_pairs(vertices: FloatArray, triangles: IntArray,
     if source_face is not None:
         near &= source_face[i] != source_face[j]
     i, j = i[near], j[near]
-    crossing = pairs_cross(vertices, triangles, i, j, eps)
+    crossing = pairs_cross(vertices, triangles, i, j)
     return np.stack([i[crossing], j[crossing]], axis=1)
 
 
@@ -220,8 +234,8 @@ class CrossingFaces:
     """Which faces of a mesh cross another, kept up to date as its vertices move: only
     the pairs with a triangle that touches a moved vertex are tested again, so each
     answer is :func:`self_intersecting_faces` of the moved mesh at a fraction of its
-    cost (a new touching distance, when the extent changes, or a polygon triangulated
-    otherwise at the new positions, tests everything again).
+    cost (each pair's verdict depends on its own corners only; a polygon triangulated
+    otherwise at the new positions tests everything again).
 
     Parameters
     ----------
@@ -234,7 +248,6 @@ class CrossingFaces:
         self.n_faces = mesh.n_faces
         self.triangles, self.source = triangles_of(mesh)  # (T, 3), (T,)
         self.vertices = np.asarray(mesh.vertices, dtype=np.float64).copy()  # (V, 3)
-        self.eps = touching_eps(self.vertices, self.triangles) if len(self.triangles) else 0.0
         self.pairs = crossing_pairs(self.vertices, self.triangles, self.source)  # (P, 2)
 
     def faces(self) -> BoolArray:
@@ -250,12 +263,11 @@ class CrossingFaces:
         self.vertices = positions.copy()
         if not moved.any() or len(self.triangles) < 2:
             return self.faces()
-        eps = touching_eps(positions, self.triangles)
         triangles = self.triangles
         if not self.mesh.is_triangle_mesh():  # a polygon's triangles follow its shape
             triangles, _ = triangles_of(self.mesh.with_vertices(positions))
-        if eps != self.eps or not np.array_equal(triangles, self.triangles):
-            self.eps, self.triangles = eps, triangles
+        if not np.array_equal(triangles, self.triangles):
+            self.triangles = triangles
             self.pairs = crossing_pairs(positions, self.triangles, self.source)
             return self.faces()
         touched = moved[self.triangles].any(axis=1)  # (T,)
@@ -266,12 +278,13 @@ class CrossingFaces:
         return self.faces()
 
 
-def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntArray,
-                eps: float) -> BoolArray:
+def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntArray
+                ) -> BoolArray:
     """Which of the triangle pairs ``(i[m], j[m])`` intersect, by the rules of
     :func:`intersecting_triangles`: pairs that share corners are shrunk by
-    :data:`SHRINK` first, and two triangles on one edge count only when folded onto each
-    other.
+    :data:`SHRINK` first, two triangles on one edge count only when folded onto each
+    other, and two triangles closer than :data:`TOUCHING_SHARE` of the pair's own extent
+    touch (so a pair's verdict depends on its six corners alone).
 
     Parameters
     ----------
@@ -279,8 +292,6 @@ def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntAr
     triangles : (T, 3) int
     i, j : (M,) int
         Indices into ``triangles`` (``i[m] != j[m]``).
-    eps : float
-        Distance below which touching counts as intersecting.
 
     Returns
     -------
@@ -298,6 +309,8 @@ def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntAr
     keep = np.flatnonzero((common < 2) | folded)
     shared = common[keep] > 0
     ta, tb = corners[i[keep]], corners[j[keep]]
+    extent = np.ptp(np.concatenate([ta, tb], axis=1), axis=1).max(axis=1)  # (K,)
+    eps = TOUCHING_SHARE * np.where(extent > 0, extent, 1.0)
     ta = np.where(shared[:, None, None], _shrunk(ta, SHRINK), ta)
     tb = np.where(shared[:, None, None], _shrunk(tb, SHRINK), tb)
     crossing[keep[triangle_pairs_intersect(ta, tb, eps)]] = True

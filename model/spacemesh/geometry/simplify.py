@@ -54,7 +54,7 @@ from scipy.spatial import cKDTree
 
 from spacemesh.cancel import checkpoint
 from spacemesh.geometry.fitting import plane_fits
-from spacemesh.geometry.intersections import pairs_cross
+from spacemesh.geometry.intersections import TOUCHING_SHARE, pairs_cross
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangle_normals
 from spacemesh.primitives.closest import mean_distance
@@ -250,7 +250,7 @@ class _Collapser:
         areas = 0.5 * np.linalg.norm(triangle_normals(vertices[triangles]), axis=1)
         self.min_area = options.min_area_ratio * float(areas.mean()) if len(areas) else 0.0
         extent = float(np.ptp(vertices, axis=0).max()) if len(vertices) else 1.0
-        self.eps = 1e-9 * (extent or 1.0)
+        self.eps = TOUCHING_SHARE * (extent or 1.0)  # the boxes' margin
         # piece of each vertex and the vertices left in each piece
         _, face_piece = edge_connected_faces(PolygonMesh(
             vertices, triangles.reshape(-1), np.arange(0, 3 * len(triangles) + 1, 3)))
@@ -407,7 +407,7 @@ class _Collapser:
         moved_positions = self.positions.copy()  # (V, 3)
         moved_positions[a] = position
         local = np.concatenate([new, self.triangles[others]])  # (K + O, 3)
-        return bool(pairs_cross(moved_positions, local, i, j, self.eps).any())
+        return bool(pairs_cross(moved_positions, local, i, j).any())
 
     def mesh(self) -> tuple[PolygonMesh, IntArray]:
         """The current mesh, its vertices renumbered in their old order, and the output
