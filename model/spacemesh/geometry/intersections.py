@@ -29,6 +29,9 @@ COPLANAR_TOLERANCE = 1e-5
 #: Two triangles on one edge are compared only when folded onto each other: their
 #: normals' dot product is below minus this.
 FOLDED_COSINE = 0.999
+#: :meth:`CrossingFaces.move` tests every pair again (one candidate search) instead of the
+#: pairs of the moved triangles when more than this share of the triangles moved.
+FULL_RETEST_SHARE = 0.5
 #: Two triangles closer than this fraction of their own extent touch (count as
 #: crossing). Each pair's verdict depends on that pair alone, so two triangles that stay
 #: as they are keep their verdict whatever else the mesh gains or loses (a repair's kept
@@ -271,6 +274,9 @@ class CrossingFaces:
             self.pairs = crossing_pairs(positions, self.triangles, self.source)
             return self.faces()
         touched = moved[self.triangles].any(axis=1)  # (T,)
+        if touched.mean() > FULL_RETEST_SHARE:  # the same answer, found faster in one go
+            self.pairs = crossing_pairs(positions, self.triangles, self.source)
+            return self.faces()
         kept = self.pairs[~(touched[self.pairs[:, 0]] | touched[self.pairs[:, 1]])]
         fresh = crossing_pairs(positions, self.triangles, self.source,
                                among=np.flatnonzero(touched))
