@@ -42,6 +42,8 @@ def test_generate_on_2048_points_gives_an_oriented_manifold(start_server):
         assert response.headers["x-spacemesh-oriented"] == "true"
         lo, hi = points.min(axis=0), points.max(axis=0)
         assert np.all(mesh.vertices > lo - (hi - lo)) and np.all(mesh.vertices < hi + (hi - lo))
+        if 200 in statuses[:-1]:
+            continue  # the GLB of one mesh is enough
         # the triangulated GLB of the same mesh is a closed oriented manifold too
         glb = httpx.post(server.url + "/generate", timeout=120,
                          json={"points": points.tolist(), "seed": seed, "format": "glb"})
