@@ -30,8 +30,7 @@ def main() -> int:
     from spacemesh.evaluate.runner import pin_threads
 
     pin_threads(1)
-    import pymeshlab
-
+    from spacemesh.data.validate import pymeshlab_selected_triangles
     from spacemesh.evaluate.runner import mesh_shapes
     from spacemesh.primitives import triangles_of
     from spacemesh.runtime import MeshGenerator
@@ -43,11 +42,7 @@ def main() -> int:
     for shape in shapes:
         mesh = generator.generate(shape.points, None, seed=0).mesh
         triangles, source = triangles_of(mesh)  # (T, 3), (T,)
-        meshset = pymeshlab.MeshSet()
-        meshset.add_mesh(pymeshlab.Mesh(vertex_matrix=mesh.vertices,
-                                        face_matrix=triangles.astype(np.int32)))
-        meshset.compute_selection_by_self_intersections_per_face()
-        selected = meshset.current_mesh().face_selection_array()
+        selected = pymeshlab_selected_triangles(mesh.vertices, triangles)
         faces = len(np.unique(source[selected]))
         crossing_outputs += faces > 0
         print(f"{shape.shape_id[:48]:<48} crossing faces {faces} of {mesh.n_faces}",

@@ -29,7 +29,7 @@ def big_case(generator):
 
     points = make_cloud(BIG, seed=7)
     working, _ = reduce_cloud(points, None, Settings.model_fields["working_points"].default)
-    # a seed with faces both raw (the tests that time out the reduction, not the fit) and
+    # a seed with faces both raw (the tests of the reduction, which need no fit) and
     # through the geometry stage (the command line's test)
     seed = next((s for s in range(6) if generator.generate(working, seed=s, raw=True).mesh.n_faces
                  and generator.generate(working, seed=s).mesh.n_faces), None)

@@ -236,8 +236,9 @@ def _shrink(points: FloatArray, factor: float) -> FloatArray:
     return centre + (points - centre) * (1.0 - factor)
 
 
-def _candidate_faces(vertices: FloatArray, tri: IntArray) -> IntArray:
-    """Triangles that pymeshlab's self-intersection filter selects (a superset)."""
+def pymeshlab_selected_triangles(vertices: FloatArray, tri: IntArray) -> IntArray:
+    """Triangles that pymeshlab's self-intersection filter selects (a superset of the
+    crossing ones; the independent check of issue 35)."""
     import pymeshlab
 
     meshset = pymeshlab.MeshSet()
@@ -266,7 +267,7 @@ def find_self_intersection(
     (int, int) or None
         Indices of two intersecting triangles.
     """
-    candidates = _candidate_faces(vertices, tri)
+    candidates = pymeshlab_selected_triangles(vertices, tri)
     if candidates.size < 2:
         return None
     scale = _scale(vertices)

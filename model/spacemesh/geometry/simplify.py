@@ -54,7 +54,7 @@ from scipy.spatial import cKDTree
 
 from spacemesh.cancel import checkpoint
 from spacemesh.geometry.fitting import plane_fits
-from spacemesh.geometry.intersections import TOUCHING_SHARE, pairs_cross
+from spacemesh.geometry.intersections import TOUCHING_SHARE, pairs_cross, touching_eps
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangle_normals
 from spacemesh.primitives.closest import mean_distance
@@ -249,8 +249,8 @@ class _Collapser:
                 self.faces_of[int(v)].add(f)
         areas = 0.5 * np.linalg.norm(triangle_normals(vertices[triangles]), axis=1)
         self.min_area = options.min_area_ratio * float(areas.mean()) if len(areas) else 0.0
-        extent = float(np.ptp(vertices, axis=0).max()) if len(vertices) else 1.0
-        self.eps = TOUCHING_SHARE * (extent or 1.0)  # the boxes' margin
+        # the boxes' margin: no pair touches farther apart (intersections.pairs_cross)
+        self.eps = touching_eps(vertices, triangles) if len(triangles) else TOUCHING_SHARE
         # piece of each vertex and the vertices left in each piece
         _, face_piece = edge_connected_faces(PolygonMesh(
             vertices, triangles.reshape(-1), np.arange(0, 3 * len(triangles) + 1, 3)))
