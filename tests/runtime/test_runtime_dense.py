@@ -73,3 +73,25 @@ def test_a_dense_mesh_that_still_crosses_gives_way_to_the_plain_decode(shipped, 
     monkeypatch.setattr(pipeline, "crosses", real)
     kept = generator.generate(points, target_vertices=60)
     assert "simplify" in kept.geometry_stats  # without the crossing, the dense mesh stays
+
+
+def test_below_the_models_count_a_dense_decode_keeps_its_handles(shipped):
+    """The topology guard (a dense decode gives way to the plain one when that has
+    fewer handles) applies from the model's own count up; below it the plain decode is
+    too coarse to hold handles, so the dense one is kept without decoding the other.
+    A torus, whose dense decode has its handle, at both sides of the model's count."""
+    from spacemesh.examples import torus_grid
+    from spacemesh.primitives import sample_surface
+    from spacemesh.runtime.spec import ModelSpec
+    from spacemesh.topology import surface_topology
+
+    spec = ModelSpec.from_manifest(shipped.manifest)
+    generator = MeshGenerator(shipped.backend, spec)
+    points, _ = sample_surface(torus_grid(32, 16), 2048, np.random.default_rng(3))
+    small = generator.generate(points, target_vertices=spec.vertices // 2)
+    assert small.decode_stats["dense_genus"] == [1, None]  # the plain one not decoded
+    assert surface_topology(small.mesh).genus == 1
+    assert_valid_mesh(small.mesh)
+    default = generator.generate(points)
+    dense_genus, plain_genus = default.decode_stats["dense_genus"]
+    assert dense_genus == 1 and plain_genus is not None  # the guard ran

@@ -222,10 +222,12 @@ def run_group(backend: Backend, spec: ModelSpec,
                 and decoded.stats.get("large_meshes") != "split"):
             # a dense decode: kept only if it has no more handles than the decode of the
             # count asked for (its farthest-point prefix), which a denser graph can add;
-            # one without handles is kept without decoding the other
+            # one without handles is kept without decoding the other, and so is one for a
+            # count below the model's own, where the plain decode loses handles instead
+            # (docs/GEOMETRY.md, "Compact meshes")
             dense_genus = _genus(decoded.mesh)
             plain_genus = None
-            if dense_genus > 0:
+            if dense_genus > 0 and wanted >= spec.vertices:
                 plain = _decode_prefix(backend, spec, positions, alive, volumes, b, wanted,
                                        prepared)
                 plain_genus = _genus(plain.mesh)
