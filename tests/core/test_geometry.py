@@ -220,6 +220,23 @@ def test_a_pairs_verdict_does_not_depend_on_the_rest_of_the_mesh():
     assert not pairs_cross(pair.vertices, triangles, i, j)[0]
 
 
+def test_near_contacts_are_read_at_the_whole_meshs_extent():
+    """The seeds' check reads near contacts: the pair 3e-9 apart above does not touch at
+    its own size, but does within 1e-9 of a mesh 100 times larger (its far triangle
+    touches nothing); at 3e-7 apart no face is a near contact."""
+    from spacemesh.geometry.intersections import near_contact_faces
+
+    def mesh_at(gap: float) -> PolygonMesh:
+        corners = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.3, 0.3, gap], [0.5, 0.3, 1],
+                   [0.3, 0.5, 1], [100, 0, 0], [101, 0, 0], [100, 1, 0]]
+        return _mesh(corners, [[0, 1, 2], [3, 4, 5], [6, 7, 8]])
+
+    assert not self_intersecting_faces(mesh_at(3e-9)).any()
+    assert near_contact_faces(mesh_at(3e-9)).tolist() == [True, True, False]
+    assert not near_contact_faces(mesh_at(3e-7)).any()
+    assert not near_contact_faces(_mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])).any()
+
+
 def test_coplanar_neighbours_are_not_intersections():
     grid = np.stack(np.meshgrid(np.linspace(0, 1, 5), np.linspace(0, 1, 5)), -1).reshape(-1, 2)
     positions = np.c_[grid, np.zeros(len(grid))]

@@ -186,8 +186,8 @@ def touching_eps(vertices: FloatArray, triangles: IntArray) -> float:
 
 
 def crossing_pairs(vertices: FloatArray, triangles: IntArray,
-                   source_face: IntArray | None = None, among: IntArray | None = None
-                   ) -> IntArray:
+                   source_face: IntArray | None = None, among: IntArray | None = None,
+                   *, whole_extent: bool = False) -> IntArray:
     """The pairs of triangles that intersect (:func:`pairs_cross`), each once.
 
     Parameters
@@ -198,6 +198,10 @@ def crossing_pairs(vertices: FloatArray, triangles: IntArray,
         The polygon face of each triangle (triangles of one face are not compared).
     among : (K,) int, optional
         Only the pairs with at least one of these triangles (default: every pair).
+    whole_extent : bool
+        Two triangles touch within :data:`TOUCHING_SHARE` of the extent of every triangle
+        (:func:`touching_eps`) instead of the pair's own: near contacts count too
+        (:func:`near_contact_faces`).
 
     Returns
     -------
@@ -229,7 +233,7 @@ def crossing_pairs(vertices: FloatArray, triangles: IntArray,
     if source_face is not None:
         near &= source_face[i] != source_face[j]
     i, j = i[near], j[near]
-    crossing = pairs_cross(vertices, triangles, i, j)
+    crossing = pairs_cross(vertices, triangles, i, j, floor=eps if whole_extent else 0.0)
     return np.stack([i[crossing], j[crossing]], axis=1)
 
 
@@ -284,8 +288,8 @@ class CrossingFaces:
         return self.faces()
 
 
-def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntArray
-                ) -> BoolArray:
+def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntArray,
+                floor: float = 0.0) -> BoolArray:
     """Which of the triangle pairs ``(i[m], j[m])`` intersect, by the rules of
     :func:`intersecting_triangles`: pairs that share corners are shrunk by
     :data:`SHRINK` first, two triangles on one edge count only when folded onto each
@@ -298,6 +302,8 @@ def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntAr
     triangles : (T, 3) int
     i, j : (M,) int
         Indices into ``triangles`` (``i[m] != j[m]``).
+    floor : float
+        The touching distance is at least this (0: each pair's own alone).
 
     Returns
     -------
@@ -316,7 +322,7 @@ def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntAr
     shared = common[keep] > 0
     ta, tb = corners[i[keep]], corners[j[keep]]
     extent = np.ptp(np.concatenate([ta, tb], axis=1), axis=1).max(axis=1)  # (K,)
-    eps = TOUCHING_SHARE * np.where(extent > 0, extent, 1.0)
+    eps = np.maximum(TOUCHING_SHARE * np.where(extent > 0, extent, 1.0), floor)
     ta = np.where(shared[:, None, None], _shrunk(ta, SHRINK), ta)
     tb = np.where(shared[:, None, None], _shrunk(tb, SHRINK), tb)
     crossing[keep[triangle_pairs_intersect(ta, tb, eps)]] = True
@@ -340,6 +346,31 @@ def self_intersecting_faces(mesh: PolygonMesh) -> BoolArray:
     triangles, source = triangles_of(mesh)
     hit = intersecting_triangles(mesh.vertices, triangles, source)
     faces[source[hit]] = True
+    return faces
+
+
+def near_contact_faces(mesh: PolygonMesh) -> BoolArray:
+    """Which polygon faces of ``mesh`` intersect or nearly touch another face: within
+    :data:`TOUCHING_SHARE` of the extent of the whole mesh (:func:`touching_eps`), not
+    only of the pair's own as in :func:`self_intersecting_faces`. Two faces that close
+    are one rounding away from crossing in another tool; the seeds' check
+    (:func:`spacemesh.runtime.choice.acceptable`) sends more seeds for them.
+
+    Parameters
+    ----------
+    mesh : PolygonMesh
+
+    Returns
+    -------
+    (F,) bool
+    """
+    faces = np.zeros(mesh.n_faces, dtype=bool)
+    if mesh.n_faces < 2:
+        return faces
+    triangles, source = triangles_of(mesh)
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    pairs = crossing_pairs(vertices, triangles, source, whole_extent=True)
+    faces[source[pairs.reshape(-1)]] = True
     return faces
 
 

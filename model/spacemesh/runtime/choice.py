@@ -11,6 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from spacemesh.geometry.intersections import near_contact_faces
 from spacemesh.runtime.options import GenerateOptions
 from spacemesh.runtime.request import GenerateResult
 
@@ -26,8 +27,12 @@ def crosses(result: GenerateResult) -> bool:
 
 
 def acceptable(result: GenerateResult, expected: int) -> bool:
-    """As many pieces as the points and no crossing faces: no other seed is needed."""
-    return pieces_agree(result, expected) and not crosses(result)
+    """As many pieces as the points and no crossing faces, nor faces that nearly touch
+    (:func:`spacemesh.geometry.intersections.near_contact_faces`): no other seed is
+    needed. A first seed with a near contact lets the retry seeds run, whose best fit
+    is kept (docs/GEOMETRY.md, "The held-out CAD-like parts")."""
+    return (pieces_agree(result, expected) and not crosses(result)
+            and not near_contact_faces(result.mesh).any())
 
 
 def best_fit(tried: list[GenerateResult], options: GenerateOptions,
