@@ -155,7 +155,8 @@ def _edges_cross(ta: FloatArray, tb: FloatArray, na: FloatArray, nb: FloatArray,
 
 
 def intersecting_triangles(vertices: FloatArray, triangles: IntArray,
-                           source_face: IntArray | None = None) -> BoolArray:
+                           source_face: IntArray | None = None, *,
+                           whole_extent: bool = False) -> BoolArray:
     """Which triangles intersect another triangle (not of the same face).
 
     Parameters
@@ -164,13 +165,15 @@ def intersecting_triangles(vertices: FloatArray, triangles: IntArray,
     triangles : (T, 3) int
     source_face : (T,) int, optional
         The polygon face of each triangle (triangles of one face are not compared).
+    whole_extent : bool
+        Near contacts count too (:func:`crossing_pairs`).
 
     Returns
     -------
     (T,) bool
     """
     triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-    pairs = crossing_pairs(vertices, triangles, source_face)
+    pairs = crossing_pairs(vertices, triangles, source_face, whole_extent=whole_extent)
     hit = np.zeros(len(triangles), dtype=bool)
     hit[pairs.reshape(-1)] = True
     return hit
@@ -329,12 +332,15 @@ def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntAr
     return crossing
 
 
-def self_intersecting_faces(mesh: PolygonMesh) -> BoolArray:
+def self_intersecting_faces(mesh: PolygonMesh, *, whole_extent: bool = False
+                            ) -> BoolArray:
     """Which polygon faces of ``mesh`` intersect another face.
 
     Parameters
     ----------
     mesh : PolygonMesh
+    whole_extent : bool
+        Near contacts count too (:func:`near_contact_faces`).
 
     Returns
     -------
@@ -344,7 +350,7 @@ def self_intersecting_faces(mesh: PolygonMesh) -> BoolArray:
     if mesh.n_faces < 2:
         return faces
     triangles, source = triangles_of(mesh)
-    hit = intersecting_triangles(mesh.vertices, triangles, source)
+    hit = intersecting_triangles(mesh.vertices, triangles, source, whole_extent=whole_extent)
     faces[source[hit]] = True
     return faces
 
@@ -364,14 +370,7 @@ def near_contact_faces(mesh: PolygonMesh) -> BoolArray:
     -------
     (F,) bool
     """
-    faces = np.zeros(mesh.n_faces, dtype=bool)
-    if mesh.n_faces < 2:
-        return faces
-    triangles, source = triangles_of(mesh)
-    vertices = np.asarray(mesh.vertices, dtype=np.float64)
-    pairs = crossing_pairs(vertices, triangles, source, whole_extent=True)
-    faces[source[pairs.reshape(-1)]] = True
-    return faces
+    return self_intersecting_faces(mesh, whole_extent=True)
 
 
 def crossing_faces(mesh: PolygonMesh, among: BoolArray) -> IntArray:
