@@ -373,3 +373,10 @@ def test_the_guard_scales_the_whole_fit_back_before_dropping_it():
     nudged = overlapping + np.array([0.0, 0.01, 0.0])
     assert _scaled_back(CrossingFaces(mesh.with_vertices(nudged)), nudged, overlapping, None,
                         0.0, {}) is None
+
+
+def test_the_corner_spread_is_numpys_peak_to_peak():
+    from spacemesh.geometry.intersections import _spread
+
+    corners = np.random.default_rng(5).normal(size=(50, 6, 3))
+    assert np.array_equal(_spread(corners), np.ptp(corners, axis=1).max(axis=1))

@@ -41,7 +41,7 @@ from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
 from spacemesh.cancel import checkpoint
-from spacemesh.primitives import triangle_areas
+from spacemesh.primitives import triangle_areas, unique_edges
 from spacemesh.primitives.closest import (
     _subtriangle_centroids,
     closest_points_on_triangles,
@@ -202,7 +202,7 @@ def _vertex_reach(positions: FloatArray, edges: IntArray) -> FloatArray:
 
 def _edges(triangles: IntArray) -> IntArray:
     pairs = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    return np.unique(np.sort(pairs, axis=1), axis=0)
+    return unique_edges(pairs, int(triangles.max(initial=-1)) + 1)
 
 
 def _incidence(edges: IntArray, n_vertices: int) -> sp.csr_matrix:

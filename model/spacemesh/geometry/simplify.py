@@ -56,7 +56,7 @@ from spacemesh.cancel import checkpoint
 from spacemesh.geometry.fitting import plane_fits
 from spacemesh.geometry.intersections import TOUCHING_SHARE, pairs_cross, touching_eps
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import triangle_normals
+from spacemesh.primitives import triangle_normals, unique_edges
 from spacemesh.primitives.closest import mean_distance
 from spacemesh.topology import edge_connected_faces, surface_topology
 from spacemesh.typed import FloatArray, IntArray
@@ -262,8 +262,8 @@ class _Collapser:
         self.parked: list[set[int]] = [set() for _ in range(len(vertices))]
         self.merged_into = np.arange(len(vertices))
         # the vertices of edges with one face (none on a closed mesh) never move
-        edges = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-        unique, count = np.unique(edges, axis=0, return_counts=True)
+        unique, count = unique_edges(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2),
+                                     len(vertices), return_counts=True)
         self.boundary = np.zeros(len(vertices), dtype=bool)
         self.boundary[unique[count == 1].reshape(-1)] = True
 

@@ -20,7 +20,7 @@ ours, so any layer may use them.
 from spacemesh.primitives.decimation import decimate
 from spacemesh.primitives.frame import normalize
 from spacemesh.primitives.graph import component_labels, uniform_adjacency
-from spacemesh.primitives.keys import edge_keys
+from spacemesh.primitives.keys import edge_keys, unique_edges
 from spacemesh.primitives.masks import faces_subset, faces_touching, flip_faces, vertices_of
 from spacemesh.primitives.sampling import sample_surface
 from spacemesh.primitives.triangles import (
@@ -58,6 +58,7 @@ __all__ = [
     "triangulate_manifold",
     "triangulate_polygon",
     "uniform_adjacency",
+    "unique_edges",
     "vertices_of",
     "weld",
 ]
