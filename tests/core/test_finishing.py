@@ -37,3 +37,26 @@ def test_without_normals_the_stage_runs_once_and_says_nothing_of_them():
                                   GeometryOptions())
     assert_valid_mesh(mesh)
     assert "normals_used" not in stats
+
+
+@pytest.mark.parametrize("dense_flips", [False, True])
+def test_a_dense_decode_is_fitted_without_flips_then_collapsed_then_fitted(dense_flips):
+    from dataclasses import replace
+
+    from spacemesh.geometry.simplify import simplify
+
+    points, _ = sample_surface(cube_quads(1.6), 2000, np.random.default_rng(0))
+    points = points.astype(np.float64)
+    dense = icosphere(3)  # 642 vertices: a dense decode of a box
+    options = GeometryOptions(dense_factor=2.0, dense_flips=dense_flips)
+    mesh, _ = finish_geometry(dense, points, None, options, target_vertices=200)
+    assert_valid_mesh(mesh)
+    assert mesh.n_vertices == 200
+    # the same three steps by hand: the first fit flips only with dense_flips
+    fitted = refine_geometry(dense, points, None, replace(options, flips=dense_flips))
+    assert (fitted.stats["n_flipped"] > 0) == dense_flips
+    reduced = simplify(fitted.mesh, points, None, target_vertices=200).mesh
+    expected = outward(refine_geometry(reduced, points, None, options,
+                                       target_vertices=200).mesh)
+    assert np.array_equal(mesh.vertices, expected.vertices)
+    assert np.array_equal(mesh.face_indices, expected.face_indices)

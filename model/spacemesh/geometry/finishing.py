@@ -14,6 +14,7 @@ points worse. On the 27 dev meshes this gave CD 1.17e-3 against 1.22e-3 from bar
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -92,9 +93,11 @@ def finish_geometry(
     elif (options.dense_factor > 1 and target_vertices is not None
             and mesh.n_vertices > target_vertices):
         # a dense decode: fitted to the points first (the collapses' placements and
-        # costs read the fitted surface), then collapsed to the count asked for, the
-        # points' planes the cost
-        dense = refine_geometry(mesh, points, normals, options).mesh
+        # costs read the fitted surface; flips only with ``dense_flips``), then
+        # collapsed to the count asked for, the points' planes the cost
+        dense = refine_geometry(mesh, points, normals,
+                                replace(options, flips=options.flips and options.dense_flips)
+                                ).mesh
         reduced = simplify(dense, points, normals, target_vertices=target_vertices)
         mesh, simplified = reduced.mesh, {"simplify": reduced.stats}
     tries = [normals] if normals is None else [normals, None]

@@ -72,6 +72,11 @@ class GeometryOptions:
         :data:`MAX_DENSE_VERTICES`), fit it, and simplify it to the
         count asked for (:mod:`spacemesh.geometry.simplify`) before the fit; 1 (the
         default) decodes at the count asked for.
+    dense_flips : bool
+        Flip diagonals in the dense decode's fit before its collapses too (its
+        :attr:`rounds` of fit are made either way). Off: flips toward the points on the
+        dense mesh cost the collapses their creases (synthetic tuning set, ECD 4.24 ->
+        2.82e-2; docs/GEOMETRY.md, "Compact meshes").
     """
 
     fit: VertexFitOptions = field(default_factory=VertexFitOptions)
@@ -80,6 +85,7 @@ class GeometryOptions:
     fit_gain: float = 0.2
     guard: bool = True
     dense_factor: float = 1.0
+    dense_flips: bool = False
 
     def decode_vertices(self, wanted: int) -> int:
         """The vertices to decode for a mesh of ``wanted`` vertices: ``wanted`` times
