@@ -1,4 +1,4 @@
-"""Run an evaluation with the dense decode's fit, or the choice between seeds, changed.
+"""Run an evaluation with the dense decode's fit, the final fit or the seeds' choice changed.
 
 The shipped pipeline fits a dense decode to the points before collapsing it to the
 count asked for (``spacemesh.geometry.finishing.finish_geometry``). This script runs
@@ -9,11 +9,15 @@ evaluation as the shipped code (docs/GEOMETRY.md, "Compact meshes"; 2026-12-07).
 
 Variants of the dense fit (``--dense-fit``):
 
-- ``shipped``: as the code is;
+- ``shipped``: as the code is (no flips since 2026-12-07, ``dense_flips``);
+- ``with-flips``: the rounds of fit with diagonal flips between them (before);
 - ``none``: no fit before the collapses (the raw decode collapsed);
 - ``one-round``: one round of fit (no flips), the guard on;
 - ``one-round-no-guard``: the same without the self-intersection guard;
 - ``no-flips``: the rounds of fit without the diagonal flips between them.
+
+``--final-fit`` changes the fit after the collapses (the calls with ``target_vertices``)
+the same way: ``shipped``, ``one-round``, ``three-rounds`` or ``no-flips``.
 
 ``--near-contacts-rank``: the seeds' ranking counts near contacts as crossings (not only
 the check that sends the retry seeds). ``--genus-vote``: among three or more seeds, one
@@ -39,25 +43,32 @@ from typing import Any
 
 import numpy as np
 
-VARIANTS = ("shipped", "none", "one-round", "one-round-no-guard", "no-flips")
+VARIANTS = ("shipped", "with-flips", "none", "one-round", "one-round-no-guard", "no-flips")
+FINAL_VARIANTS = ("shipped", "one-round", "three-rounds", "no-flips")
+CHANGES: dict[str, dict[str, Any]] = {
+    "one-round": {"rounds": 1}, "one-round-no-guard": {"rounds": 1, "guard": False},
+    "three-rounds": {"rounds": 3}, "no-flips": {"flips": False},
+    "with-flips": {"flips": True}}
 
 
-def patch_dense_fit(variant: str) -> None:
-    """Replace the fit before the collapses (the calls without ``target_vertices``)."""
+def patch_fits(variant: str, final: str = "shipped") -> None:
+    """Replace the fit before the collapses (the calls without ``target_vertices``) by
+    ``variant`` and the fit after them by ``final``."""
     import spacemesh.geometry.finishing as finishing
     from spacemesh.geometry.stage import GeometryResult
 
     shipped = finishing.refine_geometry
-    changes = {"one-round": {"rounds": 1}, "one-round-no-guard": {"rounds": 1, "guard": False},
-               "no-flips": {"flips": False}}
 
     def dense_fit(mesh: Any, points: Any, normals: Any = None, options: Any = None,
                   **kwargs: Any) -> Any:
-        if "target_vertices" in kwargs or variant == "shipped":
+        if "target_vertices" in kwargs:
+            changes = CHANGES.get(final, {})
+            return shipped(mesh, points, normals, replace(options, **changes), **kwargs)
+        if variant == "shipped":
             return shipped(mesh, points, normals, options, **kwargs)
         if variant == "none":
             return GeometryResult(mesh, {})
-        return shipped(mesh, points, normals, replace(options, **changes[variant]), **kwargs)
+        return shipped(mesh, points, normals, replace(options, **CHANGES[variant]), **kwargs)
 
     finishing.refine_geometry = dense_fit
 
@@ -103,6 +114,7 @@ def patch_ranking(near_contacts: bool, genus_vote: bool) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--dense-fit", choices=VARIANTS, default="shipped")
+    parser.add_argument("--final-fit", choices=FINAL_VARIANTS, default="shipped")
     parser.add_argument("--near-contacts-rank", action="store_true")
     parser.add_argument("--genus-vote", action="store_true")
     parser.add_argument("command", nargs=argparse.REMAINDER,
@@ -111,7 +123,7 @@ def main() -> None:
     command = [c for c in args.command if c != "--"]
     if not command:
         parser.error("give the evaluation to run after --")
-    patch_dense_fit(args.dense_fit)
+    patch_fits(args.dense_fit, args.final_fit)
     patch_ranking(args.near_contacts_rank, args.genus_vote)
     if command[0].endswith(".py"):
         sys.argv = command

@@ -380,3 +380,27 @@ def test_the_corner_spread_is_numpys_peak_to_peak():
 
     corners = np.random.default_rng(5).normal(size=(50, 6, 3))
     assert np.array_equal(_spread(corners), np.ptp(corners, axis=1).max(axis=1))
+
+
+@pytest.mark.parametrize("lift, crosses", [(1e-4, True), (1e-9, True), (0.01, False),
+                                           (0.5, False)])
+def test_a_fin_folded_within_a_hair_crosses(lift, crosses):
+    from spacemesh.geometry.intersections import pairs_cross
+
+    # two triangles on the edge 0-1, the second folded back over the first: the gap
+    # between them is ``lift`` at its far corner (a fin within 0.1 degree of flat, which
+    # slicers and PyMeshLab read as crossing), or a fold opened by 0.6 or 29 degrees
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, 0.9, lift],
+                         [0.5, -1, 0]], dtype=np.float64)
+    triangles = np.array([[0, 1, 2], [1, 0, 3], [1, 0, 4]])
+    verdict = pairs_cross(vertices, triangles, np.array([0, 0]), np.array([1, 2]))
+    assert verdict.tolist() == [crosses, False]  # a flat neighbour never crosses
+
+
+def test_one_triangle_twice_crosses():
+    from spacemesh.geometry.intersections import pairs_cross
+
+    # a two-face pillow (the same corners, both orientations): the faces coincide
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float64)
+    triangles = np.array([[0, 1, 2], [0, 2, 1]])
+    assert pairs_cross(vertices, triangles, np.array([0]), np.array([1])).tolist() == [True]

@@ -32,9 +32,11 @@ SHRINK = 1e-3
 #: Pairs whose corners all lie within this fraction of their size of the other's plane
 #: are coplanar (rounding of float32 files is about 1e-7 of the size).
 COPLANAR_TOLERANCE = 1e-5
-#: Two triangles on one edge are compared only when folded onto each other: their
-#: normals' dot product is below minus this.
-FOLDED_COSINE = 0.999
+#: Two triangles on one edge cross only when folded onto each other: their normals' dot
+#: product is below minus this (cos 0.1 degree: a fin whose gap at its far corner is
+#: under 0.2% of its size, which slicers and PyMeshLab's check read as crossing; 2.6
+#: degrees cost 8% ECD on the tuning set, docs/GEOMETRY.md "Fins").
+FOLDED_COSINE = 0.9999985
 #: :meth:`CrossingFaces.move` tests every pair again (one candidate search) instead of the
 #: pairs of the moved triangles when more than this share of the triangles moved.
 FULL_RETEST_SHARE = 0.5
@@ -313,8 +315,9 @@ def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntAr
                 floor: float = 0.0) -> BoolArray:
     """Which of the triangle pairs ``(i[m], j[m])`` intersect, by the rules of
     :func:`intersecting_triangles`: pairs that share corners are shrunk by
-    :data:`SHRINK` first, two triangles on one edge count only when folded onto each
-    other, and two triangles closer than :data:`TOUCHING_SHARE` of the pair's own extent
+    :data:`SHRINK` first, two triangles on one edge cross when folded onto each other
+    (:data:`FOLDED_COSINE`, whatever the gap between them), two on the same three
+    corners always, and two triangles closer than :data:`TOUCHING_SHARE` of the pair's own extent
     touch (so a pair's verdict depends on its six corners alone).
 
     Parameters
@@ -335,11 +338,15 @@ def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntAr
         return crossing
     corners = vertices[triangles]  # (T, 3, 3)
     common = (triangles[i][:, :, None] == triangles[j][:, None, :]).sum(axis=(1, 2))
-    # triangles on one edge meet elsewhere only when folded flat onto each other
+    # triangles on one edge meet elsewhere only when folded onto each other, and then
+    # they cross however thin the gap between them (a fin: its exact test after the
+    # shrink finds nothing once the fold opens by a hair)
     normal = triangle_normals(corners)
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
     folded = np.einsum("md,md->m", normal[i], normal[j]) < -FOLDED_COSINE
-    keep = np.flatnonzero((common < 2) | folded)
+    crossing[(common == 2) & folded] = True
+    crossing[common == 3] = True  # one triangle twice (a two-face pillow): they coincide
+    keep = np.flatnonzero(common < 2)
     shared = common[keep] > 0
     ta, tb = corners[i[keep]], corners[j[keep]]
     extent = _spread(np.concatenate([ta, tb], axis=1))  # (K,) the pair's extent
