@@ -74,9 +74,10 @@ class GeometryOptions:
         default) decodes at the count asked for.
     dense_flips : bool
         Flip diagonals in the dense decode's fit before its collapses too (its
-        :attr:`rounds` of fit are made either way). Off: flips toward the points on the
-        dense mesh cost the collapses their creases (synthetic tuning set, ECD 4.24 ->
-        2.82e-2; docs/GEOMETRY.md, "Compact meshes").
+        :attr:`rounds` of fit are made either way; a decode with under
+        :data:`spacemesh.geometry.finishing.DENSE_NO_FLIPS` times the count asked for is
+        fitted with flips regardless). Off: synthetic tuning set ECD 4.24 -> 2.82e-2
+        (docs/GEOMETRY.md, "The dense fit without flips").
     """
 
     fit: VertexFitOptions = field(default_factory=VertexFitOptions)
