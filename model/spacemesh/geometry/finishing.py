@@ -99,8 +99,8 @@ def finish_geometry(
             and mesh.n_vertices > target_vertices):
         # a dense decode: fitted to the points first (the collapses' placements and
         # costs read the fitted surface; flips only with ``dense_flips`` or near the
-        # count, DENSE_NO_FLIPS), then
-        # collapsed to the count asked for, the points' planes the cost
+        # count, DENSE_NO_FLIPS), then collapsed to the count asked for, the points'
+        # planes the cost
         flips = options.flips and (options.dense_flips
                                    or mesh.n_vertices < DENSE_NO_FLIPS * target_vertices)
         dense = refine_geometry(mesh, points, normals, replace(options, flips=flips)).mesh
