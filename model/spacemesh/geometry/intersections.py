@@ -5,10 +5,11 @@ Candidate pairs are triangles whose bounding spheres overlap (one KD-tree query)
 :func:`triangle_pairs_intersect`, the vectorised form of
 :func:`spacemesh.data.validate.triangles_intersect` (a test holds the two together),
 drops the pairs where one triangle lies strictly on one side of the other's plane and
-confirms the rest exactly. As in
-:func:`spacemesh.metrics.quality.self_intersecting_faces`, pairs that share corners are
-shrunk slightly first, so that a shared edge or corner does not count, and triangles of
-the same polygon face are never compared.
+confirms the rest exactly. Pairs that share corners are shrunk slightly first, so that a
+shared edge or corner does not count; two triangles on one edge cross only when folded
+onto each other (a fin), and two on the same three corners always; triangles of the same
+polygon face are never compared (:func:`pairs_cross` holds every rule; the fit report,
+the evaluation's metric and the guard all read this module).
 """
 
 from __future__ import annotations
