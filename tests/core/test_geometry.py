@@ -404,3 +404,47 @@ def test_one_triangle_twice_crosses():
     vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float64)
     triangles = np.array([[0, 1, 2], [0, 2, 1]])
     assert pairs_cross(vertices, triangles, np.array([0]), np.array([1])).tolist() == [True]
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-3, 1e3])
+@pytest.mark.parametrize("rise, crosses", [(3e-5, True), (1e-7, True), (0.0, True),
+                                           (-3e-5, False)])
+def test_a_face_hinged_on_the_other_diagonal_of_a_quad_crosses_however_thin(scale, rise,
+                                                                             crosses):
+    from spacemesh.geometry.intersections import pairs_cross
+
+    # the nut's one-sided output (docs/GEOMETRY.md, "One corner"): a nearly flat quad
+    # 0-1-2-3 split on 0-2, and a face on the other diagonal 1-3 dropping away from it
+    # (corner 4 below). Corner 3 rises by ``rise``: the face then dips under the quad's
+    # first triangle by a sliver far thinner than the old shrink of 1e-3 of its size, and
+    # meets the second along a ray from corner 3; lowered, it stays clear of both
+    vertices = scale * np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, rise],
+                                 [0.5, 0.5, -0.4]], dtype=np.float64)
+    triangles = np.array([[0, 1, 2], [0, 2, 3], [1, 3, 4]])
+    verdict = pairs_cross(vertices, triangles, np.array([0, 1, 0]), np.array([2, 2, 1]))
+    assert verdict.tolist() == [crosses, crosses, False]
+
+
+def test_one_corner_pairs_cross_only_where_a_ray_lies_in_both():
+    from spacemesh.geometry.intersections import pairs_cross
+
+    # triangles that share corner 0 only. Flat ones (z = 0) span an angle around it:
+    # 0: 0-45 degrees, 1: 27-79, 2: 79-135, 3: 135-225, 6: 45-79 (its side 0-10 on
+    # the side 0-3 of 2); 4 stands upright along the direction at 27 degrees, 5 along
+    # the one at 79 degrees
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0.2, 1, 0], [1, 0.5, 0],
+                         [-1, 1, 0], [-1, -1, 0], [1, 0.5, 1], [1, 0.5, -1],
+                         [0, 1, 1], [0.1, 0.5, 0]], dtype=np.float64)
+    triangles = np.array([[0, 1, 2], [0, 4, 3], [0, 3, 5], [0, 5, 6], [0, 7, 8],
+                          [0, 3, 9], [0, 2, 10]])
+    i = np.array([0, 0, 0, 0, 0, 2, 6])
+    j = np.array([1, 2, 3, 4, 5, 4, 2])
+    assert pairs_cross(vertices, triangles, i, j).tolist() == [
+        True,  # flat, their angles overlap (a fan folded past 360 degrees)
+        False,  # flat, apart
+        False,  # flat, opposite
+        True,  # upright, through the inside of 0 from the corner
+        False,  # upright, standing outside 0
+        False,  # upright, standing outside 2
+        True,  # flat, their sides overlap along 0-10: touching counts
+    ]

@@ -5,8 +5,9 @@ Candidate pairs are triangles whose bounding spheres overlap (one KD-tree query)
 :func:`triangle_pairs_intersect`, the vectorised form of
 :func:`spacemesh.data.validate.triangles_intersect` (a test holds the two together),
 drops the pairs where one triangle lies strictly on one side of the other's plane and
-confirms the rest exactly. Pairs that share corners are shrunk slightly first, so that a
-shared edge or corner does not count; two triangles on one edge cross only when folded
+confirms the rest exactly. Pairs that share corners have exact rules of their own, so
+that the shared edge or corner does not count: two triangles on one corner cross when a
+ray from it lies in both (:func:`_one_corner_cross`), two on one edge only when folded
 onto each other (a fin), and two on the same three corners always; triangles of the same
 polygon face are never compared (:func:`pairs_cross` holds every rule; the fit report,
 the evaluation's metric and the guard all read this module).
@@ -27,9 +28,6 @@ from spacemesh.primitives import (
 )
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
-#: Shrink of triangles that share corners, as a fraction of their size (large enough
-#: that rounding in nearly coplanar neighbours never reads as a crossing).
-SHRINK = 1e-3
 #: Pairs whose corners all lie within this fraction of their size of the other's plane
 #: are coplanar (rounding of float32 files is about 1e-7 of the size).
 COPLANAR_TOLERANCE = 1e-5
@@ -38,6 +36,10 @@ COPLANAR_TOLERANCE = 1e-5
 #: under 0.2% of its size, which slicers and PyMeshLab's check read as crossing; 2.6
 #: degrees cost 8% ECD on the tuning set, docs/GEOMETRY.md "Fins").
 FOLDED_COSINE = 0.9999985
+#: Near contacts (``floor`` of :func:`pairs_cross`) of two triangles on one corner are
+#: looked for away from it: on copies shrunk by this fraction of their size towards their
+#: centres (which keeps the seeds' check of 2026-12-06 as it was tuned).
+NEAR_SHRINK = 1e-3
 #: :meth:`CrossingFaces.move` tests every pair again (one candidate search) instead of the
 #: pairs of the moved triangles when more than this share of the triangles moved.
 FULL_RETEST_SHARE = 0.5
@@ -58,11 +60,6 @@ def _spread(corners: FloatArray) -> FloatArray:
         np.maximum(high, corners[:, k], out=high)
         np.minimum(low, corners[:, k], out=low)
     return (high - low).max(axis=1)
-
-
-def _shrunk(corners: FloatArray, factor: float) -> FloatArray:
-    centre = corners.mean(axis=-2, keepdims=True)
-    return centre + (corners - centre) * (1.0 - factor)
 
 
 def _unit_normals(t: FloatArray) -> tuple[FloatArray, BoolArray]:
@@ -122,7 +119,8 @@ def triangle_pairs_intersect(ta: FloatArray, tb: FloatArray,
     Parameters
     ----------
     ta, tb : (M, 3, 3) float
-        Corner positions of the pairs (pairs that share corners: shrink them first).
+        Corner positions of the pairs (pairs that share no corner: shared corners always
+        touch).
     eps : float or (M,) float
         Distance below which touching counts as intersecting (one for all pairs, or one
         per pair).
@@ -315,11 +313,12 @@ class CrossingFaces:
 def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntArray,
                 floor: float = 0.0) -> BoolArray:
     """Which of the triangle pairs ``(i[m], j[m])`` intersect, by the rules of
-    :func:`intersecting_triangles`: pairs that share corners are shrunk by
-    :data:`SHRINK` first, two triangles on one edge cross when folded onto each other
-    (:data:`FOLDED_COSINE`, whatever the gap between them), two on the same three
-    corners always, and two triangles closer than :data:`TOUCHING_SHARE` of the pair's own extent
-    touch (so a pair's verdict depends on its six corners alone).
+    :func:`intersecting_triangles`: two triangles on one corner cross when a ray from it
+    lies in both (:func:`_one_corner_cross`), two on one edge when folded onto each
+    other (:data:`FOLDED_COSINE`, whatever the gap between them), two on the same three
+    corners always, and two that share no corner when closer than
+    :data:`TOUCHING_SHARE` of the pair's own extent (so a pair's verdict depends on its
+    six corners alone).
 
     Parameters
     ----------
@@ -328,7 +327,9 @@ def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntAr
     i, j : (M,) int
         Indices into ``triangles`` (``i[m] != j[m]``).
     floor : float
-        The touching distance is at least this (0: each pair's own alone).
+        The touching distance is at least this (0: each pair's own alone); two triangles
+        on one corner then also touch when they come this close away from it (their
+        copies shrunk by :data:`NEAR_SHRINK`).
 
     Returns
     -------
@@ -338,24 +339,90 @@ def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntAr
     if len(i) == 0:
         return crossing
     corners = vertices[triangles]  # (T, 3, 3)
-    common = (triangles[i][:, :, None] == triangles[j][:, None, :]).sum(axis=(1, 2))
+    same = triangles[i][:, :, None] == triangles[j][:, None, :]  # (M, 3, 3)
+    common = same.sum(axis=(1, 2))
     # triangles on one edge meet elsewhere only when folded onto each other, and then
-    # they cross however thin the gap between them (a fin: its exact test after the
-    # shrink finds nothing once the fold opens by a hair)
+    # they cross however thin the gap between them (a fin)
     normal = triangle_normals(corners)
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
     folded = np.einsum("md,md->m", normal[i], normal[j]) < -FOLDED_COSINE
     crossing[(common == 2) & folded] = True
     crossing[common == 3] = True  # one triangle twice (a two-face pillow): they coincide
-    keep = np.flatnonzero(common < 2)
-    shared = common[keep] > 0
-    ta, tb = corners[i[keep]], corners[j[keep]]
+    one = np.flatnonzero(common == 1)
+    if len(one):
+        crossing[one] = _one_corner_cross(corners[i[one]], corners[j[one]],
+                                          same[one].any(axis=2).argmax(axis=1),
+                                          same[one].any(axis=1).argmax(axis=1))
+    if floor > 0:  # near contacts of the pairs on one corner, away from it
+        near = one[~crossing[one]]
+        ta, tb = _shrunk(corners[i[near]]), _shrunk(corners[j[near]])
+        crossing[near[triangle_pairs_intersect(ta, tb, floor)]] = True
+    apart = np.flatnonzero(common == 0)
+    ta, tb = corners[i[apart]], corners[j[apart]]
     extent = _spread(np.concatenate([ta, tb], axis=1))  # (K,) the pair's extent
     eps = np.maximum(TOUCHING_SHARE * np.where(extent > 0, extent, 1.0), floor)
-    ta = np.where(shared[:, None, None], _shrunk(ta, SHRINK), ta)
-    tb = np.where(shared[:, None, None], _shrunk(tb, SHRINK), tb)
-    crossing[keep[triangle_pairs_intersect(ta, tb, eps)]] = True
+    crossing[apart[triangle_pairs_intersect(ta, tb, eps)]] = True
     return crossing
+
+
+def _shrunk(corners: FloatArray) -> FloatArray:
+    """Triangles ``corners`` ``(M, 3, 3)`` shrunk by :data:`NEAR_SHRINK` towards their
+    centres."""
+    centre = corners.mean(axis=1, keepdims=True)
+    return centre + (corners - centre) * (1.0 - NEAR_SHRINK)
+
+
+def _unit(rows: FloatArray) -> FloatArray:
+    """``rows`` ``(M, 3)`` over their lengths (zero rows stay zero)."""
+    return rows / np.maximum(np.linalg.norm(rows, axis=1, keepdims=True), 1e-300)
+
+
+def _in_cone(ray: FloatArray, first: FloatArray, second: FloatArray, normal: FloatArray
+             ) -> BoolArray:
+    """``(M,)`` whether unit ``ray`` lies in the cone of unit ``first`` and ``second``
+    (a triangle's corner, under 180 degrees; ``normal`` ``first x second``, unit),
+    within :data:`TOUCHING_SHARE`: on its boundary counts (all ``(M, 3)``)."""
+    return ((np.einsum("md,md->m", cross_rows(first, ray), normal) >= -TOUCHING_SHARE)
+            & (np.einsum("md,md->m", cross_rows(ray, second), normal) >= -TOUCHING_SHARE))
+
+
+def _one_corner_cross(ta: FloatArray, tb: FloatArray, ka: IntArray, kb: IntArray
+                      ) -> BoolArray:
+    """``(M,)`` whether triangles ``ta`` and ``tb`` (``(M, 3, 3)``), which share the
+    corner ``ta[m, ka[m]] == tb[m, kb[m]]`` and no other, meet anywhere else.
+
+    Their intersection is convex and holds the corner, so they meet elsewhere exactly
+    when a ray from the corner lies in both: along the line where their planes meet, or,
+    when they are coplanar (within :data:`COPLANAR_TOLERANCE`), when their corners'
+    cones overlap, which one of the six rays of their sides and bisectors then shows.
+    The test is exact at any scale: a crossing however thin counts, and the corner
+    alone never does (the shrink of such pairs that it replaced hid crossings thinner
+    than the shrink; docs/GEOMETRY.md, "One corner").
+    """
+    rows = np.arange(len(ta))[:, None]
+
+    def cone(t: FloatArray, k: IntArray) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray]:
+        turn = t[rows, (k[:, None] + np.arange(3)) % 3]  # (M, 3, 3) the corner first
+        first, second = _unit(turn[:, 1] - turn[:, 0]), _unit(turn[:, 2] - turn[:, 0])
+        normal = cross_rows(first, second)
+        return first, second, _unit(normal), np.any(normal != 0, axis=1)
+
+    a1, a2, na, good_a = cone(ta, ka)
+    b1, b2, nb, good_b = cone(tb, kb)
+    coplanar = (np.maximum(np.abs(np.einsum("md,md->m", b1, na)),
+                           np.abs(np.einsum("md,md->m", b2, na))) <= COPLANAR_TOLERANCE) & (
+        np.maximum(np.abs(np.einsum("md,md->m", a1, nb)),
+                   np.abs(np.einsum("md,md->m", a2, nb))) <= COPLANAR_TOLERANCE)
+    line = _unit(cross_rows(na, nb))  # (M, 3) where their planes meet
+    meet = np.zeros(len(ta), dtype=bool)
+    for ray in (line, -line):
+        meet |= _in_cone(ray, a1, a2, na) & _in_cone(ray, b1, b2, nb)
+    overlap = np.zeros(len(ta), dtype=bool)
+    for ray in (a1, a2, a1 + a2):
+        overlap |= _in_cone(_unit(ray), b1, b2, nb)
+    for ray in (b1, b2, b1 + b2):
+        overlap |= _in_cone(_unit(ray), a1, a2, na)
+    return np.where(coplanar, overlap, meet) & good_a & good_b
 
 
 def self_intersecting_faces(mesh: PolygonMesh, *, whole_extent: bool = False
