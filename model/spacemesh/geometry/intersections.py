@@ -379,11 +379,12 @@ def _unit(rows: FloatArray) -> FloatArray:
 
 def _in_cone(ray: FloatArray, first: FloatArray, second: FloatArray, normal: FloatArray
              ) -> BoolArray:
-    """``(M,)`` whether unit ``ray`` lies in the cone of unit ``first`` and ``second``
-    (a triangle's corner, under 180 degrees; ``normal`` ``first x second``, unit),
-    within :data:`TOUCHING_SHARE`: on its boundary counts (all ``(M, 3)``)."""
-    return ((np.einsum("md,md->m", cross_rows(first, ray), normal) >= -TOUCHING_SHARE)
-            & (np.einsum("md,md->m", cross_rows(ray, second), normal) >= -TOUCHING_SHARE))
+    """``(M,)`` whether unit ``ray`` lies inside the cone of unit ``first`` and ``second``
+    (a triangle's corner, under 180 degrees; ``normal`` ``first x second``, unit), by
+    more than :data:`TOUCHING_SHARE`: a ray along a side does not count (all ``(M, 3)``).
+    """
+    return ((np.einsum("md,md->m", cross_rows(first, ray), normal) > TOUCHING_SHARE)
+            & (np.einsum("md,md->m", cross_rows(ray, second), normal) > TOUCHING_SHARE))
 
 
 def _one_corner_cross(ta: FloatArray, tb: FloatArray, ka: IntArray, kb: IntArray
@@ -397,7 +398,9 @@ def _one_corner_cross(ta: FloatArray, tb: FloatArray, ka: IntArray, kb: IntArray
     cones overlap, which one of the six rays of their sides and bisectors then shows.
     The test is exact at any scale: a crossing however thin counts, and the corner
     alone never does (the shrink of such pairs that it replaced hid crossings thinner
-    than the shrink; docs/GEOMETRY.md, "One corner").
+    than the shrink; docs/GEOMETRY.md, "One corner"). A ray along a side of either is
+    not enough: sides that lie along each other (a polygon's corner on the straight side
+    of its neighbour, whose triangles then meet along it) are not a crossing.
     """
     rows = np.arange(len(ta))[:, None]
 
