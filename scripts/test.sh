@@ -25,4 +25,5 @@ fi
 "$VENV/bin/ruff" check model service client tests bench experiments scripts examples
 "$VENV/bin/lint-imports" --no-cache
 "$VENV/bin/mypy"
-exec "$VENV/bin/python" -m pytest -q "$@"
+# two workers (pytest-xdist; a test file stays on one worker, so its fixtures start once)
+exec "$VENV/bin/python" -m pytest -q -n "${SPACEMESH_TEST_WORKERS:-2}" --dist loadfile "$@"

@@ -201,11 +201,12 @@ def test_an_open_mesh_keeps_its_boundary():
 
 
 def _noisy_ellipsoid(seed: int) -> PolygonMesh:
-    """A noisy flattened icosphere: its collapses are often refused for crossings."""
-    mesh = icosphere(3)
+    """A noisy flattened icosphere (162 vertices): its collapses are often refused for
+    crossings."""
+    mesh = icosphere(2)
     rng = np.random.default_rng(seed)
     return mesh.with_vertices(mesh.vertices * [1.0, 0.5, 0.25]
-                              + rng.normal(scale=0.03, size=mesh.vertices.shape))
+                              + rng.normal(scale=0.05, size=mesh.vertices.shape))
 
 
 def _reference_crosses(state, moved, new, a, position, removed) -> bool:
@@ -237,7 +238,7 @@ def _reference_crosses(state, moved, new, a, position, removed) -> bool:
     return len(i) > 0 and bool(pairs_cross(local_positions, local_tri, i, j).any())
 
 
-@pytest.mark.parametrize("seed", [0])  # one noisy ellipsoid: ~9 s (the suite is near 15 min)
+@pytest.mark.parametrize("seed", [0])  # one noisy ellipsoid: ~3 s, 523 checks
 def test_the_crossing_check_answers_as_the_plain_search_does(monkeypatch, seed):
     """Every crossing check of both modes (kept face boxes, no local renumbering) gives
     the plain search's answer, and the kept boxes are the live faces' boxes."""
@@ -259,7 +260,7 @@ def test_the_crossing_check_answers_as_the_plain_search_does(monkeypatch, seed):
     monkeypatch.setattr(_Collapser, "_crosses", both)
     mesh = _noisy_ellipsoid(seed)
     points, _ = _points(mesh, 2000, seed)
-    simplify(mesh, points, target_vertices=60)
+    simplify(mesh, points, target_vertices=30)
     simplify(mesh, None, max_error=1e-3)
     assert sum(answers) > 50 and len(answers) - sum(answers) > 50  # both answers tested
 

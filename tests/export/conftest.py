@@ -1,5 +1,4 @@
-"""Fixtures: a tiny model trained and exported once per test session via the CLI, and a
-connectivity-only run on it."""
+"""Fixtures: a connectivity-only run on the tiny model (``toy_model``, tests/conftest.py)."""
 
 from __future__ import annotations
 
@@ -27,15 +26,6 @@ def invoke_train(toy_model, out, *options: str):
     return CliRunner().invoke(app, ["train", "--config", "tiny", "--data", str(toy_model.data),
                                     "--out", str(out), *options])
 
-
-@pytest.fixture(scope="session")
-def toy_model(tmp_path_factory):
-    """A :class:`spacemesh.train.toy.ToyModel` (shared by tests/export and tests/runtime)."""
-    pytest.importorskip("torch")
-    pytest.importorskip("onnxscript")
-    from spacemesh.train.toy import build_toy_model
-
-    return build_toy_model(tmp_path_factory.getbasetemp() / "spacemesh-toy-model")
 
 
 @pytest.fixture(scope="session")

@@ -1,15 +1,13 @@
 """Fixtures of the service tests: a tiny exported model and real servers on loopback.
 
-The model is trained and exported once per session through the real command line
-(:func:`spacemesh.train.toy.build_toy_model`); set ``SPACEMESH_TEST_TOY_DIR`` to a
-folder to keep it between sessions. Servers run :class:`SpaceMeshServer` (uvicorn +
-gRPC) in a background thread (:class:`BackgroundServer`) on 127.0.0.1 with ports picked by the OS.
+The model is the run's tiny model (``toy_model`` of tests/conftest.py). Servers run
+:class:`SpaceMeshServer` (uvicorn + gRPC) in a background thread (:class:`BackgroundServer`)
+on 127.0.0.1 with ports picked by the OS.
 """
 
 from __future__ import annotations
 
 import importlib.util
-import os
 from pathlib import Path
 
 import pytest
@@ -32,15 +30,9 @@ else:
 
 # ---------------------------------------------------------------------- model
 @pytest.fixture(scope="session")
-def toy_repository(tmp_path_factory) -> Path:
-    """Version folder of a tiny model trained and exported through the CLI."""
-    pytest.importorskip("torch")
-    from spacemesh.train.toy import build_toy_model
-
-    folder = os.environ.get("SPACEMESH_TEST_TOY_DIR")
-    # the same folder as tests/runtime and tests/export: one build per session
-    directory = Path(folder) if folder else tmp_path_factory.getbasetemp() / "spacemesh-toy-model"
-    return build_toy_model(directory).repository
+def toy_repository(toy_model) -> Path:
+    """Version folder of the tiny model (``toy_model``, tests/conftest.py)."""
+    return toy_model.repository
 
 
 @pytest.fixture(scope="session")

@@ -13,13 +13,11 @@ def toy_data(tmp_path_factory):
     return make_toy_dataset(tmp_path_factory.mktemp("toy") / "data", count=30, seed=0)
 
 
-from tests.export.conftest import toy_model  # noqa: E402, F401  (one toy model per session)
-
-
 @pytest.fixture(scope="session")
-def local_model(toy_model, tmp_path_factory):  # noqa: F811  (the imported fixture)
-    """A 2-step diffusion-only ``tiny-local`` run on a copy of the toy model (``base``),
-    exported as a model version (``directory``): its ``denoiser.onnx`` takes ``points``."""
+def local_model(toy_model, tmp_path_factory):
+    """A 2-step diffusion-only ``tiny-local`` run on a copy of the tiny model (``base``;
+    ``toy_model`` of tests/conftest.py), exported as a model version (``directory``): its
+    ``denoiser.onnx`` takes ``points``."""
     import shutil
     from types import SimpleNamespace
 
