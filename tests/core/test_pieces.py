@@ -40,6 +40,20 @@ def test_a_fragment_beside_the_surface_goes_and_a_part_away_from_it_stays():
     assert np.isclose(kept.vertices[:, 0].max(), 3.05)  # the far part is still there
 
 
+def test_a_two_face_pillow_goes_wherever_it_lies():
+    far = with_tetrahedra([np.array([3.0, 0.0, 0.0])])  # a part away from the sphere stays
+    start = far.n_vertices
+    corners = np.array([[0.0, 3.0, 0.0], [0.1, 3.0, 0.0], [0.0, 3.1, 0.0]])
+    mesh = PolygonMesh.from_faces(  # and a pillow as far away: two faces, one each way
+        np.concatenate([far.vertices, corners]),
+        [*far.faces, np.array([0, 1, 2]) + start, np.array([0, 2, 1]) + start])
+    assert surface_topology(mesh).pieces == 3
+    kept, dropped = drop_fragments(mesh)
+    assert dropped == 1
+    assert_valid_mesh(kept)
+    assert kept.n_vertices == far.n_vertices and kept.n_faces == far.n_faces
+
+
 def test_nothing_goes_from_a_mesh_of_one_piece_or_of_fragments_only():
     sphere = icosphere(2)
     assert drop_fragments(sphere) == (sphere, 0)

@@ -16,8 +16,8 @@ into a piece of their own: a flat two-triangle pillow or a small tetrahedral kno
 surface of the part they belong to. Such a fragment adds a piece that the points do not
 have (the output's topology disagrees with the object's) and covers almost nothing, so
 :func:`drop_fragments` removes it. A small piece *away* from the others (a separate part
-of the object) is kept, however small, as is every piece of a mesh that has nothing but
-fragments.
+of the object) is kept, however small, unless it is a two-face pillow, which encloses
+nothing wherever it lies; every piece of a mesh that has nothing but fragments is kept.
 
 Removing whole closed pieces keeps a closed oriented manifold closed, oriented and
 manifold: the decode's guarantee holds for the result.
@@ -121,7 +121,11 @@ def drop_fragments(mesh: PolygonMesh, policy: FragmentPolicy | None = None
 
 def _fragments(mesh: PolygonMesh, n_pieces: int, label: IntArray,
                policy: FragmentPolicy) -> np.ndarray:
-    """(n_pieces,) bool: which pieces are fragments."""
+    """(n_pieces,) bool: which pieces are fragments. A piece of two faces is one
+    wherever it lies: two faces on one loop of corners, one each way (a pillow), enclose
+    nothing and coincide (:func:`spacemesh.geometry.intersections.pairs_cross` reads
+    them as crossing)."""
+    pillow = np.bincount(label, minlength=n_pieces) == 2  # (n_pieces,)
     tri, source = triangles_of(mesh)  # (T, 3), (T,)
     areas = triangle_areas(mesh.vertices, tri)  # (T,)
     piece_area = np.bincount(label[source], weights=areas, minlength=n_pieces)
@@ -132,7 +136,7 @@ def _fragments(mesh: PolygonMesh, n_pieces: int, label: IntArray,
     piece_vertices = np.bincount(vertex_piece[used], minlength=n_pieces)
     small = (piece_vertices <= policy.max_vertices) & (share <= policy.max_area_share)
     if not small.any() or small.all():
-        return small
+        return small | pillow
     reach = policy.max_gap_edges * _median_edge(mesh)
     large_vertices = np.flatnonzero(used & ~small[np.maximum(vertex_piece, 0)])
     tree = cKDTree(mesh.vertices[large_vertices])
@@ -140,7 +144,7 @@ def _fragments(mesh: PolygonMesh, n_pieces: int, label: IntArray,
     for piece in np.flatnonzero(small):
         gaps, _ = tree.query(mesh.vertices[vertex_piece == piece])
         fragment[piece] = bool(np.min(gaps) <= reach)
-    return fragment
+    return fragment | pillow
 
 
 def _median_edge(mesh: PolygonMesh) -> float:
