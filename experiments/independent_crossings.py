@@ -12,6 +12,12 @@ of :mod:`spacemesh.geometry.intersections`. Prints the crossing faces
 of each output and how many outputs have any. PyMeshLab (GPL) is a test dependency
 only, never the serving install's.
 
+``--explain`` also says how many of the faces it selects come from pairs of exactly
+coplanar triangles (corners within 1e-12 of the diagonal of the other's plane) that
+PyMeshLab's filter reads as crossing although they do not overlap (their overlap area,
+by clipping one with the other in their plane, under 1e-9 of the smaller's area): the
+filter's false positives on flat regions (docs/GEOMETRY.md, "PyMeshLab on flat regions").
+
 Usage::
 
     python experiments/independent_crossings.py --split test [--partial] [--gt-count]
@@ -30,6 +36,65 @@ from eval_one_sided import DIRECTIONS
 from eval_real_meshes import CATEGORIES, split_meshes, split_parser
 
 
+def _clipped_area(subject: np.ndarray, clipper: np.ndarray) -> float:
+    """Area of ``subject`` (K, 2) clipped by the convex counter-clockwise ``clipper``
+    (3, 2) (Sutherland-Hodgman)."""
+    polygon = list(subject)
+    for k in range(len(clipper)):
+        a, b = clipper[k], clipper[(k + 1) % len(clipper)]
+
+        def side(q, a=a, b=b):
+            return (b[0] - a[0]) * (q[1] - a[1]) - (b[1] - a[1]) * (q[0] - a[0])
+
+        kept = []
+        for m, q in enumerate(polygon):
+            prev = polygon[m - 1]
+            if side(q) >= 0:
+                if side(prev) < 0:
+                    kept.append(prev + side(prev) / (side(prev) - side(q)) * (q - prev))
+                kept.append(q)
+            elif side(prev) >= 0:
+                kept.append(prev + side(prev) / (side(prev) - side(q)) * (q - prev))
+        polygon = kept
+        if len(polygon) < 3:
+            return 0.0
+    x, y = np.array(polygon).T
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)))
+
+
+def flat_false_positives(vertices: np.ndarray, triangles: np.ndarray,
+                         selected: np.ndarray) -> int:
+    """How many of the ``selected`` triangles PyMeshLab pairs with an exactly coplanar
+    one that it reads as crossing but that does not overlap it (module docstring)."""
+    from scipy.spatial import cKDTree
+
+    from spacemesh.data.validate import pymeshlab_selected_triangles
+
+    corners = vertices[triangles[selected]]  # (S, 3, 3)
+    diagonal = float(np.linalg.norm(np.ptp(vertices, axis=0)))
+    centre = corners.mean(axis=1)
+    reach = 2 * float(np.linalg.norm(corners - centre[:, None], axis=2).max())
+    explained: set[int] = set()
+    for a, b in cKDTree(centre).query_pairs(reach):
+        ta, tb = corners[a], corners[b]
+        normal = np.cross(ta[1] - ta[0], ta[2] - ta[0])
+        normal /= np.linalg.norm(normal)
+        if np.abs((tb - ta[0]) @ normal).max() > 1e-12 * diagonal:
+            continue
+        axis_u = (ta[1] - ta[0]) / np.linalg.norm(ta[1] - ta[0])
+        axis_v = np.cross(normal, axis_u)
+        flat = [np.stack([(t - ta[0]) @ axis_u, (t - ta[0]) @ axis_v], axis=1)
+                for t in (ta, tb)]  # (3, 2) each
+        flat = [f if np.cross(f[1] - f[0], f[2] - f[0]) > 0 else f[::-1] for f in flat]
+        smaller = min(_clipped_area(f, f) for f in flat)
+        if _clipped_area(flat[1], flat[0]) > 1e-9 * smaller:
+            continue  # they overlap: a crossing
+        pair = np.stack([triangles[selected[a]], triangles[selected[b]]])
+        if len(pymeshlab_selected_triangles(vertices, pair)):
+            explained.update((a, b))
+    return len(explained)
+
+
 def main() -> int:
     parser = split_parser(__doc__)
     parser.add_argument("--data", type=Path, default=None,
@@ -38,6 +103,8 @@ def main() -> int:
     parser.add_argument("--partial", action="store_true", help="one-sided scans")
     parser.add_argument("--gt-count", action="store_true",
                         help="target_vertices = the ground truth's count")
+    parser.add_argument("--explain", action="store_true",
+                        help="count the selected faces that are flat false positives")
     args = parser.parse_args()
     from spacemesh.evaluate.runner import load_shapes, pin_threads
 
@@ -65,7 +132,11 @@ def main() -> int:
         selected = pymeshlab_selected_triangles(mesh.vertices, triangles)
         faces = len(np.unique(source[selected]))
         crossing_outputs += faces > 0
-        print(f"{shape.shape_id[:48]:<48} crossing faces {faces} of {mesh.n_faces}",
+        explained = ""
+        if args.explain and faces:
+            flat = flat_false_positives(mesh.vertices, triangles, selected)
+            explained = f" ({flat} of the {len(selected)} triangles: flat false positives)"
+        print(f"{shape.shape_id[:48]:<48} crossing faces {faces} of {mesh.n_faces}{explained}",
               flush=True)
     print(f"\n{crossing_outputs} of {len(shapes)} outputs have crossing faces (PyMeshLab)")
     return 0
