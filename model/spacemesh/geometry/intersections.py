@@ -38,7 +38,7 @@ COPLANAR_TOLERANCE = 1e-5
 FOLDED_COSINE = 0.9999985
 #: Near contacts (``floor`` of :func:`pairs_cross`) of two triangles on one corner are
 #: looked for away from it: on copies shrunk by this fraction of their size towards their
-#: centres (which keeps the seeds' check of 2026-12-06 as it was tuned).
+#: centres (which keeps the seeds' check as it was tuned: docs/GEOMETRY.md, "One corner").
 NEAR_SHRINK = 1e-3
 #: :meth:`CrossingFaces.move` tests every pair again (one candidate search) instead of the
 #: pairs of the moved triangles when more than this share of the triangles moved.
