@@ -86,7 +86,7 @@ def flat_false_positives(vertices: np.ndarray, triangles: np.ndarray,
         flat = [np.stack([(t - ta[0]) @ axis_u, (t - ta[0]) @ axis_v], axis=1)
                 for t in (ta, tb)]  # (3, 2) each
         flat = [f if np.cross(f[1] - f[0], f[2] - f[0]) > 0 else f[::-1] for f in flat]
-        smaller = min(_clipped_area(f, f) for f in flat)
+        smaller = min(0.5 * abs(float(np.cross(f[1] - f[0], f[2] - f[0]))) for f in flat)
         if _clipped_area(flat[1], flat[0]) > 1e-9 * smaller:
             continue  # they overlap: a crossing
         pair = np.stack([triangles[selected[a]], triangles[selected[b]]])

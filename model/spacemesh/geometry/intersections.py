@@ -25,6 +25,7 @@ from spacemesh.primitives import (
     triangle_normals,
     triangles_of,
     unique_edges,
+    unit_rows,
 )
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
@@ -82,8 +83,7 @@ def _segments_hit(p0: FloatArray, p1: FloatArray, t: FloatArray, normal: FloatAr
     inside = np.ones(len(p0), dtype=bool)
     for k in range(3):
         u, w = t[:, k], t[:, (k + 1) % 3]
-        inward = cross_rows(normal, w - u)
-        inward /= np.maximum(np.linalg.norm(inward, axis=1, keepdims=True), 1e-300)
+        inward = unit_rows(cross_rows(normal, w - u))
         inside &= np.einsum("md,md->m", x - u, inward) >= -eps
     return ~apart & ~flat & inside
 
@@ -343,8 +343,7 @@ def pairs_cross(vertices: FloatArray, triangles: IntArray, i: IntArray, j: IntAr
     common = same.sum(axis=(1, 2))
     # triangles on one edge meet elsewhere only when folded onto each other, and then
     # they cross however thin the gap between them (a fin)
-    normal = triangle_normals(corners)
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    normal = unit_rows(triangle_normals(corners))
     folded = np.einsum("md,md->m", normal[i], normal[j]) < -FOLDED_COSINE
     crossing[(common == 2) & folded] = True
     crossing[common == 3] = True  # one triangle twice (a two-face pillow): they coincide
@@ -370,11 +369,6 @@ def _shrunk(corners: FloatArray) -> FloatArray:
     centres."""
     centre = corners.mean(axis=1, keepdims=True)
     return centre + (corners - centre) * (1.0 - NEAR_SHRINK)
-
-
-def _unit(rows: FloatArray) -> FloatArray:
-    """``rows`` ``(M, 3)`` over their lengths (zero rows stay zero)."""
-    return rows / np.maximum(np.linalg.norm(rows, axis=1, keepdims=True), 1e-300)
 
 
 def _in_cone(ray: FloatArray, first: FloatArray, second: FloatArray, normal: FloatArray
@@ -406,9 +400,9 @@ def _one_corner_cross(ta: FloatArray, tb: FloatArray, ka: IntArray, kb: IntArray
 
     def cone(t: FloatArray, k: IntArray) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray]:
         turn = t[rows, (k[:, None] + np.arange(3)) % 3]  # (M, 3, 3) the corner first
-        first, second = _unit(turn[:, 1] - turn[:, 0]), _unit(turn[:, 2] - turn[:, 0])
+        first, second = unit_rows(turn[:, 1] - turn[:, 0]), unit_rows(turn[:, 2] - turn[:, 0])
         normal = cross_rows(first, second)
-        return first, second, _unit(normal), np.any(normal != 0, axis=1)
+        return first, second, unit_rows(normal), np.any(normal != 0, axis=1)
 
     a1, a2, na, good_a = cone(ta, ka)
     b1, b2, nb, good_b = cone(tb, kb)
@@ -416,15 +410,15 @@ def _one_corner_cross(ta: FloatArray, tb: FloatArray, ka: IntArray, kb: IntArray
                            np.abs(np.einsum("md,md->m", b2, na))) <= COPLANAR_TOLERANCE) & (
         np.maximum(np.abs(np.einsum("md,md->m", a1, nb)),
                    np.abs(np.einsum("md,md->m", a2, nb))) <= COPLANAR_TOLERANCE)
-    line = _unit(cross_rows(na, nb))  # (M, 3) where their planes meet
+    line = unit_rows(cross_rows(na, nb))  # (M, 3) where their planes meet
     meet = np.zeros(len(ta), dtype=bool)
     for ray in (line, -line):
         meet |= _in_cone(ray, a1, a2, na) & _in_cone(ray, b1, b2, nb)
     overlap = np.zeros(len(ta), dtype=bool)
     for ray in (a1, a2, a1 + a2):
-        overlap |= _in_cone(_unit(ray), b1, b2, nb)
+        overlap |= _in_cone(unit_rows(ray), b1, b2, nb)
     for ray in (b1, b2, b1 + b2):
-        overlap |= _in_cone(_unit(ray), a1, a2, na)
+        overlap |= _in_cone(unit_rows(ray), a1, a2, na)
     return np.where(coplanar, overlap, meet) & good_a & good_b
 
 

@@ -56,7 +56,7 @@ from spacemesh.cancel import checkpoint
 from spacemesh.geometry.fitting import plane_fits
 from spacemesh.geometry.intersections import TOUCHING_SHARE, pairs_cross, touching_eps
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import triangle_normals, unique_edges
+from spacemesh.primitives import triangle_normals, unique_edges, unit_rows
 from spacemesh.primitives.closest import mean_distance
 from spacemesh.topology import edge_connected_faces, surface_topology
 from spacemesh.typed import FloatArray, IntArray
@@ -139,8 +139,7 @@ def point_quadrics(vertices: FloatArray, points: FloatArray,
     points = np.asarray(points, dtype=np.float64)
     if normals is None:
         normals = plane_fits(points)[0]
-    n = np.asarray(normals, dtype=np.float64)
-    n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    n = unit_rows(np.asarray(normals, dtype=np.float64))
     planes = np.concatenate([n, -np.einsum("pd,pd->p", n, points)[:, None]], axis=1)  # (P, 4)
     _, owner = cKDTree(vertices).query(points)  # (P,)
     quadrics = np.zeros((len(vertices), 4, 4))
@@ -348,8 +347,7 @@ class _Collapser:
         moved = sorted((self.faces_of[a] | self.faces_of[b]) - shared)  # the new fan
         old = self.triangles[moved]  # (K, 3)
         new = np.where(old == b, a, old)
-        n_old = triangle_normals(self.positions[old])  # (K, 3)
-        unit_old = n_old / np.maximum(np.linalg.norm(n_old, axis=1, keepdims=True), 1e-300)
+        unit_old = unit_rows(triangle_normals(self.positions[old]))  # (K, 3)
         why = "flip"
         for position in positions:
             new_corners = self.positions[new]

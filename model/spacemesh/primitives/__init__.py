@@ -34,7 +34,7 @@ from spacemesh.primitives.triangles import (
     triangulate_manifold,
     triangulate_polygon,
 )
-from spacemesh.primitives.vectors import cross_rows, triangle_normals
+from spacemesh.primitives.vectors import cross_rows, triangle_normals, unit_rows
 from spacemesh.primitives.welding import weld
 
 __all__ = [
@@ -59,6 +59,7 @@ __all__ = [
     "triangulate_polygon",
     "uniform_adjacency",
     "unique_edges",
+    "unit_rows",
     "vertices_of",
     "weld",
 ]

@@ -33,4 +33,9 @@ def triangle_normals(corners: FloatArray) -> FloatArray:
     return cross_rows(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
 
 
-__all__ = ["cross_rows", "triangle_normals"]
+def unit_rows(rows: FloatArray) -> FloatArray:
+    """``rows`` ``(M, 3)`` over their lengths (zero rows stay zero)."""
+    return rows / np.maximum(np.linalg.norm(rows, axis=1, keepdims=True), 1e-300)
+
+
+__all__ = ["cross_rows", "triangle_normals", "unit_rows"]
