@@ -305,6 +305,37 @@ def test_the_stage_fits_a_coarse_decode_and_keeps_it_valid():
     assert untouched.mesh is coarse and not untouched.stats["kept"]
 
 
+def test_a_far_target_is_split_in_fitted_steps():
+    """Nine times the coarse mesh's vertices: split and fitted 42 -> 84 -> 168 -> 336 ->
+    400, every split vertex ends on the surface (none left where its split put it)."""
+    sphere = icosphere(1)
+    unit = sphere.vertices / np.linalg.norm(sphere.vertices, axis=1, keepdims=True)
+    truth = icosphere(4)
+    truth = truth.with_vertices(truth.vertices / np.linalg.norm(truth.vertices, axis=1,
+                                                                keepdims=True) * [2, 1, 1])
+    points, _ = sample_surface(truth, 6000, np.random.default_rng(7))
+    coarse = sphere.with_vertices(unit * [1.6, 0.8, 0.8])
+    result = refine_geometry(coarse, points, None, GeometryOptions(), target_vertices=400)
+    assert result.stats["split_steps"] == 4 and result.stats["n_split"] == 400 - 42
+    assert result.mesh.n_vertices == 400 and result.stats["kept"]
+    assert check_topology(result.mesh).is_closed_oriented_manifold
+    ellipsoid = np.linalg.norm(result.mesh.vertices / [2, 1, 1], axis=1)  # 1 on the truth
+    assert np.abs(ellipsoid - 1).max() < 0.02
+    assert fit_report(result.mesh, points).score < 0.5 * fit_report(coarse, points).score
+    one = refine_geometry(coarse, points, None, GeometryOptions(), target_vertices=80)
+    assert "split_steps" not in one.stats and one.stats["n_split"] == 80 - 42
+
+
+def test_a_triangle_with_a_corner_on_its_opposite_side_has_collapsed():
+    """The guard's collapsed triangles: a split vertex moved back onto the edge that a flip
+    made gives a triangle of zero area (the skull's remake at 5,154 vertices had six)."""
+    from spacemesh.geometry.stage import _collapsed_count
+
+    positions = np.array([[0.0, 0, 0], [2, 0, 0], [1, 0, 0], [1, 1, 0], [1, 1e-5, 0]])
+    assert _collapsed_count(positions, np.array([[0, 1, 2]])) == 1  # the midpoint
+    assert _collapsed_count(positions, np.array([[0, 1, 3], [0, 1, 4]])) == 0
+
+
 def test_noise_is_measured_and_smoothed():
     """point_noise reads the points' scatter about their planes; with noisy points the
     noise-following springs give a surface closer to the truth than the plain fit."""

@@ -71,7 +71,8 @@ def test_a_graph_that_falls_apart_falls_back_to_split(shipped):
     """A flat sheet of points has no closed surface through 1,024 tokens (the decode keeps
     under 90% of them): the pipeline decodes the first 256 tokens instead, and the mesh
     is still valid with the target count: closed with ``surface=closed``, and by default
-    (``auto``) open, since a sheet is seen from one side only."""
+    (``auto``) open, since a sheet is seen from one side only (that count less the
+    trimmed side's vertices)."""
     # the model's retry seeds are left out: every seed of a sheet fails the topology
     # check, and each would decode and fit 1,024 vertices again (the test's time)
     spec = replace(ModelSpec.from_manifest(shipped.manifest), retry_seeds=0)
@@ -85,4 +86,7 @@ def test_a_graph_that_falls_apart_falls_back_to_split(shipped):
         assert result.fit is not None and result.fit.open_surface is (surface == "auto")
         report = assert_valid_mesh(result.mesh, open_surface=result.fit.open_surface)
         assert report.is_closed is (surface == "closed")
-        assert abs(result.mesh.n_vertices - 1024) <= 0.1 * 1024
+        if surface == "closed":
+            assert abs(result.mesh.n_vertices - 1024) <= 0.1 * 1024
+        else:  # the closed mesh of the count asked for, its unseen side trimmed away
+            assert 0.5 * 1024 <= result.mesh.n_vertices < 1024

@@ -4,7 +4,9 @@ After the networks and the decode have fixed a valid oriented manifold mesh, in 
 normalised frame, :func:`refine_geometry`
 
 1. splits its longest edges until it has the requested vertex count
-   (:func:`split_longest_edges`; the network reads at most its token count);
+   (:func:`split_longest_edges`; the network reads at most its token count), at most
+   doubling the vertices at a time (:data:`SPLIT_STEP`), each step fitted as below
+   before the next;
 2. alternates the vertex fit (:func:`spacemesh.geometry.fitting.fit_vertices`: points
    -> mesh, mesh -> points, tangent-plane quadrics for sharp features, springs) with
    diagonal flips toward the points (:func:`spacemesh.decode.refinement.flip_diagonals` with
@@ -13,7 +15,8 @@ normalised frame, :func:`refine_geometry`
    not before go back toward where they were (halfway, then all the way); if the
    share of self-intersecting faces still grew, the whole fit is scaled back
    (:data:`GUARD_FRACTIONS` of each vertex's move) and, when no fraction keeps the
-   share, the stage's result is dropped.
+   share, the fit is made again without flips (moving vertices back cannot undo a
+   flip), and when that does not keep the share either, the stage's result is dropped.
 
 Edge splits and flips keep a closed oriented manifold closed, oriented and manifold,
 and the fit moves positions only, so the decode's guarantee holds for the output.
@@ -21,7 +24,7 @@ and the fit moves positions only, so the decode's guarantee holds for the output
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -49,6 +52,14 @@ MAX_REVERT_ROUNDS = 8
 #: Fractions of every vertex's move the guard tries, largest first, when moving the
 #: crossing faces' corners back did not keep the share of crossing faces.
 GUARD_FRACTIONS = (0.5, 0.25, 0.125)
+#: Most a step of edge splits multiplies the vertices by; a larger target is reached in
+#: steps, each fitted before the next. Split 25 times over at once, a skull's 200-vertex
+#: mesh crossed on 30% of its faces after the fit, and the guard undid the whole fit
+#: (docs/GEOMETRY.md, "Splitting in steps").
+SPLIT_STEP = 2
+#: A triangle with at most this share of the squared diagonal as its area has collapsed
+#: (three corners on a line: what moving a split vertex back can leave after a flip).
+COLLAPSED_AREA = 1e-12
 
 
 @dataclass(frozen=True)
@@ -128,8 +139,10 @@ class GeometryResult:
     stats : dict
         ``n_split``, ``n_flipped``, ``energy_before`` / ``energy_after`` (of the first
         and last fit), ``intersections_before`` / ``intersections_after`` (shares of
-        faces), ``n_guarded`` (vertices moved back) and ``kept`` (False when the guard
-        dropped the stage's result).
+        faces), ``n_guarded`` (vertices moved back), ``kept`` (False when the guard
+        dropped the stage's result), ``split_steps`` (when the splits went in
+        :data:`SPLIT_STEP` steps; counts are summed over them) and
+        ``guard_without_flips`` (when the guard's fit without flips was kept).
     """
 
     mesh: PolygonMesh
@@ -277,6 +290,24 @@ def _scaled_back(tracker: CrossingFaces, positions: FloatArray, unfitted: FloatA
     return None
 
 
+def _collapsed_count(positions: FloatArray, tri: IntArray) -> int:
+    """Triangles whose area is at most :data:`COLLAPSED_AREA` of the squared diagonal."""
+    diagonal = float(np.linalg.norm(np.ptp(positions, axis=0))) if len(positions) else 0.0
+    return int((triangle_areas(positions, tri) <= COLLAPSED_AREA * diagonal**2).sum())
+
+
+def _chained(first: dict[str, Any], last: dict[str, Any]) -> dict[str, Any]:
+    """The statistics of two geometry stages run one after the other: counts summed,
+    the first's state before and the last's after, ``split_steps`` counted."""
+    chained = {**last, **{key: first.get(key, 0) + last.get(key, 0)
+                          for key in ("n_split", "n_flipped", "n_guarded")}}
+    for key in ("energy_before", "intersections_before"):
+        if key in first:
+            chained[key] = first[key]
+    chained["split_steps"] = first.get("split_steps", 1) + last.get("split_steps", 1)
+    return chained
+
+
 def refine_geometry(
     mesh: PolygonMesh,
     points: FloatArray,
@@ -309,6 +340,15 @@ def refine_geometry(
     GeometryResult
     """
     options = options or GeometryOptions()
+    if (fixed is None and mesh.is_triangle_mesh() and target_vertices is not None
+            and target_vertices > SPLIT_STEP * mesh.n_vertices > 0):
+        step = refine_geometry(mesh, points, normals, options,
+                               target_vertices=SPLIT_STEP * mesh.n_vertices)
+        if step.mesh.n_vertices <= mesh.n_vertices:  # nothing left to split
+            return step
+        rest = refine_geometry(step.mesh, points, normals, options,
+                               target_vertices=target_vertices)
+        return GeometryResult(rest.mesh, _chained(step.stats, rest.stats))
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     finite = np.isfinite(points).all(axis=1)
     if normals is not None:
@@ -358,7 +398,18 @@ def refine_geometry(
         scaled = _scaled_back(tracker, positions, unfitted, source, before_share, stats)
         if scaled is not None:
             positions, share = scaled
-    if options.guard and share > before_share:
+    # moving a split vertex back onto the edge that a flip then made leaves that flip's
+    # triangle without area: the guard refuses that as it refuses a crossing
+    collapsed = (options.guard and stats["n_flipped"] > 0
+                 and _collapsed_count(positions, tri) > _collapsed_count(unfitted, unflipped))
+    if options.guard and (share > before_share or collapsed) and stats["n_flipped"]:
+        # moving vertices back cannot undo a flip: the fit again on the split mesh, unflipped
+        again = refine_geometry(PolygonMesh.from_faces(unfitted, unflipped), points, normals,
+                                replace(options, flips=False))
+        if again.stats["kept"]:
+            again.stats.update(n_split=stats["n_split"], guard_without_flips=True)
+            return again
+    if options.guard and (share > before_share or collapsed):
         stats["kept"] = False
         share = before_share
         positions, tri = unfitted, unflipped
