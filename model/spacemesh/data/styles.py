@@ -36,7 +36,7 @@ from spacemesh.data.voronoi import restricted_delaunay
 from spacemesh.geometry import farthest_point_sampling, feature_weights
 from spacemesh.geometry.policy import FLAT_FLIP_DEGREES
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import sample_surface
+from spacemesh.primitives import sample_surface, unit_rows
 from spacemesh.runtime.options import FEATURE_BOOST
 from spacemesh.topology import check_topology
 from spacemesh.typed import IntArray
@@ -243,7 +243,7 @@ def pair_triangles(mesh: PolygonMesh, max_fold_degrees: float = 8.0) -> PolygonM
 def _triangle_normals(vertices: np.ndarray, tri: IntArray) -> np.ndarray:
     p = vertices[tri]  # (T, 3, 3)
     n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    return unit_rows(n)
 
 
 def _triangle_neighbours(tri: IntArray) -> IntArray:

@@ -43,7 +43,13 @@ from scipy.spatial import cKDTree
 from spacemesh.cancel import checkpoint
 from spacemesh.geometry.intersections import self_intersecting_faces
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import faces_subset, faces_touching, triangulate_faces, vertices_of
+from spacemesh.primitives import (
+    faces_subset,
+    faces_touching,
+    triangulate_faces,
+    unit_rows,
+    vertices_of,
+)
 from spacemesh.repair.fill.flat import MAX_FLAT_LOOP, flat_positions
 from spacemesh.repair.fill.kinds import Fairing
 from spacemesh.repair.fill.laplace import fair_positions
@@ -90,8 +96,7 @@ def _surface_distance(mesh: PolygonMesh, faces: BoolArray, x: FloatArray,
     bary = np.stack([1 - a - b, a, b], axis=1)  # (G, 3)
     corners = mesh.vertices[triangles]  # (T, 3, 3)
     samples = np.einsum("gk,tkd->tgd", bary, corners).reshape(-1, 3)
-    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    normal = unit_rows(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
     nearest = cKDTree(samples).query(x)[1] // len(bary)
     return np.abs(np.einsum("ij,ij->i", x - corners[nearest, 0], normal[nearest]))
 

@@ -20,6 +20,7 @@ from spacemesh.primitives import (
     faces_subset,
     faces_touching,
     triangulate_faces,
+    unit_rows,
     vertices_of,
 )
 from spacemesh.typed import BoolArray, FloatArray, IntArray
@@ -113,8 +114,7 @@ def ring_planes(mesh: PolygonMesh, free: BoolArray, patch: BoolArray
     share = np.bincount(cluster[faces], area[faces], minlength=len(sums)) / max(
         float(area[faces].sum()), 1e-300)
     big = np.flatnonzero(share >= MIN_CLUSTER_SHARE)
-    units = np.asarray(sums)[big]
-    units /= np.maximum(np.linalg.norm(units, axis=1, keepdims=True), 1e-300)
+    units = unit_rows(np.asarray(sums)[big])
     if (len(big) < 2 or share[big].sum() < MIN_COVERAGE
             or not _has_crease(mesh, faces, normal)):
         return None

@@ -26,7 +26,13 @@ from scipy.spatial import cKDTree
 
 from spacemesh.cancel import checkpoint
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import faces_subset, faces_touching, triangulate_faces, vertices_of
+from spacemesh.primitives import (
+    faces_subset,
+    faces_touching,
+    triangulate_faces,
+    unit_rows,
+    vertices_of,
+)
 from spacemesh.primitives.closest import closest_points_on_triangles
 from spacemesh.repair.fill.fan import fan_fill
 from spacemesh.repair.fill.flat import flat_surface
@@ -135,7 +141,7 @@ def _sharpest_edge(mesh: PolygonMesh, faces: BoolArray, unique_twins: bool = Fal
         return 0.0
     normal = np.zeros((mesh.n_faces, 3))
     np.add.at(normal, mesh.face_of_corner, np.cross(p[he[:, 0]], p[he[:, 1]]))
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    normal = unit_rows(normal)
     a = normal[mesh.face_of_corner[both]]
     b = normal[mesh.face_of_corner[twin[both]]]
     cosine = np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0)
