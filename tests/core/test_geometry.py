@@ -288,14 +288,20 @@ def test_fit_score_is_the_reports_score_without_the_rest():
     assert fit_score(PolygonMesh.empty(), points) == np.inf
 
 
-def test_the_stage_fits_a_coarse_decode_and_keeps_it_valid():
+def _coarse_ellipsoid(n_points: int, seed: int) -> tuple[PolygonMesh, np.ndarray]:
+    """A 42-vertex sphere squashed toward a 2 x 1 x 1 ellipsoid, and ``(n_points, 3)``
+    points sampled on that ellipsoid."""
     sphere = icosphere(1)
     unit = sphere.vertices / np.linalg.norm(sphere.vertices, axis=1, keepdims=True)
     truth = icosphere(4)
     truth = truth.with_vertices(truth.vertices / np.linalg.norm(truth.vertices, axis=1,
                                                                 keepdims=True) * [2, 1, 1])
-    points, _ = sample_surface(truth, 4000, np.random.default_rng(6))
-    coarse = sphere.with_vertices(unit * [1.6, 0.8, 0.8])
+    points, _ = sample_surface(truth, n_points, np.random.default_rng(seed))
+    return sphere.with_vertices(unit * [1.6, 0.8, 0.8]), points
+
+
+def test_the_stage_fits_a_coarse_decode_and_keeps_it_valid():
+    coarse, points = _coarse_ellipsoid(4000, 6)
     result = refine_geometry(coarse, points, None, GeometryOptions(), target_vertices=120)
     assert result.mesh.n_vertices == 120 and result.stats["n_split"] == 120 - 42
     assert check_topology(result.mesh).is_closed_oriented_manifold
@@ -308,13 +314,7 @@ def test_the_stage_fits_a_coarse_decode_and_keeps_it_valid():
 def test_a_far_target_is_split_in_fitted_steps():
     """Nine times the coarse mesh's vertices: split and fitted 42 -> 84 -> 168 -> 336 ->
     400, every split vertex ends on the surface (none left where its split put it)."""
-    sphere = icosphere(1)
-    unit = sphere.vertices / np.linalg.norm(sphere.vertices, axis=1, keepdims=True)
-    truth = icosphere(4)
-    truth = truth.with_vertices(truth.vertices / np.linalg.norm(truth.vertices, axis=1,
-                                                                keepdims=True) * [2, 1, 1])
-    points, _ = sample_surface(truth, 6000, np.random.default_rng(7))
-    coarse = sphere.with_vertices(unit * [1.6, 0.8, 0.8])
+    coarse, points = _coarse_ellipsoid(6000, 7)
     result = refine_geometry(coarse, points, None, GeometryOptions(), target_vertices=400)
     assert result.stats["split_steps"] == 4 and result.stats["n_split"] == 400 - 42
     assert result.mesh.n_vertices == 400 and result.stats["kept"]
