@@ -24,7 +24,7 @@ and the fit moves positions only, so the decode's guarantee holds for the output
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -290,6 +290,26 @@ def _scaled_back(tracker: CrossingFaces, positions: FloatArray, unfitted: FloatA
     return None
 
 
+def _guarded(mesh: PolygonMesh, positions: FloatArray, unfitted: FloatArray, tri: IntArray,
+             source: IntArray | None, limit: float, guard: bool, stats: dict[str, Any]
+             ) -> tuple[FloatArray, float]:
+    """The fitted ``positions`` and their share of crossing faces, with the guard when
+    ``guard``: the crossing faces' corners moved back (:func:`_backtrack`), then every
+    move scaled back (:func:`_scaled_back`), while the share is above ``limit``."""
+    fitted_mesh = (mesh.with_vertices(positions) if source is not None else
+                   PolygonMesh.from_faces(positions, tri))
+    tracker = CrossingFaces(fitted_mesh)  # the guard's rounds test only what they move
+    share, hit = _tracked_share(tracker, positions, source)
+    if guard and share > limit:
+        positions, share = _backtrack(tracker, positions, unfitted, tri, source, hit, limit,
+                                      stats)
+    if guard and share > limit:
+        scaled = _scaled_back(tracker, positions, unfitted, source, limit, stats)
+        if scaled is not None:
+            positions, share = scaled
+    return positions, share
+
+
 def _collapsed_count(positions: FloatArray, tri: IntArray) -> int:
     """Triangles whose area is at most :data:`COLLAPSED_AREA` of the squared diagonal."""
     diagonal = float(np.linalg.norm(np.ptp(positions, axis=0))) if len(positions) else 0.0
@@ -376,6 +396,7 @@ def refine_geometry(
     fitted, noise = plane_fits(points)  # once for every round
     normals = fitted if normals is None else normals
     energies: list[float] = []
+    first_round: tuple[FloatArray, list[float]] | None = None  # before any flip
     for round_index in range(max(options.rounds, 1)):
         checkpoint()  # abandoned work stops here (spacemesh.cancel)
         if edits and triangle_mesh and options.flips and round_index > 0:
@@ -384,31 +405,34 @@ def refine_geometry(
         positions, round_energies = fit_vertices(positions, tri, points, normals, options.fit,
                                                  fixed, noise)
         energies += round_energies
+        if round_index == 0:
+            first_round = (positions, list(energies))
     stats.update(energy_before=energies[0] if energies else None,
                  energy_after=energies[-1] if energies else None,
                  intersections_before=before_share)
-    fitted_mesh = (mesh.with_vertices(positions) if source is not None else
-                   PolygonMesh.from_faces(positions, tri))
-    tracker = CrossingFaces(fitted_mesh)  # the guard's rounds test only what they move
-    share, hit = _tracked_share(tracker, positions, source)
-    if options.guard and share > before_share:
-        positions, share = _backtrack(tracker, positions, unfitted, tri, source, hit,
-                                      before_share, stats)
-    if options.guard and share > before_share:
-        scaled = _scaled_back(tracker, positions, unfitted, source, before_share, stats)
-        if scaled is not None:
-            positions, share = scaled
+    positions, share = _guarded(mesh, positions, unfitted, tri, source, before_share,
+                                options.guard, stats)
     # moving a split vertex back onto the edge that a flip then made leaves that flip's
     # triangle without area: the guard refuses that as it refuses a crossing
     collapsed = (options.guard and stats["n_flipped"] > 0
                  and _collapsed_count(positions, tri) > _collapsed_count(unfitted, unflipped))
-    if options.guard and (share > before_share or collapsed) and stats["n_flipped"]:
-        # moving vertices back cannot undo a flip: the fit again on the split mesh, unflipped
-        again = refine_geometry(PolygonMesh.from_faces(unfitted, unflipped), points, normals,
-                                replace(options, flips=False))
-        if again.stats["kept"]:
-            again.stats.update(n_split=stats["n_split"], guard_without_flips=True)
-            return again
+    if (options.guard and (share > before_share or collapsed) and stats["n_flipped"]
+            and first_round is not None):
+        # moving vertices back cannot undo a flip: the rounds after the first (which
+        # flips nothing) again on the unflipped mesh, without flips, and the guard
+        again_stats: dict[str, Any] = {"n_guarded": 0}
+        again, again_energies = first_round
+        for _ in range(1, max(options.rounds, 1)):
+            checkpoint()
+            again, round_energies = fit_vertices(again, unflipped, points, normals,
+                                                 options.fit, fixed, noise)
+            again_energies = again_energies + round_energies
+        again, again_share = _guarded(mesh, again, unfitted, unflipped, source, before_share,
+                                      True, again_stats)
+        if again_share <= before_share:
+            stats.update(again_stats, n_flipped=0, guard_without_flips=True,
+                         energy_after=again_energies[-1] if again_energies else None)
+            positions, tri, share, collapsed = again, unflipped, again_share, False
     if options.guard and (share > before_share or collapsed):
         stats["kept"] = False
         share = before_share
