@@ -139,9 +139,9 @@ def _sharpest_edge(mesh: PolygonMesh, faces: BoolArray, unique_twins: bool = Fal
     both = inside & (twin >= 0) & inside[np.maximum(twin, 0)]
     if not both.any():
         return 0.0
-    normal = np.zeros((mesh.n_faces, 3))
-    np.add.at(normal, mesh.face_of_corner, np.cross(p[he[:, 0]], p[he[:, 1]]))
-    normal = unit_rows(normal)
+    summed = np.zeros((mesh.n_faces, 3))
+    np.add.at(summed, mesh.face_of_corner, np.cross(p[he[:, 0]], p[he[:, 1]]))
+    normal = unit_rows(summed)
     a = normal[mesh.face_of_corner[both]]
     b = normal[mesh.face_of_corner[twin[both]]]
     cosine = np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0)
