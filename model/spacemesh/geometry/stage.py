@@ -395,18 +395,31 @@ def refine_geometry(
     unfitted, unflipped = positions.copy(), tri.copy()
     fitted, noise = plane_fits(points)  # once for every round
     normals = fitted if normals is None else normals
-    energies: list[float] = []
-    first_round: tuple[FloatArray, list[float]] | None = None  # before any flip
-    for round_index in range(max(options.rounds, 1)):
-        checkpoint()  # abandoned work stops here (spacemesh.cancel)
-        if edits and triangle_mesh and options.flips and round_index > 0:
-            tri, count = _flip_toward(positions, tri, points, options.fit_gain)
-            stats["n_flipped"] += count
-        positions, round_energies = fit_vertices(positions, tri, points, normals, options.fit,
+
+    def later_rounds(start: FloatArray, faces: IntArray, flips: bool
+                     ) -> tuple[FloatArray, IntArray, list[float], int]:
+        """The rounds of fit after the first, from ``start`` on ``faces``, with diagonal
+        flips toward the points before each when ``flips``; the positions, the faces,
+        the rounds' energies and how many diagonals flipped."""
+        energies: list[float] = []
+        flipped = 0
+        for _ in range(1, max(options.rounds, 1)):
+            checkpoint()
+            if flips:
+                faces, count = _flip_toward(start, faces, points, options.fit_gain)
+                flipped += count
+            start, round_energies = fit_vertices(start, faces, points, normals, options.fit,
                                                  fixed, noise)
-        energies += round_energies
-        if round_index == 0:
-            first_round = (positions, list(energies))
+            energies += round_energies
+        return start, faces, energies, flipped
+
+    checkpoint()  # abandoned work stops here (spacemesh.cancel)
+    # the first round flips nothing: the guard's fit without flips starts from it too
+    first, first_energies = fit_vertices(positions, tri, points, normals, options.fit, fixed,
+                                         noise)
+    positions, tri, later, stats["n_flipped"] = later_rounds(
+        first, tri, edits and triangle_mesh and options.flips)
+    energies = first_energies + later
     stats.update(energy_before=energies[0] if energies else None,
                  energy_after=energies[-1] if energies else None,
                  intersections_before=before_share)
@@ -416,20 +429,15 @@ def refine_geometry(
     # triangle without area: the guard refuses that as it refuses a crossing
     collapsed = (options.guard and stats["n_flipped"] > 0
                  and _collapsed_count(positions, tri) > _collapsed_count(unfitted, unflipped))
-    if (options.guard and (share > before_share or collapsed) and stats["n_flipped"]
-            and first_round is not None):
-        # moving vertices back cannot undo a flip: the rounds after the first (which
-        # flips nothing) again on the unflipped mesh, without flips, and the guard
+    if options.guard and (share > before_share or collapsed) and stats["n_flipped"]:
+        # moving vertices back cannot undo a flip: the rounds after the first again on
+        # the unflipped mesh, without flips, and the guard
         again_stats: dict[str, Any] = {"n_guarded": 0}
-        again, again_energies = first_round
-        for _ in range(1, max(options.rounds, 1)):
-            checkpoint()
-            again, round_energies = fit_vertices(again, unflipped, points, normals,
-                                                 options.fit, fixed, noise)
-            again_energies = again_energies + round_energies
+        again, _, again_later, _ = later_rounds(first, unflipped, False)
         again, again_share = _guarded(mesh, again, unfitted, unflipped, source, before_share,
                                       True, again_stats)
         if again_share <= before_share:
+            again_energies = first_energies + again_later
             stats.update(again_stats, n_flipped=0, guard_without_flips=True,
                          energy_after=again_energies[-1] if again_energies else None)
             positions, tri, share, collapsed = again, unflipped, again_share, False
