@@ -36,7 +36,7 @@ from spacemesh.data.voronoi import restricted_delaunay
 from spacemesh.geometry import farthest_point_sampling, feature_weights
 from spacemesh.geometry.policy import FLAT_FLIP_DEGREES
 from spacemesh.mesh import PolygonMesh
-from spacemesh.primitives import sample_surface, unit_rows
+from spacemesh.primitives import sample_surface, triangle_normals, unit_rows
 from spacemesh.runtime.options import FEATURE_BOOST
 from spacemesh.topology import check_topology
 from spacemesh.typed import IntArray
@@ -241,9 +241,7 @@ def pair_triangles(mesh: PolygonMesh, max_fold_degrees: float = 8.0) -> PolygonM
 
 # ---------------------------------------------------------------- planar decimation
 def _triangle_normals(vertices: np.ndarray, tri: IntArray) -> np.ndarray:
-    p = vertices[tri]  # (T, 3, 3)
-    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    return unit_rows(n)
+    return unit_rows(triangle_normals(vertices[tri]))  # (T, 3)
 
 
 def _triangle_neighbours(tri: IntArray) -> IntArray:

@@ -46,6 +46,7 @@ from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import (
     faces_subset,
     faces_touching,
+    triangle_normals,
     triangulate_faces,
     unit_rows,
     vertices_of,
@@ -96,7 +97,7 @@ def _surface_distance(mesh: PolygonMesh, faces: BoolArray, x: FloatArray,
     bary = np.stack([1 - a - b, a, b], axis=1)  # (G, 3)
     corners = mesh.vertices[triangles]  # (T, 3, 3)
     samples = np.einsum("gk,tkd->tgd", bary, corners).reshape(-1, 3)
-    normal = unit_rows(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
+    normal = unit_rows(triangle_normals(corners))  # (T, 3)
     nearest = cKDTree(samples).query(x)[1] // len(bary)
     return np.abs(np.einsum("ij,ij->i", x - corners[nearest, 0], normal[nearest]))
 
