@@ -411,14 +411,16 @@ def _one_corner_cross(ta: FloatArray, tb: FloatArray, ka: IntArray, kb: IntArray
         np.maximum(np.abs(np.einsum("md,md->m", a1, nb)),
                    np.abs(np.einsum("md,md->m", a2, nb))) <= COPLANAR_TOLERANCE)
     line = unit_rows(cross_rows(na, nb))  # (M, 3) where their planes meet
-    meet = np.zeros(len(ta), dtype=bool)
-    for ray in (line, -line):
-        meet |= _in_cone(ray, a1, a2, na) & _in_cone(ray, b1, b2, nb)
-    overlap = np.zeros(len(ta), dtype=bool)
-    for ray in (a1, a2, a1 + a2):
-        overlap |= _in_cone(unit_rows(ray), b1, b2, nb)
-    for ray in (b1, b2, b1 + b2):
-        overlap |= _in_cone(unit_rows(ray), a1, a2, na)
+    # every ray against its cone in one call: the line both ways in each cone (meet),
+    # then each one's sides and bisector in the other's (overlap, when coplanar)
+    m = len(ta)
+    rays = np.concatenate([line, -line, line, -line, a1, a2, unit_rows(a1 + a2),
+                           b1, b2, unit_rows(b1 + b2)])  # (10 M, 3)
+    cones = [(a1, a2, na)] * 2 + [(b1, b2, nb)] * 5 + [(a1, a2, na)] * 3
+    inside = _in_cone(rays, *(np.concatenate(part) for part in zip(*cones, strict=True))
+                      ).reshape(10, m)
+    meet = ((inside[0] & inside[2]) | (inside[1] & inside[3]))
+    overlap = inside[4:].any(axis=0)
     return np.where(coplanar, overlap, meet) & good_a & good_b
 
 
