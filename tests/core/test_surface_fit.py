@@ -12,6 +12,7 @@ from spacemesh.examples import icosphere
 from spacemesh.primitives import sample_surface
 from spacemesh.primitives.closest import (
     closest_points_on_triangles,
+    nearest_points,
     nearest_triangles,
     squared_distances,
 )
@@ -77,6 +78,20 @@ def test_nearest_triangles_are_the_nearest():
     np.testing.assert_allclose(every[np.arange(len(points)), owner], every.min(axis=1),
                                atol=1e-12)
     np.testing.assert_allclose(gap, every.min(axis=1), atol=1e-12)
+
+
+def test_nearest_points_are_the_closest_points_of_the_nearest_triangles():
+    sphere, points = _sphere_points()
+    faces = np.asarray(sphere.faces, dtype=np.int64)
+    points = points + 0.02 * np.random.default_rng(4).normal(size=points.shape)
+    owner, gap, closest = nearest_points(points, sphere.vertices, faces)
+    expected_owner, expected_gap = nearest_triangles(points, sphere.vertices, faces)
+    np.testing.assert_array_equal(owner, expected_owner)
+    np.testing.assert_array_equal(gap, expected_gap)
+    # the very point each distance was measured to, bit for bit
+    np.testing.assert_array_equal(
+        closest, closest_points_on_triangles(points, sphere.vertices[faces[owner]]))
+    np.testing.assert_allclose(np.sum((closest - points) ** 2, axis=1), gap, atol=1e-15)
 
 
 def _quad(faces: np.ndarray):

@@ -44,8 +44,7 @@ from spacemesh.cancel import checkpoint
 from spacemesh.primitives import triangle_areas, unique_edges
 from spacemesh.primitives.closest import (
     _subtriangle_centroids,
-    closest_points_on_triangles,
-    nearest_triangles,
+    nearest_points,
 )
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
@@ -245,9 +244,8 @@ def fit_energy_terms(
     energy = 0.0
 
     # points -> mesh: p_i ~ sum_k b_ik v_k (each coordinate)
-    owner, _ = nearest_triangles(points, positions, triangles)
+    owner, _, closest = nearest_points(points, positions, triangles)
     corners = positions[triangles[owner]]  # (P, 3, 3)
-    closest = closest_points_on_triangles(points, corners)
     bary = barycentric(closest, corners)
     rows = _point_rows(triangles[owner], bary, n)  # (P, N)
     weight = options.data_weight / len(points)
@@ -375,8 +373,12 @@ def fit_vertices(
         x = positions.reshape(-1)
         # the others stay put: A_ff x_f = r_f - A_fc x_c (+ damping toward x_f)
         matrix = matrix.tocsr()
-        block = matrix[unknown][:, unknown] + sp.identity(int(unknown.sum())) * damping
-        known = matrix[unknown][:, ~unknown] @ x[~unknown]
+        if unknown.all():  # nothing held: the whole system (slicing it copies the same)
+            block = matrix + sp.identity(len(unknown)) * damping
+            known = np.zeros(len(unknown))
+        else:
+            block = matrix[unknown][:, unknown] + sp.identity(int(unknown.sum())) * damping
+            known = matrix[unknown][:, ~unknown] @ x[~unknown]
         solution = spsolve(block.tocsc(), rhs[unknown] - known + damping * x[unknown])
         if not np.isfinite(solution).all():
             break
@@ -445,9 +447,9 @@ def fit_to_surface(positions: FloatArray, triangles: IntArray, moving: BoolArray
     fixed = ~moving
     for _ in range(rounds):
         checkpoint()  # abandoned work stops here (spacemesh.cancel)
-        owner, _ = nearest_triangles(samples, x, triangles)
+        owner, _, closest = nearest_points(samples, x, triangles)
         under = x[triangles[owner]]  # (M, 3, 3)
-        bary = barycentric(closest_points_on_triangles(samples, under), under)  # (M, 3)
+        bary = barycentric(closest, under)  # (M, 3)
         basis = _point_rows(triangles[owner], bary, n)  # (M, V)
         weighted = sp.diags(mass) @ basis
         normal = (basis.T @ weighted + springs).tocsr()

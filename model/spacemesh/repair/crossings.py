@@ -30,7 +30,7 @@ import numpy as np
 from spacemesh.geometry.intersections import crossing_faces
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import faces_subset, triangles_of
-from spacemesh.primitives.closest import closest_points_on_triangles, nearest_triangles
+from spacemesh.primitives.closest import nearest_points
 from spacemesh.repair.fill.flat import min_area_triangles
 from spacemesh.repair.fill.loops import patch_loops
 from spacemesh.repair.splice import Spliced
@@ -300,9 +300,7 @@ def _triangulations(mesh: PolygonMesh, corners: IntArray, surface: PolygonMesh
         centre = mesh.vertices[corners].mean(axis=0)  # (3,)
         if onto_surface and surface.n_faces:
             triangles, _ = triangles_of(surface)
-            owner, _ = nearest_triangles(centre[None], surface.vertices, triangles)
-            centre = closest_points_on_triangles(
-                centre[None], surface.vertices[triangles[owner]])[0]
+            centre = nearest_points(centre[None], surface.vertices, triangles)[2][0]
         rows = np.stack([corners, np.roll(corners, -1), np.full(n, centre_index)], axis=1)
         return rows, centre
 

@@ -16,7 +16,7 @@ from spacemesh.geometry.fitting import fit_to_surface
 from spacemesh.geometry.intersections import self_intersecting_faces
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import faces_subset, faces_touching, triangulate_faces, vertices_of
-from spacemesh.primitives.closest import closest_points_on_triangles, nearest_triangles
+from spacemesh.primitives.closest import nearest_points, nearest_triangles
 from spacemesh.repair.fill.laplace import laplacian
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
@@ -67,9 +67,7 @@ def lay_onto(mesh: PolygonMesh, patch: BoolArray, surface_points: FloatArray,
     rows = np.flatnonzero(moving)
 
     def laid(points: FloatArray) -> FloatArray:
-        owner, _ = nearest_triangles(points, surface_points, surface_triangles)
-        return closest_points_on_triangles(points,
-                                           surface_points[surface_triangles[owner]])
+        return nearest_points(points, surface_points, surface_triangles)[2]
 
     positions = mesh.vertices.copy()
     if len(rows):
