@@ -6,9 +6,17 @@ watertight shell, the outside flood-filled, and the genus of the solid read from
 Euler characteristic (a solid without cavities: genus = pieces - chi). The estimate is
 compared with the mesh's own genus.
 
+With ``--balls``, the solid is instead the union of balls around the points (voxels of a
+third of the median radius): a radius of ``scale`` median spacings, or, with
+``--neighbour K``, ``scale`` times each point's distance to its K-th neighbour (a radius
+that grows where the random sampling leaves gaps). ``--data DIR`` reads a synthetic
+dataset (``spacemesh data synth``; its first ``--limit`` shapes) instead of a split.
+
 Usage::
 
     python experiments/genus_from_points.py --split dev [--scales 1.5,2,3]
+    python experiments/genus_from_points.py --data data/qemflip-tune-s3 --balls \
+        --scales 3,4 [--neighbour 8]
 """
 
 from __future__ import annotations
@@ -26,13 +34,21 @@ def main() -> int:
     parser = split_parser(__doc__)
     parser.add_argument("--scales", default="1.5,2,3")
     parser.add_argument("--points", type=int, default=2048)
+    parser.add_argument("--data", default=None, help="a synthetic dataset instead")
+    parser.add_argument("--limit", type=int, default=50)
+    parser.add_argument("--balls", action="store_true", help="a union of balls")
+    parser.add_argument("--neighbour", type=int, default=0,
+                        help="with --balls: radii from each point's K-th neighbour")
     args = parser.parse_args()
-    from spacemesh.evaluate.runner import mesh_shapes
+    from spacemesh.evaluate.runner import load_shapes, mesh_shapes
     from spacemesh.geometry.pieces import point_pieces
     from spacemesh.topology import check_topology
 
-    paths, categories = split_meshes(args.meshes, args.split, set(CATEGORIES))
-    shapes = mesh_shapes(paths, categories=categories, points=args.points, seed=0)
+    if args.data is not None:
+        shapes = load_shapes(args.data, split="all", limit=args.limit)
+    else:
+        paths, categories = split_meshes(args.meshes, args.split, set(CATEGORIES))
+        shapes = mesh_shapes(paths, categories=categories, points=args.points, seed=0)
     scales = [float(s) for s in args.scales.split(",")]
     right = {s: 0 for s in scales}
     right_pieces = 0
@@ -41,7 +57,8 @@ def main() -> int:
     for shape in shapes:
         report = check_topology(shape.mesh)
         truth = report.genus
-        estimates = [point_genus(shape.points, scale=s) for s in scales]
+        estimates = [ball_genus(shape.points, scale=s, neighbour=args.neighbour)
+                     if args.balls else point_genus(shape.points, scale=s) for s in scales]
         pieces = point_pieces(shape.points)
         right_pieces += pieces == report.n_components
         for s, e in zip(scales, estimates, strict=True):
@@ -90,6 +107,44 @@ def point_genus(points: np.ndarray, *, scale: float = 2.0, dilation: int = 1) ->
     empty_label, _ = ndimage.label(~occupied)  # 6-connected empty space
     solid = empty_label != empty_label[0, 0, 0]
     n_pieces = ndimage.label(solid, structure=cube)[1]
+    return n_pieces - euler_characteristic(solid)
+
+
+def ball_genus(points: np.ndarray, *, scale: float = 3.0, neighbour: int = 0) -> int:
+    """The genus of the union of balls around the points, its cavities filled.
+
+    Parameters
+    ----------
+    points : (P, 3) float
+    scale : float
+        Radius in median nearest-neighbour spacings, or with ``neighbour`` in each
+        point's distance to its ``neighbour``-th nearest point.
+    neighbour : int
+        0: one radius for every point.
+
+    Returns
+    -------
+    int
+        Pieces minus the Euler characteristic of the voxelised union (a third of the
+        median radius per voxel).
+    """
+    from scipy import ndimage
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(points)
+    gaps, _ = tree.query(points, k=max(neighbour, 1) + 1)  # (P, K + 1)
+    radius = scale * (gaps[:, neighbour] if neighbour else np.full(len(points),
+                                                                  np.median(gaps[:, 1])))
+    size = float(np.median(radius)) / 3.0
+    origin = points.min(axis=0) - radius.max() - 2 * size
+    shape = np.ceil((points.max(axis=0) + radius.max() + 2 * size - origin) / size)
+    grid = np.stack(np.meshgrid(*[np.arange(int(k)) for k in shape], indexing="ij"), -1)
+    centres = origin + (grid.reshape(-1, 3) + 0.5) * size  # (C, 3)
+    solid = np.zeros(len(centres), dtype=bool)
+    for near in cKDTree(centres).query_ball_point(points, radius):
+        solid[near] = True
+    solid = ndimage.binary_fill_holes(solid.reshape(grid.shape[:3]))
+    n_pieces = ndimage.label(solid, structure=np.ones((3, 3, 3), dtype=bool))[1]
     return n_pieces - euler_characteristic(solid)
 
 
