@@ -78,6 +78,8 @@ def flat_false_positives(vertices: np.ndarray, triangles: np.ndarray,
     for a, b in cKDTree(centre).query_pairs(reach):
         ta, tb = corners[a], corners[b]
         normal = np.cross(ta[1] - ta[0], ta[2] - ta[0])
+        if not np.linalg.norm(normal) > 0:
+            continue  # a triangle without area has no plane: not explained here
         normal /= np.linalg.norm(normal)
         if np.abs((tb - ta[0]) @ normal).max() > 1e-12 * diagonal:
             continue
