@@ -134,11 +134,10 @@ def mean_spacing(points: FloatArray) -> float:
 
 
 def _candidates(points: FloatArray, positions: FloatArray, triangles: IntArray, k: int
-                ) -> tuple[IntArray, IntArray, IntArray, FloatArray]:
+                ) -> tuple[IntArray, IntArray, FloatArray, FloatArray]:
     """The triangles of each point's ``k`` nearest surface samples (the rows ``near``
-    ``(P, k)``), each (point, triangle) pair once: ``unique`` (keys ``point * T +
-    triangle``), ``inverse`` (``(P k,)`` into them) and the closest points of the unique
-    pairs ``(U, 3)``."""
+    ``(P, k)``), each (point, triangle) pair measured once: ``inverse`` (``(P k,)``, into
+    the pairs), their closest points ``(U, 3)`` and squared distances ``(U,)``."""
     corners = positions[triangles]  # (T, 3, 3)
     weights = _subtriangle_centroids(SAMPLE_LEVEL)  # (S, 3)
     samples = np.einsum("sk,tkd->tsd", weights, corners).reshape(-1, 3)  # (T S, 3)
@@ -150,9 +149,10 @@ def _candidates(points: FloatArray, positions: FloatArray, triangles: IntArray, 
     # a triangle's samples lie together: measure each (point, triangle) pair once
     keys = np.arange(len(points))[:, None] * len(triangles) + near  # (P, k)
     unique, inverse = np.unique(keys, return_inverse=True)
-    closest = closest_points_on_triangles(np.asarray(points)[unique // len(triangles)],
-                                          corners[unique % len(triangles)])  # (U, 3)
-    return near, unique, inverse.reshape(-1), closest
+    measured = np.asarray(points)[unique // len(triangles)]  # (U, 3)
+    closest = closest_points_on_triangles(measured, corners[unique % len(triangles)])
+    offset = closest - measured
+    return near, inverse.reshape(-1), closest, _dot(offset, offset)
 
 
 def candidate_triangles(points: FloatArray, positions: FloatArray, triangles: IntArray,
@@ -175,16 +175,14 @@ def candidate_triangles(points: FloatArray, positions: FloatArray, triangles: In
     gap : (P, k) float
         Squared distance from each point to each of them.
     """
-    near, unique, inverse, closest = _candidates(points, positions, triangles, k)
-    offset = closest - np.asarray(points)[unique // len(triangles)]  # (U, 3)
-    gap = _dot(offset, offset)
+    near, inverse, _, gap = _candidates(points, positions, triangles, k)
     return near, gap[inverse].reshape(near.shape)
 
 
-def nearest_triangles(points: FloatArray, positions: FloatArray, triangles: IntArray
-                      ) -> tuple[IntArray, FloatArray]:
+def nearest_points(points: FloatArray, positions: FloatArray, triangles: IntArray
+                   ) -> tuple[IntArray, FloatArray, FloatArray]:
     """The triangle nearest to each point, measured exactly among its
-    :func:`candidate_triangles`.
+    :func:`candidate_triangles`, and the closest point on it.
 
     Parameters
     ----------
@@ -198,37 +196,23 @@ def nearest_triangles(points: FloatArray, positions: FloatArray, triangles: IntA
         Row of ``triangles``.
     gap : (P,) float
         Squared distance from each point to its triangle.
+    closest : (P, 3) float
+        The point of ``triangles[owner]`` that distance was measured to.
     """
+    near, inverse, closest, gap = _candidates(points, positions, triangles, NEAREST_SAMPLES)
+    pair = inverse.reshape(near.shape)  # (P, k) into the measured pairs
+    rows = np.arange(len(points))
+    choice = np.argmin(gap[pair], axis=1)  # (P,) the first of the nearest
+    best = pair[rows, choice]  # (P,)
+    return near[rows, choice], gap[best], closest[best]
+
+
+def nearest_triangles(points: FloatArray, positions: FloatArray, triangles: IntArray
+                      ) -> tuple[IntArray, FloatArray]:
+    """:func:`nearest_points` without the closest points: ``owner`` ``(P,)`` and ``gap``
+    ``(P,)``."""
     owner, gap, _ = nearest_points(points, positions, triangles)
     return owner, gap
-
-
-def nearest_points(points: FloatArray, positions: FloatArray, triangles: IntArray
-                   ) -> tuple[IntArray, FloatArray, FloatArray]:
-    """:func:`nearest_triangles`, with the closest point on each point's triangle (the
-    one its distance was measured to).
-
-    Parameters
-    ----------
-    points : (P, 3) float
-    positions : (N, 3) float
-    triangles : (T, 3) int
-
-    Returns
-    -------
-    owner : (P,) int
-    gap : (P,) float
-    closest : (P, 3) float
-        On ``triangles[owner]``.
-    """
-    near, unique, inverse, closest = _candidates(points, positions, triangles,
-                                                 NEAREST_SAMPLES)
-    offset = closest - np.asarray(points)[unique // len(triangles)]  # (U, 3)
-    gap = _dot(offset, offset)[inverse].reshape(near.shape)  # (P, k)
-    best = np.argmin(gap, axis=1)
-    rows = np.arange(len(points))
-    pick = inverse.reshape(near.shape)[rows, best]  # (P,) into the unique pairs
-    return near[rows, best], gap[rows, best], closest[pick]
 
 
 def mean_distance(points: FloatArray, positions: FloatArray, triangles: IntArray) -> float:
