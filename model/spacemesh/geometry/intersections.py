@@ -240,9 +240,8 @@ def crossing_pairs(vertices: FloatArray, triangles: IntArray,
     radius = np.linalg.norm(corners - centre[:, None], axis=2).max(axis=1)  # (T,)
     eps = touching_eps(vertices, triangles)
     tree = cKDTree(centre)
-    reach = 2 * float(radius.max()) + eps
     if among is None:
-        pairs = tree.query_pairs(reach, output_type="ndarray")
+        pairs = _larger_first_pairs(tree, centre, radius, eps)
     else:  # every pair with a triangle of ``among``: the same pairs, found from them
         found = tree.query_ball_point(centre[among], radius[among] + float(radius.max()) + eps)
         j = np.concatenate([np.asarray(f, dtype=np.int64) for f in found])
@@ -257,6 +256,25 @@ def crossing_pairs(vertices: FloatArray, triangles: IntArray,
     i, j = i[near], j[near]
     crossing = pairs_cross(vertices, triangles, i, j, floor=eps if whole_extent else 0.0)
     return np.stack([i[crossing], j[crossing]], axis=1)
+
+
+def _larger_first_pairs(tree: cKDTree, centre: FloatArray, radius: FloatArray, eps: float
+                        ) -> IntArray:
+    """The pairs of bounding spheres (``centre`` ``(T, 3)`` of ``tree``, ``radius``
+    ``(T,)``) that come within ``eps`` of each other, each found once from its larger
+    sphere (within twice its radius: a search radius that follows each triangle, where
+    one radius for all, twice the largest, made a mesh with a few long triangles compare
+    every triangle with hundreds of others). ``(P, 2)``, ``i < j`` in each row."""
+    # (twice eps: the tree's rounding of a distance can never drop a pair the caller's
+    # test of ``ri + rj + eps`` keeps)
+    found = tree.query_ball_point(centre, 2 * radius + 2 * eps, return_sorted=False)
+    count = np.fromiter((len(f) for f in found), dtype=np.int64, count=len(found))
+    j = np.fromiter((k for f in found for k in f), dtype=np.int64, count=int(count.sum()))
+    i = np.repeat(np.arange(len(centre)), count)
+    # from the larger of the two (equal radii: from the higher index), so once each
+    keep = (radius[j] < radius[i]) | ((radius[j] == radius[i]) & (j < i))
+    i, j = i[keep], j[keep]
+    return np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1)
 
 
 class CrossingFaces:
