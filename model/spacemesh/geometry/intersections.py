@@ -15,6 +15,8 @@ the evaluation's metric and the guard all read this module).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -240,13 +242,7 @@ def crossing_pairs(vertices: FloatArray, triangles: IntArray,
     radius = np.linalg.norm(corners - centre[:, None], axis=2).max(axis=1)  # (T,)
     eps = touching_eps(vertices, triangles)
     tree = cKDTree(centre)
-    if among is None:
-        pairs = _larger_first_pairs(tree, centre, radius, eps)
-    else:  # every pair with a triangle of ``among``: the same pairs, found from them
-        found = tree.query_ball_point(centre[among], radius[among] + float(radius.max()) + eps)
-        j = np.concatenate([np.asarray(f, dtype=np.int64) for f in found])
-        i = np.repeat(np.asarray(among, dtype=np.int64), [len(f) for f in found])
-        pairs = unique_edges(np.stack([i, j], axis=1)[i != j], len(triangles))
+    pairs = _larger_first_pairs(tree, centre, radius, eps, among)
     if len(pairs) == 0:
         return none
     i, j = pairs[:, 0], pairs[:, 1]
@@ -258,23 +254,39 @@ def crossing_pairs(vertices: FloatArray, triangles: IntArray,
     return np.stack([i[crossing], j[crossing]], axis=1)
 
 
-def _larger_first_pairs(tree: cKDTree, centre: FloatArray, radius: FloatArray, eps: float
-                        ) -> IntArray:
+def _flat_hits(found: Any) -> tuple[IntArray, IntArray]:
+    """The hits of a ball query (one list per query point) as ``(queries, hits)``, one
+    row per hit."""
+    count = np.fromiter((len(f) for f in found), dtype=np.int64, count=len(found))
+    hits = np.fromiter((k for f in found for k in f), dtype=np.int64, count=int(count.sum()))
+    return np.repeat(np.arange(len(found)), count), hits
+
+
+def _larger_first_pairs(tree: cKDTree, centre: FloatArray, radius: FloatArray, eps: float,
+                        among: IntArray | None = None) -> IntArray:
     """The pairs of bounding spheres (``centre`` ``(T, 3)`` of ``tree``, ``radius``
-    ``(T,)``) that come within ``eps`` of each other, each found once from its larger
-    sphere (within twice its radius: a search radius that follows each triangle, where
-    one radius for all, twice the largest, made a mesh with a few long triangles compare
-    every triangle with hundreds of others). ``(P, 2)``, ``i < j`` in each row."""
+    ``(T,)``) that may come within ``eps`` of each other, each found from its larger
+    sphere within twice its radius (a search radius that follows each triangle: one
+    radius for all, twice the largest, made a mesh with a few long triangles compare
+    every triangle with hundreds of others); with ``among`` ``(K,)``, only the pairs with
+    one of those. ``(P, 2)``, ``i < j`` in each row, each pair once."""
     # (twice eps: the tree's rounding of a distance can never drop a pair the caller's
     # test of ``ri + rj + eps`` keeps)
-    found = tree.query_ball_point(centre, 2 * radius + 2 * eps, return_sorted=False)
-    count = np.fromiter((len(f) for f in found), dtype=np.int64, count=len(found))
-    j = np.fromiter((k for f in found for k in f), dtype=np.int64, count=int(count.sum()))
-    i = np.repeat(np.arange(len(centre)), count)
+    reach = 2 * radius + 2 * eps  # (T,)
+    if among is None:
+        i, j = _flat_hits(tree.query_ball_point(centre, reach, return_sorted=False))
+    else:  # from each of ``among``, and into them from every triangle
+        among = np.asarray(among, dtype=np.int64)
+        first, near = _flat_hits(tree.query_ball_point(centre[among], reach[among],
+                                                       return_sorted=False))
+        into, local = _flat_hits(cKDTree(centre[among]).query_ball_point(
+            centre, reach, return_sorted=False))
+        i = np.concatenate([among[first], into])
+        j = np.concatenate([near, among[local]])
     # from the larger of the two (equal radii: from the higher index), so once each
     keep = (radius[j] < radius[i]) | ((radius[j] == radius[i]) & (j < i))
-    i, j = i[keep], j[keep]
-    return np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1)
+    pairs = np.stack([np.minimum(i[keep], j[keep]), np.maximum(i[keep], j[keep])], axis=1)
+    return pairs if among is None else unique_edges(pairs, len(centre))
 
 
 class CrossingFaces:
