@@ -220,6 +220,38 @@ def test_a_pairs_verdict_does_not_depend_on_the_rest_of_the_mesh():
     assert not pairs_cross(pair.vertices, triangles, i, j)[0]
 
 
+@pytest.mark.parametrize("whole_extent", [False, True])
+def test_crossing_pairs_are_every_crossing_pair_however_uneven_the_triangles(whole_extent):
+    """The candidate search finds each pair from its larger triangle within twice that
+    triangle's radius: a jittered torus with a few long, thin triangles laid across it
+    and a soup of triangles of every size gives exactly the crossing pairs of the test
+    run on every pair, and so does the search restricted to some triangles (``among``:
+    every pair with one of them)."""
+    from spacemesh.geometry.intersections import crossing_pairs, pairs_cross, touching_eps
+
+    rng = np.random.default_rng(5)
+    torus = torus_grid(12, 8)
+    positions = torus.vertices + rng.normal(scale=0.05, size=torus.vertices.shape)
+    long_ones = [[0, 40, 81], [5, 60, 90], [17, 33, 71]]  # across the torus: long, thin
+    # and a soup of triangles of every size that cross others anywhere, tip to tip too
+    soup = rng.uniform(-1.5, 1.5, (60, 1, 3)) + rng.normal(size=(60, 3, 3)) * rng.uniform(
+        0.05, 0.6, (60, 1, 1))
+    positions = np.concatenate([positions, soup.reshape(-1, 3)])
+    triangles = np.concatenate([_triangles(torus), long_ones,
+                                torus.n_vertices + np.arange(180).reshape(60, 3)])
+    i, j = np.triu_indices(len(triangles), 1)  # every pair
+    floor = touching_eps(positions, triangles) if whole_extent else 0.0
+    every = pairs_cross(positions, triangles, i, j, floor=floor)
+    expected = set(zip(i[every].tolist(), j[every].tolist(), strict=True))
+    assert len(expected) > 10  # the long triangles cross the tube
+    found = crossing_pairs(positions, triangles, whole_extent=whole_extent)
+    assert {tuple(p) for p in found.tolist()} == expected
+    among = rng.choice(len(triangles), size=20, replace=False)
+    some = crossing_pairs(positions, triangles, among=among, whole_extent=whole_extent)
+    assert {tuple(p) for p in some.tolist()} == {
+        (a, b) for a, b in expected if a in set(among.tolist()) or b in set(among.tolist())}
+
+
 def test_near_contacts_are_read_at_the_whole_meshs_extent():
     """The seeds' check reads near contacts: the pair 3e-9 apart above does not touch at
     its own size, but does within 1e-9 of a mesh 100 times larger (its far triangle
