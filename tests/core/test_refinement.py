@@ -288,3 +288,33 @@ def test_noisy_points_do_not_turn_right_diagonals(monkeypatch):
                                       size=points.shape), fit_gain=0.5)
     assert count == 6
     assert fixed.to_mesh(sphere.vertices).face_key_set() == sphere.face_key_set()
+
+
+def test_every_triangle_a_point_lies_over_is_within_the_spheres_reach():
+    """Reinsertion measures only the triangles whose bounding sphere, grown by
+    OVER_REACH, holds the vertex: that must keep every triangle it lies over, whatever
+    the triangle's shape (slivers, needles, near-degenerate ones)."""
+    rng = np.random.default_rng(11)
+    corners = rng.normal(size=(4000, 3, 3)) * rng.uniform(0.01, 1.0, (4000, 1, 3))
+    corners[:500, 2] = corners[:500, 0] + 1e-3 * (corners[:500, 1] - corners[:500, 0])
+    spheres = refinement._bounding_spheres(corners)
+    over_any = 0
+    for point in rng.normal(size=(60, 3)) * 0.7:
+        over = np.flatnonzero(refinement.over_triangles(point, corners))
+        reach = refinement._within_reach(point, *spheres)
+        assert set(over.tolist()) <= set(reach.tolist())
+        over_any += len(over)
+    assert over_any > 100  # the points do lie over many triangles
+    # the farthest points that still lie over a triangle: two barycentric coordinates at
+    # the margin, the height at its limit (half the longest side) above the plane
+    some = corners[500:1500]  # (1000, 3, 3), none degenerate
+    a, b, c = some[:, 0], some[:, 1], some[:, 2]
+    normal = np.cross(b - a, c - a)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    side = np.linalg.norm(some - np.roll(some, 1, axis=1), axis=2).max(axis=1)
+    for weights in ([-0.099, -0.099, 1.198], [1.198, -0.099, -0.099], [-0.099, 1.198, -0.099]):
+        w = np.asarray(weights)
+        points = w[0] * a + w[1] * b + w[2] * c + 0.499 * side[:, None] * normal
+        for row, point in enumerate(points):
+            if refinement.over_triangles(point, corners[500 + row][None])[0]:
+                assert 500 + row in refinement._within_reach(point, *spheres)

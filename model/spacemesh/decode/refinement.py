@@ -109,6 +109,28 @@ def over_triangles(point: FloatArray, corners: FloatArray) -> BoolArray:
     return inside & (height <= MAX_HEIGHT * side) & (area2 > 0)
 
 
+#: A point lies over a triangle (:func:`over_triangles`) only within this many times the
+#: triangle's bounding radius of its centroid: its projection within 1.4 radii (every
+#: barycentric coordinate above -0.1) and its height within one (half the longest side,
+#: at most two radii) make at most 1.72.
+OVER_REACH = 2.0
+
+
+def _bounding_spheres(corners: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Centroids ``(T, 3)`` of triangles ``corners`` ``(T, 3, 3)`` and the largest
+    distance from each to its corners ``(T,)``."""
+    centre = corners.mean(axis=1)
+    return centre, np.linalg.norm(corners - centre[:, None], axis=2).max(axis=1)
+
+
+def _within_reach(point: FloatArray, centre: FloatArray, radius: FloatArray) -> IntArray:
+    """Rows of the triangles (``centre`` ``(T, 3)``, ``radius`` ``(T,)``) that ``point``
+    may lie over (:data:`OVER_REACH`), in order."""
+    offset = centre - point
+    return np.flatnonzero(np.einsum("tk,tk->t", offset, offset)
+                          <= (OVER_REACH * radius) ** 2)
+
+
 def reinsert_vertices(
     connectivity: Connectivity, removed: IntArray, operands: tuple[FloatArray, FloatArray],
     positions: FloatArray | None = None,
@@ -146,15 +168,25 @@ def reinsert_vertices(
     near = operand_distances(operands, removed[:, None], live[None, :])  # (R, L)
     confidence = np.sort(near, axis=1)[:, : min(3, len(live))].sum(axis=1)
     inserted = 0
+    spheres = None if positions is None else _bounding_spheres(positions[tri])
     for v in removed[np.argsort(confidence, kind="stable")].tolist():
-        cost = operand_distances(operands, np.full_like(tri, v), tri).sum(axis=1)  # (T,)
-        if positions is not None:
-            cost = np.where(over_triangles(positions[v], positions[tri]), cost, np.inf)
+        if positions is None or spheres is None:
+            rows = np.arange(len(tri))
+            cost = operand_distances(operands, np.full_like(tri, v), tri).sum(axis=1)  # (T,)
+        else:  # the triangles it lies over, among those whose sphere could hold it
+            rows = _within_reach(positions[v], *spheres)
+            rows = rows[over_triangles(positions[v], positions[tri[rows]])]
+            cost = operand_distances(operands, np.full_like(tri[rows], v), tri[rows]).sum(axis=1)
             if not np.isfinite(cost).any():
                 continue
-        t = int(np.argmin(cost))
+        t = int(rows[np.argmin(cost)])
         a, b, c = tri[t].tolist()
-        tri = np.concatenate([tri[:t], [[a, b, v], [b, c, v], [c, a, v]], tri[t + 1 :]])
+        made = np.array([[a, b, v], [b, c, v], [c, a, v]])
+        tri = np.concatenate([tri[:t], made, tri[t + 1 :]])
+        if positions is not None and spheres is not None:
+            centre, radius = _bounding_spheres(positions[made])
+            spheres = (np.concatenate([spheres[0][:t], centre, spheres[0][t + 1 :]]),
+                       np.concatenate([spheres[1][:t], radius, spheres[1][t + 1 :]]))
         inserted += 1
     if inserted == 0:
         return connectivity, 0
