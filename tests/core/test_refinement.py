@@ -15,7 +15,7 @@ from spacemesh.encode import encode_connectivity
 from spacemesh.examples import icosphere
 from spacemesh.mesh import PolygonMesh
 from spacemesh.metrics.connectivity import edge_f1_score, next_accuracy
-from spacemesh.primitives import edge_keys
+from spacemesh.primitives import bounding_spheres, edge_keys
 from spacemesh.spacetime import distance_operands
 from spacemesh.topology import check_topology
 
@@ -297,7 +297,7 @@ def test_every_triangle_a_point_lies_over_is_within_the_spheres_reach():
     rng = np.random.default_rng(11)
     corners = rng.normal(size=(4000, 3, 3)) * rng.uniform(0.01, 1.0, (4000, 1, 3))
     corners[:500, 2] = corners[:500, 0] + 1e-3 * (corners[:500, 1] - corners[:500, 0])
-    spheres = refinement._bounding_spheres(corners)
+    spheres = bounding_spheres(corners)
     over_any = 0
     for point in rng.normal(size=(60, 3)) * 0.7:
         over = np.flatnonzero(refinement.over_triangles(point, corners))

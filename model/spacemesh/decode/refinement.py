@@ -44,7 +44,7 @@ import numpy as np
 from spacemesh.connectivity import Connectivity
 from spacemesh.decode.quad_fit import QuadFit
 from spacemesh.encode import connectivity_from_faces
-from spacemesh.primitives import edge_keys
+from spacemesh.primitives import bounding_spheres, edge_keys
 from spacemesh.spacetime import operand_distances
 from spacemesh.typed import BoolArray, FloatArray, IntArray
 
@@ -116,13 +116,6 @@ def over_triangles(point: FloatArray, corners: FloatArray) -> BoolArray:
 OVER_REACH = 2.0
 
 
-def _bounding_spheres(corners: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Centroids ``(T, 3)`` of triangles ``corners`` ``(T, 3, 3)`` and the largest
-    distance from each to its corners ``(T,)``."""
-    centre = corners.mean(axis=1)
-    return centre, np.linalg.norm(corners - centre[:, None], axis=2).max(axis=1)
-
-
 def _within_reach(point: FloatArray, centre: FloatArray, radius: FloatArray) -> IntArray:
     """Rows of the triangles (``centre`` ``(T, 3)``, ``radius`` ``(T,)``) that ``point``
     may lie over (:data:`OVER_REACH`), in order."""
@@ -168,7 +161,7 @@ def reinsert_vertices(
     near = operand_distances(operands, removed[:, None], live[None, :])  # (R, L)
     confidence = np.sort(near, axis=1)[:, : min(3, len(live))].sum(axis=1)
     inserted = 0
-    spheres = None if positions is None else _bounding_spheres(positions[tri])
+    spheres = None if positions is None else bounding_spheres(positions[tri])
     for v in removed[np.argsort(confidence, kind="stable")].tolist():
         if positions is None or spheres is None:
             rows = np.arange(len(tri))
@@ -184,7 +177,7 @@ def reinsert_vertices(
         made = np.array([[a, b, v], [b, c, v], [c, a, v]])
         tri = np.concatenate([tri[:t], made, tri[t + 1 :]])
         if positions is not None and spheres is not None:
-            centre, radius = _bounding_spheres(positions[made])
+            centre, radius = bounding_spheres(positions[made])
             spheres = (np.concatenate([spheres[0][:t], centre, spheres[0][t + 1 :]]),
                        np.concatenate([spheres[1][:t], radius, spheres[1][t + 1 :]]))
         inserted += 1

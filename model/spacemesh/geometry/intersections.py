@@ -22,6 +22,7 @@ from scipy.spatial import cKDTree
 
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import (
+    bounding_spheres,
     cross_rows,
     faces_subset,
     triangle_normals,
@@ -238,8 +239,7 @@ def crossing_pairs(vertices: FloatArray, triangles: IntArray,
     if len(triangles) < 2 or (among is not None and len(among) == 0):
         return none
     corners = vertices[triangles]  # (T, 3, 3)
-    centre = corners.mean(axis=1)
-    radius = np.linalg.norm(corners - centre[:, None], axis=2).max(axis=1)  # (T,)
+    centre, radius = bounding_spheres(corners)  # (T, 3), (T,)
     eps = touching_eps(vertices, triangles)
     tree = cKDTree(centre)
     pairs = _larger_first_pairs(tree, centre, radius, eps, among)

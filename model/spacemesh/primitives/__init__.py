@@ -34,10 +34,16 @@ from spacemesh.primitives.triangles import (
     triangulate_manifold,
     triangulate_polygon,
 )
-from spacemesh.primitives.vectors import cross_rows, triangle_normals, unit_rows
+from spacemesh.primitives.vectors import (
+    bounding_spheres,
+    cross_rows,
+    triangle_normals,
+    unit_rows,
+)
 from spacemesh.primitives.welding import weld
 
 __all__ = [
+    "bounding_spheres",
     "component_labels",
     "cross_rows",
     "decimate",

@@ -33,9 +33,16 @@ def triangle_normals(corners: FloatArray) -> FloatArray:
     return cross_rows(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
 
 
+def bounding_spheres(corners: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Centroids ``(M, 3)`` of triangles ``corners`` ``(M, 3, 3)`` and the largest
+    distance from each to its corners ``(M,)``: a sphere about each triangle."""
+    centre = corners.mean(axis=1)
+    return centre, np.linalg.norm(corners - centre[:, None], axis=2).max(axis=1)
+
+
 def unit_rows(rows: FloatArray) -> FloatArray:
     """``rows`` ``(M, 3)`` over their lengths (zero rows stay zero)."""
     return rows / np.maximum(np.linalg.norm(rows, axis=1, keepdims=True), 1e-300)
 
 
-__all__ = ["cross_rows", "triangle_normals", "unit_rows"]
+__all__ = ["bounding_spheres", "cross_rows", "triangle_normals", "unit_rows"]
