@@ -10,20 +10,27 @@ import numpy as np
 
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import edge_keys, faces_subset, faces_touching, vertices_of
+from spacemesh.repair.halfedges import FaceSubset
+from spacemesh.repair.pinched import split_pinched
 from spacemesh.topology import check_topology, vertex_connected_faces
 from spacemesh.typed import BoolArray, IntArray
 
 
 def patch_loops(mesh: PolygonMesh, patch: BoolArray) -> list[IntArray] | None:
     """The loops of the patch's border (its edges with no patch face on the other side),
-    in the patch's direction, or None when they are not simple cycles."""
+    in the patch's direction, or None when they cannot be made simple cycles.
+
+    A border that visits a vertex twice (a hole whose loops touch at a vertex, pinched)
+    is split there as the hole's own loops are (:func:`spacemesh.repair.pinched.
+    split_pinched`: each gap between the kept fans at that vertex is one corner of one
+    loop), so that filling every loop again joins the fans into one disc."""
     inside = patch[mesh.face_of_corner]
     he = mesh.halfedges[inside]
     n = max(mesh.n_vertices, 1)
     key = he[:, 0] * n + he[:, 1]
     border = he[~np.isin(he[:, 1] * n + he[:, 0], key)]
     if len(np.unique(border[:, 0])) != len(border):
-        return None
+        return _pinched_patch_loops(mesh, patch, border)
     following = dict(zip(border[:, 0].tolist(), border[:, 1].tolist(), strict=True))
     loops, seen = [], set()
     for first in following:
@@ -38,6 +45,21 @@ def patch_loops(mesh: PolygonMesh, patch: BoolArray) -> list[IntArray] | None:
                 return None
         loops.append(np.asarray(loop, dtype=np.int64))
     return loops
+
+
+def _pinched_patch_loops(mesh: PolygonMesh, patch: BoolArray, border: IntArray
+                         ) -> list[IntArray] | None:
+    """The simple loops of a patch ``border`` ((B, 2) halfedges in the patch's
+    direction) that visits a vertex twice: the kept faces' open halfedges opposite it,
+    split at the vertices they pass twice (:func:`spacemesh.repair.pinched.
+    split_pinched`), or None where they cannot be split."""
+    kept = faces_subset(mesh, ~patch)  # the same vertex indices
+    sub = FaceSubset.of(kept, np.arange(kept.n_faces))
+    open_ids = np.flatnonzero(sub.edge_count[sub.edge] == 1)
+    n = max(mesh.n_vertices, 1)
+    he = sub.halfedges[open_ids]  # (O, 2) each the reverse of a border halfedge or not
+    opposite = np.isin(he[:, 1] * n + he[:, 0], border[:, 0] * n + border[:, 1])
+    return split_pinched(kept, sub, open_ids[opposite])
 
 
 def patch_parts(mesh: PolygonMesh, patch: BoolArray) -> list[BoolArray]:
