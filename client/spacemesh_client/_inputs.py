@@ -62,7 +62,7 @@ def points_input(source: PointsLike, normals: Any = None,
     ----------
     source : array-like, path, bytes or trimesh object
         (P, 3) numbers (or (P, 6): points then normals); a file the server reads
-        (PLY, XYZ/PTS/TXT, NPY/NPZ, OBJ, OFF, STL, GLB, glTF); its bytes; or an object
+        (PLY, XYZ/PTS/TXT, NPY/NPZ, LAS/LAZ, OBJ, OFF, STL, GLB, glTF); its bytes; or an object
         with ``vertices`` (``trimesh.PointCloud``, ``trimesh.Trimesh``).
     normals : array-like, optional
         (P, 3) normals, with numbers or a trimesh object only.

@@ -361,7 +361,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     gen = commands.add_parser("generate", parents=[options, common],
                               help="generate a mesh from a point cloud file")
-    gen.add_argument("input", help="point cloud (PLY, XYZ, PTS, TXT, NPY, NPZ, OBJ, ...)")
+    gen.add_argument("input", help="point cloud (PLY, XYZ, PTS, TXT, NPY, NPZ, LAS, LAZ, OBJ, ...)")
     _add_option_flags(gen, OPTION_NAMES)
     gen.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                      help="a progress line on stderr (the server's stages and sampler "

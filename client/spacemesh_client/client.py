@@ -150,7 +150,7 @@ class Client(_Options):
         ----------
         points : array-like, path, bytes or trimesh object
             (P, 3) numbers (or (P, 6) with normals); a point-cloud file (PLY, XYZ, PTS,
-            TXT, NPY, NPZ, OBJ, OFF, STL, GLB, glTF) or its bytes; or a
+            TXT, NPY, NPZ, LAS, LAZ, OBJ, OFF, STL, GLB, glTF) or its bytes; or a
             ``trimesh.PointCloud`` / ``trimesh.Trimesh`` (its vertices).
         normals : array-like, optional
             (P, 3) normals for points given as numbers.

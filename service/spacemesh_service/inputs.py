@@ -90,7 +90,7 @@ class UploadRules:
     Attributes
     ----------
     max_text_bytes : int, optional
-        Largest file other than a binary PLY, NPY or NPZ cloud (413 above); None: no
+        Largest file other than a binary PLY, NPY, NPZ, LAS or LAZ cloud (413 above); None: no
         limit beyond the body's.
     working_points : int, optional
         A cloud of more points is reduced to this many
@@ -110,8 +110,8 @@ class UploadRules:
         ``max_text_bytes``."""
         if self.max_text_bytes is not None and size > self.max_text_bytes:
             raise Problem(P.PAYLOAD_TOO_LARGE, f"{what} has {size} bytes; this server takes "
-                          f"at most {self.max_text_bytes} but for binary PLY, NPY and NPZ "
-                          "point clouds", limit=self.max_text_bytes)
+                          f"at most {self.max_text_bytes} but for binary PLY, NPY, NPZ, LAS "
+                          "and LAZ point clouds", limit=self.max_text_bytes)
 
 
 class ParseSlots:

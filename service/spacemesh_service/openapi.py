@@ -31,7 +31,8 @@ DESCRIPTION = """\
 Point cloud in, oriented manifold polygon mesh out (SpaceMesh).
 
 * `POST /generate`: upload a point cloud (multipart field `file`: PLY, XYZ/PTS/TXT/CSV,
-  NPY/NPZ, or the vertices of an OBJ/OFF/STL/GLB) or send JSON `{"points": [[x, y, z], ...]}`.
+  NPY/NPZ, LAS/LAZ, or the vertices of an OBJ/OFF/STL/GLB) or send JSON
+  `{"points": [[x, y, z], ...]}`.
   Options `format`, `seed`, `steps`, `sampler`, `start`, `start_time`,
   `target_vertices`, `tolerance`, `samples`, `raw` as query parameters or form/JSON
   fields; every response reports how well the mesh fits the points (`X-SpaceMesh-Fit-*`).

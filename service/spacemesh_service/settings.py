@@ -77,7 +77,8 @@ class Settings(BaseModel):
         "light lane is estimated to take.")
     max_points: int = Field(
         DEFAULT_MAX_BINARY_POINTS, ge=1, description="Most points of a request (413 above): "
-        "binary PLY, NPY and NPZ clouds, read as views over their bytes.")
+        "binary PLY, NPY, NPZ, LAS and LAZ clouds, read as views over their bytes or a "
+        "block at a time.")
     max_text_points: int = Field(
         DEFAULT_MAX_POINTS, ge=1, description="Most points of a cloud parsed from text "
         "(XYZ/PTS/TXT/CSV, ASCII PLY, OBJ, a JSON body, gRPC numbers) or read from a mesh "
@@ -91,8 +92,8 @@ class Settings(BaseModel):
         512 * 1024 * 1024, ge=1, description="Largest request body and gRPC message (413 "
         "above): room for 10 million points with normals in float64.")
     max_text_bytes: int = Field(
-        32 * 1024 * 1024, ge=1, description="Largest upload other than a binary PLY, NPY "
-        "or NPZ point cloud: text clouds, JSON bodies and mesh files (413 above).")
+        32 * 1024 * 1024, ge=1, description="Largest upload other than a binary PLY, NPY, "
+        "NPZ, LAS or LAZ point cloud: text clouds, JSON bodies and mesh files (413 above).")
     max_mesh_vertices: int = Field(
         1_000_000, ge=1, description="Most vertices of an uploaded mesh (repair), checked "
         "while it is read (413 above).")

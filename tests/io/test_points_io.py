@@ -134,9 +134,10 @@ def test_paths_and_extensions(tmp_path):
 
 
 def test_supported_types():
-    assert {"ply", "xyz", "pts", "txt", "npy", "npz", "obj"} <= set(SUPPORTED_POINTS_READ)
+    assert {"ply", "xyz", "pts", "txt", "npy", "npz", "las", "laz", "obj"} <= set(
+        SUPPORTED_POINTS_READ)
     with pytest.raises(UnsupportedFormatError, match=r"\.xyz"):
-        load_points(text_columns(POINTS), file_type="las")
+        load_points(text_columns(POINTS), file_type="e57")
 
 
 MALFORMED = {
@@ -155,6 +156,8 @@ MALFORMED = {
     "npz wrong keys": ("npz", npz_bytes(a=POINTS, b=POINTS)),
     "npz normals mismatch": ("npz", npz_bytes(points=POINTS, normals=NORMALS[:3])),
     "npz garbage": ("npz", b"PK\x03\x04 garbage"),
+    "las garbage": ("las", b"LASF" + b"\x00" * 300),
+    "laz not las": ("laz", b"\x00\xff\x13\x37" * 80),
     "ply truncated": ("ply", ply_points(True)[:-100]),
     "obj no vertices": ("obj", b"vn 0 0 1\n"),
     "garbage bytes": ("ply", b"\x00\xff\x13\x37" * 20),

@@ -98,6 +98,28 @@ def as_npz(points: np.ndarray) -> bytes:
     return buffer.getvalue()
 
 
+#: The LAS scale :func:`as_las` stores with: every float32 value of magnitude below 128
+#: (those of :func:`make_cloud`) is a whole multiple of it, so LAS holds them exactly.
+LAS_SCALE = 2.0**-24
+
+
+def as_las(points: np.ndarray, compressed: bool = False) -> bytes:
+    """The points as a LAS 1.4 file (LAZ when ``compressed``) that reads back exactly."""
+    import laspy
+
+    points = np.asarray(points, dtype=np.float64)
+    assert np.array_equal(np.round(points / LAS_SCALE) * LAS_SCALE, points), \
+        "the points are not whole multiples of LAS_SCALE"
+    header = laspy.LasHeader(point_format=0, version="1.4")
+    header.scales = np.full(3, LAS_SCALE)
+    header.offsets = np.zeros(3)
+    las = laspy.LasData(header)
+    las.X, las.Y, las.Z = np.round(points / LAS_SCALE).astype(np.int32).T
+    buffer = io.BytesIO()
+    las.write(buffer, do_compress=compressed)
+    return buffer.getvalue()
+
+
 #: Upload format -> (file name, encoder).
 UPLOADS = {
     "ply": ("cloud.ply", as_ply),
@@ -107,8 +129,11 @@ UPLOADS = {
     "pts": ("cloud.pts", lambda p: as_text(p, count_line=True)),
     "npy": ("cloud.npy", as_npy),
     "npz": ("cloud.npz", as_npz),
+    "las": ("cloud.las", as_las),
+    "laz": ("cloud.laz", lambda p: as_las(p, compressed=True)),
     "obj": ("cloud.obj", as_obj),
     "sniffed-ply": ("upload", as_ply),
+    "sniffed-laz": ("upload", lambda p: as_las(p, compressed=True)),
 }
 
 

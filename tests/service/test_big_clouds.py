@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 import pytest
-from service_testing import as_npy, as_npz, as_ply, as_text, make_cloud
+from service_testing import as_las, as_npy, as_npz, as_ply, as_text, make_cloud
 
 from spacemesh.io.reduce import reduce_cloud
 from spacemesh.mesh import PolygonMesh
@@ -90,7 +90,8 @@ def test_the_sdk_says_the_points_were_reduced_over_rest_and_grpc(default_server,
 def test_binary_clouds_above_the_text_limit_are_reduced(default_http, big_case):
     points, seed = big_case
     bodies = {}
-    for name, encode in [("c.ply", as_ply), ("c.npy", as_npy), ("c.npz", as_npz)]:
+    for name, encode in [("c.ply", as_ply), ("c.npy", as_npy), ("c.npz", as_npz),
+                         ("c.las", as_las), ("c.laz", lambda p: as_las(p, compressed=True))]:
         response = default_http.post("/generate", params={"seed": seed, "format": "json",
                                                            "raw": True},
                                      files={"file": (name, encode(points))})

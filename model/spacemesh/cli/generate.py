@@ -53,7 +53,8 @@ MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".off")
 @app.command()
 def generate(
     points_path: Annotated[
-        Path, typer.Argument(metavar="POINTS", help="Point cloud (PLY, XYZ, NPY, NPZ ...), "
+        Path, typer.Argument(metavar="POINTS", help="Point cloud (PLY, XYZ, NPY, NPZ, "
+                             "LAS, LAZ ...), "
                              "or a mesh (OBJ, OFF, PLY, STL, GLB/glTF with faces), whose "
                              "surface is sampled.")
     ],

@@ -98,7 +98,7 @@ def read_source(source: MeshSource) -> tuple[bytes, str | None, Path | None]:
 def sniff_file_type(data: bytes) -> str | None:
     """Guess a file type from content alone.
 
-    Recognises PLY, NPY, NPZ and GLB by their magic bytes, binary STL by its size,
+    Recognises PLY, NPY, NPZ, LAS/LAZ and GLB by their magic bytes, binary STL by its size,
     and JSON glTF, OFF, ASCII STL, OBJ and plain number columns (``"xyz"``) by
     their text.
 
@@ -120,6 +120,8 @@ def sniff_file_type(data: bytes) -> str | None:
         return "npz"
     if head.startswith(b"glTF"):
         return "glb"
+    if head.startswith(b"LASF"):  # LAZ too: its header says it is compressed
+        return "las"
     if stl.binary_count(data) is not None:
         return "stl"
     if b"\x00" in head:

@@ -8,11 +8,14 @@ Read:
   three are whole numbers above 1 (then they are colours and dropped).
 - NPY: an (N, 3) or (N, 6) array. NPZ: ``points`` and optional ``normals``, or a
   single (N, 3) / (N, 6) array.
+- LAS / LAZ: the scaled positions (:mod:`spacemesh.io.las`; LAS has no normals), read
+  a block at a time, keeping only the rows the cloud is reduced to.
 - OBJ: ``v`` rows, and ``vn`` rows as normals when there are as many.
 - OFF, STL, GLB, glTF: the mesh's vertices, without normals.
 
 The format is the given ``file_type``, else the file name's extension, else sniffed
-from the content (``ply`` magic, ``\\x93NUMPY``, zip ``PK``, ``v`` lines, columns).
+from the content (``ply`` magic, ``\\x93NUMPY``, zip ``PK``, ``LASF``, ``v`` lines,
+columns).
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from spacemesh.io.errors import (
     decode_text,
     require_nonempty,
 )
+from spacemesh.io.las import read_las
 from spacemesh.io.limits import UNLIMITED, ReadLimits, iter_lines
 from spacemesh.io.meshes import load_mesh, read_source, resolve_file_type
 from spacemesh.io.obj import parse_obj
@@ -47,7 +51,8 @@ from spacemesh.typed import FloatArray
 _TEXT_TYPES = ("csv", "pts", "txt", "xyz")
 #: File types :func:`load_points` reads.
 SUPPORTED_POINTS_READ: tuple[str, ...] = tuple(
-    sorted({"npy", "npz", "obj", "ply", "off", "stl", "glb", "gltf", *_TEXT_TYPES})
+    sorted({"npy", "npz", "las", "laz", "obj", "ply", "off", "stl", "glb", "gltf",
+            *_TEXT_TYPES})
 )
 _SEPARATORS = re.compile(r"[\s,;]+")
 #: What NumPy's and zipfile's readers raise on malformed bytes (headers are evaluated
@@ -320,15 +325,16 @@ def parse_npz(
 #: Rows of a cloud as read: an (N, 3) array, or its three (N,) columns, of any numeric
 #: dtype, maybe views over the file's bytes.
 Rows = np.ndarray | tuple[np.ndarray, ...]
-#: The formats whose rows are views over the file's bytes (binary PLY too): the
-#: ``max_points`` limit applies to them, ``max_text_points`` to every other.
-BINARY_CLOUD_TYPES: tuple[str, ...] = ("npy", "npz", "ply")
+#: The formats whose rows are views over the file's bytes (binary PLY too), or read a
+#: block at a time (LAS, LAZ): the ``max_points`` limit applies to them,
+#: ``max_text_points`` to every other.
+BINARY_CLOUD_TYPES: tuple[str, ...] = ("las", "laz", "npy", "npz", "ply")
 
 
 def is_binary_cloud(data: bytes, fmt: str) -> bool:
-    """Whether a file of type ``fmt`` is a cloud read without parsing text: NPY, NPZ, or
-    a binary PLY (its header read to tell)."""
-    if fmt in ("npy", "npz"):
+    """Whether a file of type ``fmt`` is a cloud read without parsing text: NPY, NPZ,
+    LAS, LAZ, or a binary PLY (its header read to tell)."""
+    if fmt in ("npy", "npz", "las", "laz"):
         return True
     if fmt != "ply":
         return False
@@ -476,6 +482,9 @@ def read_points(
     fmt = resolve_file_type(file_type, extension, data, SUPPORTED_POINTS_READ, "point cloud")
     label = fmt.upper()
     require_nonempty(data, label)
+    if fmt in ("las", "laz"):  # reduced while it is read, a block at a time
+        las_points, count = read_las(data, label, limits, keep=keep, seed=seed)
+        return PointsRead(check_vertices(las_points, label, what="point"), None, count)
     try:
         raw_points, raw_normals = _parse(fmt, data, limits or UNLIMITED)
         rows = _stacked(raw_points)
