@@ -125,3 +125,11 @@ def test_a_panic_of_the_laz_decoder_is_a_format_error(cloud):
     struct.pack_into("<H", data, first_item_size, 7)
     with pytest.raises(MeshFormatError, match="LAZ: could not read the points"):
         read_points(bytes(data), "laz")
+
+
+def test_a_laz_file_cut_anywhere_in_its_records_is_a_format_error(cloud):
+    data = las_bytes(cloud, compressed=True)
+    header_size, point_start = struct.unpack_from("<HI", data, 94)
+    for cut in range(header_size, point_start + 16, 7):  # every cut through the records
+        with pytest.raises(MeshFormatError):
+            read_points(data[:cut], "laz")

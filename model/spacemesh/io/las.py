@@ -112,6 +112,8 @@ def _chunk_size(data: bytes, header_size: int, n_vlrs: int) -> int | None:
         user_id = data[at + 2:at + 18].split(b"\0")[0]
         record_id, length = struct.unpack_from("<HH", data, at + 18)
         if (user_id, record_id) == LASZIP_RECORD and length >= 16:
+            if at + VLR_HEADER_BYTES + 16 > len(data):
+                return None  # cut short: the decoder will say so
             return int(struct.unpack_from("<I", data, at + VLR_HEADER_BYTES + 12)[0])
         at += VLR_HEADER_BYTES + length
         if at > len(data) - VLR_HEADER_BYTES:
@@ -178,7 +180,10 @@ def read_las(data: bytes, label: str = "LAS", limits: ReadLimits | None = None,
     if not data.startswith(LAS_MAGIC):
         raise MeshFormatError(f"{label}: not a LAS or LAZ file (it does not start with "
                               "'LASF')")
-    check_header(data, label)
+    try:
+        check_header(data, label)
+    except struct.error as exc:  # a count or an offset past the end the checks missed
+        raise MeshFormatError(f"{label}: file ends early ({exc})") from None
     try:
         # one thread: the parallel decoder allocates a whole chunk of the size the file
         # claims before reading it (a corrupted size of billions aborts the process)
