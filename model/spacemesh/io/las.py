@@ -9,7 +9,7 @@ of :data:`CHUNK_POINTS`, each block keeping only the rows the cloud is reduced t
 block of records and the kept rows, whatever the count: a 10-million-point LAZ is never
 decompressed whole.
 
-numpy and laspy only.
+numpy and laspy only (imported when a file is read).
 """
 
 from __future__ import annotations
@@ -17,7 +17,6 @@ from __future__ import annotations
 import io
 import struct
 
-import laspy
 import numpy as np
 
 from spacemesh.io.errors import MeshFormatError
@@ -29,18 +28,25 @@ from spacemesh.typed import FloatArray
 CHUNK_POINTS = 1_000_000
 #: The first bytes of every LAS and LAZ file.
 LAS_MAGIC = b"LASF"
+#: The file types :func:`read_las` reads (one reader: the header says which).
+LAS_TYPES: tuple[str, ...] = ("las", "laz")
 
 
-#: What laspy (and its LAZ backend) raise on malformed bytes.
-_LAS_ERRORS = (laspy.errors.LaspyException, ValueError, OSError, EOFError, KeyError,
-               IndexError, TypeError, RuntimeError, OverflowError, struct.error)
+#: What laspy (and its LAZ backend) raise on malformed bytes, besides laspy's own
+#: ``LaspyException``.
+_LAS_ERRORS = (ValueError, OSError, EOFError, KeyError, IndexError, TypeError,
+               RuntimeError, OverflowError, struct.error)
 
 
 def _unreadable(error: BaseException) -> bool:
-    """Whether ``error`` says the bytes are not a readable LAS/LAZ file: one of
-    :data:`_LAS_ERRORS`, or a panic of the Rust LAZ decoder (pyo3's ``PanicException``
-    derives from BaseException, so that ``except Exception`` would let it through)."""
-    return isinstance(error, _LAS_ERRORS) or type(error).__name__ == "PanicException"
+    """Whether ``error`` says the bytes are not a readable LAS/LAZ file: laspy's
+    ``LaspyException``, one of :data:`_LAS_ERRORS`, or a panic of the Rust LAZ decoder
+    (pyo3's ``PanicException`` derives from BaseException, so that ``except Exception``
+    would let it through)."""
+    import laspy
+
+    return (isinstance(error, (laspy.errors.LaspyException, *_LAS_ERRORS))
+            or type(error).__name__ == "PanicException")
 
 
 #: Bytes of the LAS 1.0-1.2 public header block; a variable length record's header; an
@@ -176,6 +182,8 @@ def read_las(data: bytes, label: str = "LAS", limits: ReadLimits | None = None,
     TooLargeError
         The header declares more than ``limits.max_points`` points.
     """
+    import laspy  # here, not at start-up: 0.1 s for every process that reads no LAS
+
     limits = limits or UNLIMITED
     if not data.startswith(LAS_MAGIC):
         raise MeshFormatError(f"{label}: not a LAS or LAZ file (it does not start with "
@@ -235,4 +243,4 @@ def read_las(data: bytes, label: str = "LAS", limits: ReadLimits | None = None,
     return points, count
 
 
-__all__ = ["CHUNK_POINTS", "LAS_MAGIC", "check_header", "read_las"]
+__all__ = ["CHUNK_POINTS", "LAS_MAGIC", "LAS_TYPES", "check_header", "read_las"]

@@ -12,6 +12,7 @@ from typing import BinaryIO, TypeAlias
 
 from spacemesh.io import gltf, obj, off, ply, stl
 from spacemesh.io.errors import MeshFormatError, UnsupportedFormatError
+from spacemesh.io.las import LAS_MAGIC
 from spacemesh.io.limits import UNLIMITED, ReadLimits
 from spacemesh.mesh import PolygonMesh
 
@@ -120,7 +121,7 @@ def sniff_file_type(data: bytes) -> str | None:
         return "npz"
     if head.startswith(b"glTF"):
         return "glb"
-    if head.startswith(b"LASF"):  # LAZ too: its header says it is compressed
+    if head.startswith(LAS_MAGIC):  # LAZ too: its header says it is compressed
         return "las"
     if stl.binary_count(data) is not None:
         return "stl"

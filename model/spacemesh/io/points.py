@@ -40,7 +40,7 @@ from spacemesh.io.errors import (
     decode_text,
     require_nonempty,
 )
-from spacemesh.io.las import read_las
+from spacemesh.io.las import LAS_TYPES, read_las
 from spacemesh.io.limits import UNLIMITED, ReadLimits, iter_lines
 from spacemesh.io.meshes import load_mesh, read_source, resolve_file_type
 from spacemesh.io.obj import parse_obj
@@ -51,7 +51,7 @@ from spacemesh.typed import FloatArray
 _TEXT_TYPES = ("csv", "pts", "txt", "xyz")
 #: File types :func:`load_points` reads.
 SUPPORTED_POINTS_READ: tuple[str, ...] = tuple(
-    sorted({"npy", "npz", "las", "laz", "obj", "ply", "off", "stl", "glb", "gltf",
+    sorted({"npy", "npz", *LAS_TYPES, "obj", "ply", "off", "stl", "glb", "gltf",
             *_TEXT_TYPES})
 )
 _SEPARATORS = re.compile(r"[\s,;]+")
@@ -328,16 +328,14 @@ Rows = np.ndarray | tuple[np.ndarray, ...]
 #: The formats whose rows are views over the file's bytes (binary PLY too), or read a
 #: block at a time (LAS, LAZ): the ``max_points`` limit applies to them,
 #: ``max_text_points`` to every other.
-BINARY_CLOUD_TYPES: tuple[str, ...] = ("las", "laz", "npy", "npz", "ply")
+BINARY_CLOUD_TYPES: tuple[str, ...] = (*LAS_TYPES, "npy", "npz", "ply")
 
 
 def is_binary_cloud(data: bytes, fmt: str) -> bool:
     """Whether a file of type ``fmt`` is a cloud read without parsing text: NPY, NPZ,
     LAS, LAZ, or a binary PLY (its header read to tell)."""
-    if fmt in ("npy", "npz", "las", "laz"):
-        return True
     if fmt != "ply":
-        return False
+        return fmt in BINARY_CLOUD_TYPES
     try:
         return read_ply_header(data).binary
     except MeshFormatError:
@@ -482,7 +480,7 @@ def read_points(
     fmt = resolve_file_type(file_type, extension, data, SUPPORTED_POINTS_READ, "point cloud")
     label = fmt.upper()
     require_nonempty(data, label)
-    if fmt in ("las", "laz"):  # reduced while it is read, a block at a time
+    if fmt in LAS_TYPES:  # reduced while it is read, a block at a time
         las_points, count = read_las(data, label, limits, keep=keep, seed=seed)
         return PointsRead(check_vertices(las_points, label, what="point"), None, count)
     try:
