@@ -23,8 +23,10 @@ from spacemesh.geometry.pieces import drop_fragments
 from spacemesh.geometry.report import fit_score, points_to_mesh_mean
 from spacemesh.geometry.simplify import simplify
 from spacemesh.geometry.stage import GeometryOptions, GeometryResult, refine_geometry
+from spacemesh.geometry.surface import face_support, open_surface
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import flip_faces, signed_volume
+from spacemesh.topology import check_topology
 from spacemesh.typed import FloatArray
 
 #: ``max_distance``: the collapses may first leave the mesh this many times that distance
@@ -57,6 +59,10 @@ def finish_geometry(
 ) -> tuple[PolygonMesh, dict[str, Any]]:
     """Drop fragments, then run the geometry stage (see the module docstring).
 
+    An open mesh (one with a rim: a decode trimmed to its points) is fitted without
+    flips and keeps its orientation, which its points gave it (an open surface has no
+    signed volume to orient it by).
+
     Parameters
     ----------
     mesh : PolygonMesh
@@ -81,11 +87,14 @@ def finish_geometry(
     Returns
     -------
     mesh : PolygonMesh
-        Outward oriented, in the normalised frame.
+        Outward oriented (an open mesh: as it came), in the normalised frame.
     stats : dict
         The stage's statistics, ``n_fragments_dropped`` and, with normals,
         ``normals_used`` (whether the kept mesh was fitted with them).
     """
+    closed = check_topology(mesh).is_closed
+    if not closed:
+        options = replace(options, flips=False)  # the flips need a closed mesh
     mesh, dropped = drop_fragments(mesh)
     simplified: dict[str, Any] = {}
     fitted_already: GeometryResult | None = None  # the fit with ``normals``, when made
@@ -112,7 +121,7 @@ def finish_geometry(
         refined = (fitted_already if fitted_already is not None and given is normals
                    else refine_geometry(mesh, points, given, options,
                                         target_vertices=target_vertices))
-        fitted = outward(refined.mesh)
+        fitted = outward(refined.mesh) if closed else refined.mesh
         stats = dict(refined.stats, n_fragments_dropped=dropped, **simplified)
         if normals is not None:
             stats["normals_used"] = given is not None
@@ -122,6 +131,45 @@ def finish_geometry(
             best = (score, fitted, stats)
     assert best is not None  # at least one try
     return best[1], best[2]
+
+
+def fit_trimmed_first(
+    decoded: PolygonMesh,
+    points: FloatArray,
+    normals: FloatArray | None,
+    options: GeometryOptions,
+    *,
+    target_vertices: int | None = None,
+    max_distance: float | None = None,
+) -> tuple[PolygonMesh, dict[str, Any]] | None:
+    """An open surface's second candidate: its closed decode trimmed to the points
+    (:func:`spacemesh.geometry.surface.open_surface`) *before* the geometry stage, then
+    fitted (:func:`finish_geometry`, which keeps an open mesh's orientation).
+
+    The geometry stage fits a closed mesh as a whole: its unseen side is pulled onto the
+    points and drags the seen side with it, so the mesh trimmed afterwards can leave
+    points uncovered. Trimmed first, the stage fits only where the points are, and every
+    vertex asked for lies there (docs/GEOMETRY.md, "Open surfaces").
+
+    Parameters
+    ----------
+    decoded : PolygonMesh
+        A valid closed decode in the normalised frame, outward.
+    points, normals, options, target_vertices, max_distance
+        As :func:`finish_geometry`'s.
+
+    Returns
+    -------
+    (PolygonMesh, dict) or None
+        The fitted open mesh and the stage's statistics with the trimming's; None when
+        the points support none or all of the decode's faces (nothing to trim).
+    """
+    trimmed, trimming = open_surface(decoded, face_support(decoded, points, normals))
+    if trimmed is decoded:
+        return None
+    mesh, stats = finish_geometry(trimmed, points, normals, options,
+                                  target_vertices=target_vertices, max_distance=max_distance)
+    return mesh, {**stats, **trimming}
 
 
 def _simplified_within(dense: PolygonMesh, points: FloatArray, normals: FloatArray | None,

@@ -36,7 +36,10 @@ an even chance per seed (``0.5 ** samples``), and never estimates more samples c
 than fewer. A mesh that still crosses after the untangling is made again from ``F``
 vertices (:func:`spacemesh.runtime.network.fewer_vertices`: the model's count, or half
 the count asked for) and split back up to ``V``; the estimate counts it at a chance of
-0.25 (absent with ``raw``, from noise, or where no count is left). A ``tolerance``
+0.25 (absent with ``raw``, from noise, or where no count is left). An open surface's
+second candidate (one more geometry stage for the chosen seed, made only once the
+points read as a one-sided scan: :meth:`spacemesh.runtime.MeshGenerator._trimmed_first`)
+is not counted; it is at most one ``per_seed``'s decode and geometry terms. A ``tolerance``
 request counts as 8 tries (its simplified generate and the search that may follow it;
 :meth:`CostModel.tolerance_tries`): the doubling ladder from
 the model's count to the count whose mesh is expected within the tolerance (a mean

@@ -158,6 +158,17 @@ def _genus(mesh: PolygonMesh) -> int:
     return surface_topology(drop_fragments(mesh)[0]).genus
 
 
+def geometry_targets(spec: ModelSpec, options: GenerateOptions, unit: FloatArray
+                     ) -> tuple[int | None, float | None]:
+    """What a seed's geometry stage reduces its decode to: ``target_vertices`` (the
+    count asked for, with ``start=points``) and ``max_distance`` (with a ``tolerance``,
+    :func:`spacemesh.runtime.tolerance.simplify_distance` on the fit points ``unit``)."""
+    points_start = options.start == "points"  # resolved options
+    within = (simplify_distance(options.tolerance, unit)
+              if options.tolerance is not None and points_start else None)
+    return (vertex_count(spec, options) if points_start else None), within
+
+
 def run_group(backend: Backend, spec: ModelSpec,
               jobs: list[tuple[PreparedInput, GenerateOptions]], key: SamplerKey,
               progress: ProgressFn, stage: StageFn) -> list[GenerateResult]:
@@ -238,16 +249,14 @@ def run_group(backend: Backend, spec: ModelSpec,
         e1 = time.perf_counter()
         geometry_stats: dict[str, Any] = {}
         surface = None  # raw: the closed decode, no decision
+        unfitted = None
         if not options.raw:
             stage("geometry", b + 1, len(jobs))
             unit, normals = prepared.fit_points()
-            within = None  # with a tolerance: simplified to it (runtime.tolerance)
-            if options.tolerance is not None and start == "points":
-                within = simplify_distance(options.tolerance, unit)
-            mesh, geometry_stats = finish_geometry(
-                mesh, unit, normals, spec.geometry,
-                target_vertices=wanted if start == "points" else None, max_distance=within,
-            )
+            target, within = geometry_targets(spec, options, unit)
+            unfitted = mesh
+            mesh, geometry_stats = finish_geometry(mesh, unit, normals, spec.geometry,
+                                                   target_vertices=target, max_distance=within)
             # last: trimming only removes faces, and the seeds' checks see the result
             mesh, surface, trimmed = shape_surface(mesh, unit, normals, str(options.surface),
                                                    spec.geometry)
@@ -265,9 +274,12 @@ def run_group(backend: Backend, spec: ModelSpec,
             mesh=mesh, options=options, timings=timings,
             n_sampled_vertices=int(alive[b].sum()), decode_stats=dict(decoded.stats),
             geometry_stats=geometry_stats, fit=report,
+            # an open surface's second candidate starts from its decode (pipeline)
+            decoded=unfitted if surface is not None and surface.open else None,
         ))
     return results
 
 
 __all__ = ["SamplerKey", "decode_count", "decode_item", "denoiser_steps", "drop_duplicates",
-           "plain_spec", "run_group", "sampler_key", "start_tokens", "vertex_count"]
+           "geometry_targets", "plain_spec", "run_group", "sampler_key", "start_tokens",
+           "vertex_count"]

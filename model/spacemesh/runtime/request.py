@@ -79,6 +79,10 @@ class GenerateResult:
     tolerance_tries : list of (int, float)
         With ``tolerance``: every vertex count the search tried and its
         ``points_to_mesh_mean_rel``, in order (:mod:`spacemesh.runtime.tolerance`).
+    decoded : PolygonMesh or None
+        An open surface's closed decode, outward, in the normalised frame, before the
+        geometry stage (:meth:`spacemesh.runtime.MeshGenerator` trims it first for a
+        second candidate); None otherwise.
     """
 
     mesh: PolygonMesh
@@ -90,6 +94,7 @@ class GenerateResult:
     fit: FitReport | None = None
     sample_scores: list[tuple[int, float]] = field(default_factory=list)
     tolerance_tries: list[tuple[int, float]] = field(default_factory=list)
+    decoded: PolygonMesh | None = field(default=None, repr=False)
 
     @property
     def seed(self) -> int:

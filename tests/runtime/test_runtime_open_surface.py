@@ -1,0 +1,62 @@
+"""An open surface through the whole pipeline, with the shipped model: of its two
+candidates (the chosen seed's mesh fitted then trimmed, and its decode trimmed then
+fitted), the one kept does not cross where the other does not, and fits at least as
+well; a closed surface never makes the second."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from spacemesh.examples import icosphere
+from spacemesh.primitives import sample_surface
+from spacemesh.runtime import MeshGenerator
+from spacemesh.runtime.choice import crosses
+from tests.validity import assert_valid_mesh
+
+
+@pytest.fixture(scope="module")
+def generator(shipped):
+    return MeshGenerator.from_repository(None, threads=1)
+
+
+@pytest.fixture(scope="module")
+def bumpy_sphere():
+    """Points on a bumpy sphere (a shape with detail), with their normals."""
+    sphere = icosphere(4)
+    v = sphere.vertices
+    bumps = 1.0 + 0.08 * np.sin(4 * v[:, 0]) * np.cos(3 * v[:, 1])
+    points, normals = sample_surface(sphere.with_vertices(v * bumps[:, None]), 2048,
+                                     np.random.default_rng(0))
+    return points.astype(np.float64), normals.astype(np.float64)
+
+
+@pytest.mark.parametrize("direction", [[0, 0, 1], [1, 0, 0]])
+def test_a_one_sided_scan_keeps_the_better_of_its_two_candidates(generator, bumpy_sphere,
+                                                                  direction, monkeypatch):
+    points, normals = bumpy_sphere
+    seen = points[normals @ np.asarray(direction, dtype=np.float64) > 0]
+    result = generator.generate(seen, seed=0)
+    assert result.fit is not None and result.fit.open_surface
+    assert_valid_mesh(result.mesh, open_surface=True)
+    assert result.decoded is None  # the decode is freed once used
+    kept_second = result.geometry_stats["surface_trimmed_first"]
+    # the first candidate alone: the same request without the second
+    monkeypatch.setattr(MeshGenerator, "_trimmed_first",
+                        lambda self, chosen, *args: chosen)
+    first = generator.generate(seen, seed=0)
+    assert first.fit is not None and "surface_trimmed_first" not in first.geometry_stats
+    if not kept_second:
+        np.testing.assert_array_equal(result.mesh.vertices, first.mesh.vertices)
+        return
+    assert not crosses(result) or crosses(first)
+    if crosses(result) == crosses(first):
+        assert result.fit.score < first.fit.score
+
+
+def test_a_complete_cloud_makes_no_second_candidate(generator, bumpy_sphere):
+    points, _ = bumpy_sphere
+    result = generator.generate(points, seed=0)
+    assert result.fit is not None and not result.fit.open_surface
+    assert "surface_trimmed_first" not in result.geometry_stats
+    assert result.decoded is None
