@@ -14,9 +14,13 @@ Each is scored as ``experiments/eval_one_sided.py`` scores (accuracy, completene
 seen part, area over the seen area, in 1e-2 of the diagonal), with the fit score
 (:func:`spacemesh.geometry.report.fit_score`, x 1e3) the choice reads.
 
+With ``--gallery PATH`` the listed scans (``--show``, indices into the split) are drawn:
+their points, the three meshes and the ground truth's seen part.
+
 Usage::
 
     python experiments/one_sided_two_candidates.py --split dev [--limit N]
+        [--gallery docs/results/one-sided-two-candidates.png --show 2,10,15,20]
 """
 
 from __future__ import annotations
@@ -38,15 +42,20 @@ def main() -> int:
 
     parser = split_parser(__doc__)
     parser.add_argument("--limit", type=int, default=None)
+    parser.add_argument("--gallery", type=Path, default=None)
+    parser.add_argument("--show", default="", help="comma-separated shape indices")
     args = parser.parse_args()
+    show = [int(i) for i in args.show.split(",") if i]
     from spacemesh.evaluate.runner import mesh_shapes, pin_threads
 
     pin_threads(1)
     import spacemesh.runtime.network as network
+    from spacemesh.evaluate.gallery import GalleryRow, render_gallery
     from spacemesh.geometry.finishing import fit_trimmed_first
     from spacemesh.geometry.report import SurfaceFacts, fit_score
     from spacemesh.geometry.surface import decide_open, face_support
-    from spacemesh.metrics.scans import one_sided, scan_scores
+    from spacemesh.metrics.scans import one_sided, scan_scores, seen_faces
+    from spacemesh.primitives import faces_subset
     from spacemesh.runtime import MeshGenerator
 
     shipped_finish, shipped_surface = network.finish_geometry, network.shape_surface
@@ -73,7 +82,10 @@ def main() -> int:
     generator = MeshGenerator.from_repository(None, threads=1)
     names = ("after", "first", "shipped")
     scores: dict[str, list[tuple[float, float, float, float]]] = {name: [] for name in names}
+    rows: list[GalleryRow] = []
     for index, shape in enumerate(shapes):
+        if show and args.gallery is not None and index not in show:
+            continue
         direction = DIRECTIONS[index % len(DIRECTIONS)]
         points = shape.points[one_sided(shape.normals, direction)]  # (P', 3)
         started = time.perf_counter()
@@ -94,13 +106,24 @@ def main() -> int:
                         f"{s['area_ratio']:.2f} fit {fit:.1f}"
                         f"{'' if s['valid'] else ' INVALID'}")
         print(" | ".join(line), f"| {time.perf_counter() - started:.1f} s", flush=True)
+        if index in show:
+            seen, _ = faces_subset(shape.mesh, seen_faces(shape.mesh, direction)
+                                   ).remove_unreferenced_vertices()
+            rows.append(GalleryRow(f"{shape.shape_id} from {direction.astype(int).tolist()}",
+                                   points, {**meshes, "gt": seen}))
     print("\nmeans (accuracy 1e-2 / completeness 1e-2 / area over seen / fit score 1e-3):")
     for name in names:
         a = np.array(scores[name])
         print(f"{name:8s} {100 * np.nanmean(a[:, 0]):.2f} / {100 * np.nanmean(a[:, 1]):.2f}"
               f" / {np.nanmean(a[:, 2]):.2f} / {np.nanmean(a[:, 3]):.1f}")
+    if args.gallery is not None and rows:
+        render_gallery(rows, args.gallery, columns=("points", *names, "gt"),
+                       labels={"after": "trimmed after the fit", "first": "trimmed first",
+                               "shipped": "the better (ships)", "gt": "seen part"},
+                       title="One-sided scans: two candidates")
+        print(f"gallery: {args.gallery}")
     a = np.array([min((scores[n][i] for n in ("after", "first")), key=lambda r: r[3])
-                  for i in range(len(shapes))])
+                  for i in range(len(scores["after"]))])
     print(f"{'by fit':8s} {100 * a[:, 0].mean():.2f} / {100 * a[:, 1].mean():.2f}"
           f" / {a[:, 2].mean():.2f} / {a[:, 3].mean():.1f}  (the better fit of after and first)")
     return 0
