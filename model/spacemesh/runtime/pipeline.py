@@ -512,7 +512,7 @@ class MeshGenerator:
         the topology check, and a retry's mesh is taken only if it keeps the tolerance
         met. The mesh found is the one a generate at its count gives (untangled and faced
         once, as :meth:`_generate_prepared` finishes it); a retry seed's is finished
-        likewise."""
+        likewise (an open surface's second candidate included)."""
         assert options.tolerance is not None
         tolerance = float(options.tolerance)
         if stage is not None:
@@ -548,7 +548,9 @@ class MeshGenerator:
             found = best_fit([found, *extra], found.options, expected)
         found.timings = summed_timings(ran)
         if found is not searched:  # a retry seed's mesh, as its seed decoded it
-            found = self._faced(self._untangled(found, prepared, stage), prepared)
+            found = self._trimmed_first(self._untangled(found, prepared, stage), prepared,
+                                        stage, self.spec)
+            found = self._faced(found, prepared)
         # the fit reports carry the tolerance and whether it is met (PreparedInput)
         found.options = replace(found.options, tolerance=tolerance, target_vertices=None)
         found.tolerance_tries = tried
