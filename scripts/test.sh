@@ -21,9 +21,21 @@ fi
 "$VENV/bin/python" -m pip install -q "torch==2.13.0"
 "$VENV/bin/python" -m pip install -q -e "model[geometry,train,test]" -e service -e "client[trimesh,grpc]" \
     -r deploy/requirements-check.txt
+# the tiny model most test folders share (tests/conftest.py) is built in the background
+# while style, types and layers are checked: the tests would otherwise wait for it
+TOY_TEMP=""
+if [ -z "${SPACEMESH_TEST_TOY_DIR:-}" ]; then
+    TOY_TEMP="$(mktemp -d)"
+    export SPACEMESH_TEST_TOY_DIR="$TOY_TEMP/spacemesh-toy-model"
+fi
+mkdir -p "$(dirname "$SPACEMESH_TEST_TOY_DIR")"
+"$VENV/bin/python" -m spacemesh.train.toy "$SPACEMESH_TEST_TOY_DIR" \
+    > "$SPACEMESH_TEST_TOY_DIR.log" 2>&1 &
+TOY_BUILD=$!
+trap 'kill "$TOY_BUILD" 2>/dev/null || true; [ -z "$TOY_TEMP" ] || rm -rf "$TOY_TEMP"' EXIT
 # style, types and layers first (ruff.toml, mypy.ini, .importlinter), then the tests
 "$VENV/bin/ruff" check model service client tests bench experiments scripts examples
 "$VENV/bin/lint-imports" --no-cache
 "$VENV/bin/mypy"
 # two workers (pytest-xdist; a test file stays on one worker, so its fixtures start once)
-exec "$VENV/bin/python" -m pytest -q -n "${SPACEMESH_TEST_WORKERS:-2}" --dist loadfile "$@"
+"$VENV/bin/python" -m pytest -q -n "${SPACEMESH_TEST_WORKERS:-2}" --dist loadfile "$@"

@@ -2,10 +2,13 @@
 
 The model is built through the real command line (:func:`spacemesh.train.toy.build_toy_model`)
 in the run's temporary folder, or in ``SPACEMESH_TEST_TOY_DIR`` when that is set (to keep it
-between runs). Under pytest-xdist (``scripts/test.sh`` runs two workers) the workers share
-one build, under a file lock: the controller starts it in a background process as the
-session starts (:func:`pytest_sessionstart`), and the files that do not need it run first
-(:func:`pytest_collection_modifyitems`), so that neither worker sits idle for its 40 s.
+between runs; ``scripts/test.sh`` sets it and starts the build in the background before
+its style, type and layer checks, so that the tests find it built). Under pytest-xdist
+(``scripts/test.sh`` runs two workers) the workers share one build, under a file lock:
+the controller starts it in a background process as the session starts
+(:func:`pytest_sessionstart`; it finds a build already made or under way and waits for
+it), and the files that do not need it run first (:func:`pytest_collection_modifyitems`),
+so that neither worker sits idle for its 50 s.
 """
 
 from __future__ import annotations
@@ -18,10 +21,6 @@ from pathlib import Path
 
 import pytest
 
-#: Builds the tiny model in the folder ``sys.argv[1]`` under its lock (or finds it built).
-_BUILD = ("import sys; from filelock import FileLock; "
-          "from spacemesh.train.toy import build_toy_model; "
-          "lock = FileLock(sys.argv[1] + '.lock'); lock.acquire(); build_toy_model(sys.argv[1])")
 _background: list[subprocess.Popen] = []
 
 
@@ -42,8 +41,9 @@ def pytest_sessionstart(session: pytest.Session) -> None:
     directory = _toy_directory(config._tmp_path_factory.getbasetemp())  # as xdist's own
     directory.parent.mkdir(parents=True, exist_ok=True)
     log = open(str(directory) + ".log", "w")  # the process writes it
-    _background.append(subprocess.Popen([sys.executable, "-c", _BUILD, str(directory)],
-                                        stdout=log, stderr=subprocess.STDOUT))
+    _background.append(subprocess.Popen(
+        [sys.executable, "-m", "spacemesh.train.toy", str(directory)],  # under its lock
+        stdout=log, stderr=subprocess.STDOUT))
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -67,12 +67,8 @@ def toy_model(tmp_path_factory):
     train, and the servers of tests/service, client, browser and deploy)."""
     pytest.importorskip("torch")
     pytest.importorskip("onnxscript")
-    from filelock import FileLock
-
-    from spacemesh.train.toy import build_toy_model
+    from spacemesh.train.toy import build_toy_model_once
 
     base = tmp_path_factory.getbasetemp()  # a worker's is gw0, gw1, ... of the run's
     directory = _toy_directory(base.parent if "PYTEST_XDIST_WORKER" in os.environ else base)
-    directory.parent.mkdir(parents=True, exist_ok=True)
-    with FileLock(str(directory) + ".lock"):
-        return build_toy_model(directory)
+    return build_toy_model_once(directory)

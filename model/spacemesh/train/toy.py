@@ -161,3 +161,20 @@ def build_toy_model(directory: str | Path, *, steps: int = 4, threads: int = 2) 
     marker.write_text(json.dumps({"data": str(data), "run": str(run),
                                   "repository": str(repository), "seconds": seconds}))
     return ToyModel(data, run, repository, seconds)
+
+
+def build_toy_model_once(directory: str | Path) -> ToyModel:
+    """:func:`build_toy_model` under a file lock (``DIRECTORY.lock``), so that processes
+    sharing ``directory`` (a test run's workers, the build ``scripts/test.sh`` starts in
+    the background) make it once and the others wait for it, then find it built."""
+    from filelock import FileLock
+
+    directory = Path(directory)
+    directory.parent.mkdir(parents=True, exist_ok=True)
+    with FileLock(str(directory) + ".lock"):
+        return build_toy_model(directory)
+
+
+if __name__ == "__main__":  # python -m spacemesh.train.toy DIRECTORY
+    build_toy_model_once(sys.argv[1])
+
