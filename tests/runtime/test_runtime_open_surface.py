@@ -34,24 +34,28 @@ def bumpy_sphere():
 @pytest.mark.parametrize("direction", [[0, 0, 1], [1, 0, 0]])
 def test_a_one_sided_scan_keeps_the_better_of_its_two_candidates(generator, bumpy_sphere,
                                                                   direction, monkeypatch):
+    import spacemesh.runtime.pipeline as pipeline
+
     points, normals = bumpy_sphere
     seen = points[normals @ np.asarray(direction, dtype=np.float64) > 0]
     result = generator.generate(seen, seed=0)
     assert result.fit is not None and result.fit.open_surface
     assert_valid_mesh(result.mesh, open_surface=True)
     assert result.decoded is None  # the decode is freed once used
-    kept_second = result.geometry_stats["surface_trimmed_first"]
-    # the first candidate alone: the same request without the second
-    monkeypatch.setattr(MeshGenerator, "_trimmed_first",
-                        lambda self, chosen, *args: chosen)
+    # each candidate alone: the second always kept, then none made
+    with monkeypatch.context() as patch:
+        patch.setattr(pipeline, "_rank",
+                      lambda r: (not r.geometry_stats.get("surface_trimmed_first"), 0.0))
+        second = generator.generate(seen, seed=0)
+    assert second.geometry_stats["surface_trimmed_first"]
+    assert_valid_mesh(second.mesh, open_surface=True)
+    monkeypatch.setattr(MeshGenerator, "_trimmed_first", lambda self, chosen, *args: chosen)
     first = generator.generate(seen, seed=0)
     assert first.fit is not None and "surface_trimmed_first" not in first.geometry_stats
-    if not kept_second:
-        np.testing.assert_array_equal(result.mesh.vertices, first.mesh.vertices)
-        return
-    assert not crosses(result) or crosses(first)
-    if crosses(result) == crosses(first):
-        assert result.fit.score < first.fit.score
+    assert second.fit is not None
+    better = min((first, second), key=lambda r: (crosses(r), r.fit.score))
+    np.testing.assert_array_equal(result.mesh.vertices, better.mesh.vertices)
+    assert result.geometry_stats["surface_trimmed_first"] is (better is second)
 
 
 def test_a_complete_cloud_makes_no_second_candidate(generator, bumpy_sphere):
