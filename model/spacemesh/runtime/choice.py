@@ -35,6 +35,13 @@ def acceptable(result: GenerateResult, expected: int) -> bool:
             and not near_contact_faces(result.mesh).any())
 
 
+def fit_score_of(result: GenerateResult) -> float:
+    """``result``'s fit score (:attr:`spacemesh.geometry.FitReport.score`, lower is
+    better), infinite without a fit report or for a score that is not finite."""
+    value = result.fit.score if result.fit is not None else float("nan")
+    return value if np.isfinite(value) else float("inf")
+
+
 def best_fit(tried: list[GenerateResult], options: GenerateOptions,
              expected_pieces: int, *, check: bool = True) -> GenerateResult:
     """The result of the seed that fits best.
@@ -57,11 +64,7 @@ def best_fit(tried: list[GenerateResult], options: GenerateOptions,
         The winner (lowest rank: the checks, then the fit score, then the lower seed),
         with every seed's score and the request's options at the winner's seed.
     """
-    def score(result: GenerateResult) -> float:
-        value = result.fit.score if result.fit is not None else float("nan")
-        return value if np.isfinite(value) else float("inf")
-
-    scores = [(r.seed, score(r)) for r in tried]
+    scores = [(r.seed, fit_score_of(r)) for r in tried]
 
     def rank(i: int) -> tuple[bool, bool, float, int]:
         return (check and not pieces_agree(tried[i], expected_pieces),
@@ -73,4 +76,4 @@ def best_fit(tried: list[GenerateResult], options: GenerateOptions,
     return winner
 
 
-__all__ = ["acceptable", "best_fit", "crosses", "pieces_agree"]
+__all__ = ["acceptable", "best_fit", "crosses", "fit_score_of", "pieces_agree"]

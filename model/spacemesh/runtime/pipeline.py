@@ -45,7 +45,7 @@ from spacemesh.geometry.untangle import untangle
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangulate_manifold
 from spacemesh.runtime.backend import Backend
-from spacemesh.runtime.choice import acceptable, best_fit, crosses
+from spacemesh.runtime.choice import acceptable, best_fit, crosses, fit_score_of
 from spacemesh.runtime.network import (
     SamplerKey,
     decode_count,
@@ -596,10 +596,9 @@ def _decided(fit: FitReport) -> SurfaceFacts | None:
 
 def _rank(result: GenerateResult) -> tuple[bool, float]:
     """How :meth:`MeshGenerator._trimmed_first` ranks two candidates of one seed: one
-    whose faces do not cross first, then the better fit score."""
-    assert result.fit is not None
-    score = result.fit.score
-    return crosses(result), score if np.isfinite(score) else float("inf")
+    whose faces do not cross first, then the better fit score (as the seeds are ranked,
+    :func:`spacemesh.runtime.choice.best_fit`)."""
+    return crosses(result), fit_score_of(result)
 
 
 def _add_geometry_time(result: GenerateResult, seconds: float) -> None:
