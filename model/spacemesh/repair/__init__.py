@@ -19,6 +19,10 @@
 - :mod:`~spacemesh.repair.inpaint`: the inpainting sampler over the runtime backend.
 - :mod:`~spacemesh.repair.splice`: new faces from the predicted connectivity, spliced
   into the boundary fans.
+- :mod:`~spacemesh.repair.crossings`: whether new faces cross the mesh, and their
+  mending; :mod:`~spacemesh.repair.regrow`: a region still crossing grown around the
+  crossings and repaired again.
+- :mod:`~spacemesh.repair.result`: :class:`RepairResult` and :class:`RepairStats`.
 - :mod:`~spacemesh.repair.api`: :func:`repair_mesh` and :func:`plan_repair`.
 
 numpy, scipy and onnxruntime only (never torch). See docs/REPAIR.md.

@@ -12,6 +12,8 @@ The data flow (docs/REPAIR.md)::
       -> connectivity network on known + new vertices
       -> fill: edges new-new and new-boundary, fans spliced           spacemesh.repair.splice
       -> new vertices fitted to the region's original surface         spacemesh.geometry
+      -> (every sampling crossed) crossing new faces mended         spacemesh.repair.crossings
+      -> (still crossing) region grown by the faces crossed, again  spacemesh.repair.regrow
       -> mesh: kept faces unchanged, new faces appended
 
 The same three networks as generation (numpy + onnxruntime; no torch, no retraining).
@@ -21,7 +23,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -57,6 +59,8 @@ from spacemesh.repair.region import (
     RegionError,
     parse_region,
 )
+from spacemesh.repair.regrow import regrow_crossings
+from spacemesh.repair.result import RepairResult, RepairStats
 from spacemesh.repair.splice import Spliced, fill_hole, splice
 from spacemesh.repair.weld import weld_region, weld_vertices
 from spacemesh.runtime.backend import Backend, ConnectivityOutputs
@@ -113,152 +117,13 @@ class RepairPlan:
         return 0 if self.weld_map is None else len(self.weld_map) - self.cut.mesh.n_vertices
 
 
-@dataclass
-class RepairStats:
-    """What a repair did (all JSON-serialisable through :meth:`to_dict`).
-
-    Attributes
-    ----------
-    requested_faces, region_faces, grown_faces : int
-        Faces the region selected, faces removed, and the difference (growth).
-    removed_vertices, boundary_vertices, loops : int
-    new_vertices, new_faces : int
-    new_face_degrees : dict of int to int
-    patch_faces, patch_rings, known_vertices, tokens : int
-        The patch the model saw: faces, rings of context, held vertices, tokens.
-    candidates : int
-        Generated vertices offered to the connectivity network.
-    fallback : {"none", "removed-new-vertices", "polygon"}
-        ``removed-new-vertices`` when faces visiting a vertex twice or detached groups
-        cost new vertices; ``polygon`` when at least one loop was closed by one polygon.
-    fill : dict
-        :attr:`spacemesh.repair.splice.Fill.stats`, and ``uncrossed_faces`` where every
-        sampling's new faces crossed a face: how many of them
-        :func:`spacemesh.repair.crossings.uncross_polygons` replaced.
-    inpaint : dict
-        ``alive`` (free tokens alive by the mask), and of those dropped:
-        ``outside_hole``, ``duplicates`` and ``over_limit`` (beyond the expected count).
-    flipped_orientation : bool
-        The input's faces wind clockwise (negative volume), so the network's cyclic
-        orders were read reversed.
-    welded_vertices : int
-        Input vertices merged into another at the same position (``weld=True``; 0
-        without).
-    region_share : float
-        Share of the mesh's faces the region covers after growth (the largest region's
-        for an automatic region).
-    auto_region : str
-        ``holes``, ``defects`` or ``all`` for an automatic region, else "".
-    passes : int
-        Model passes run (1 for a marked region).
-    reversed_faces : int
-        Faces an automatic region's orientation reversed (:func:`spacemesh.repair.auto.
-        orient_faces`).
-    flipped_mesh : bool
-        The whole mesh was inside out and was reversed.
-    samplings : int
-        Samplings of the region run: more than 1 where a fill that added a handle (its
-        Euler characteristic below the region's) or whose new faces cross a face was
-        sampled again, up to :data:`TOPOLOGY_ATTEMPTS` (summed over the passes of an
-        automatic region); the fewest handles win, then the fewest crossing faces (of
-        the fitted patch: not with ``fit_patch=False``).
-    handles_added : int
-        Handles the fill kept adds to the mesh (half the drop of its Euler characteristic
-        below the region's): 0 unless every sampling added one, and then the sampling
-        with the fewest is kept (the first of those with as few). For an automatic region,
-        over the passes whose fill was kept (a region of holes whose fill is not one disc
-        a loop takes the fan instead).
-    findings : list of dict
-        Automatic regions: every hole and defect found (first
-        :data:`spacemesh.repair.findings.MAX_REPORTED`): ``kind``, ``size``, ``vertex``,
-        ``region``, ``action``, and for holes ``filled_by`` (``model``, ``fallback`` or
-        ``model-and-fallback``).
-    findings_total : int
-        Holes and defects found (all of them).
-    regions : list of dict
-        Automatic regions: each region's faces, growth (``grown_faces``, ``share``),
-        ``strategy``, ``passes`` and ``filled_by`` (first ``MAX_REPORTED``).
-    seed, steps : int
-    method : str
-    timings : dict of str to float
-        Seconds: ``cut``, ``patch``, ``encoder``, ``sampler``, ``connectivity``,
-        ``splice``, ``total``.
-    """
-
-    requested_faces: int = 0
-    region_faces: int = 0
-    grown_faces: int = 0
-    removed_vertices: int = 0
-    boundary_vertices: int = 0
-    loops: int = 0
-    new_vertices: int = 0
-    new_faces: int = 0
-    new_face_degrees: dict[int, int] = field(default_factory=dict)
-    patch_faces: int = 0
-    patch_rings: int = 0
-    known_vertices: int = 0
-    tokens: int = 0
-    candidates: int = 0
-    fallback: str = "none"
-    fill: dict[str, int] = field(default_factory=dict)
-    inpaint: dict[str, int] = field(default_factory=dict)
-    flipped_orientation: bool = False
-    welded_vertices: int = 0
-    region_share: float = 0.0
-    auto_region: str = ""
-    passes: int = 1
-    reversed_faces: int = 0
-    flipped_mesh: bool = False
-    samplings: int = 1
-    handles_added: int = 0
-    findings: list[dict[str, Any]] = field(default_factory=list)
-    findings_total: int = 0
-    regions: list[dict[str, Any]] = field(default_factory=list)
-    seed: int = 0
-    steps: int = 0
-    method: str = ""
-    timings: dict[str, float] = field(default_factory=dict)
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain dict (JSON keys are strings)."""
-        data = asdict(self)
-        data["new_face_degrees"] = {str(k): v for k, v in self.new_face_degrees.items()}
-        return data
-
-
-@dataclass(frozen=True)
-class RepairResult:
-    """A repaired mesh.
-
-    Attributes
-    ----------
-    mesh : PolygonMesh
-        Kept vertices in input order, then new vertices; kept faces in input order
-        (each identical to its input face up to the vertex renumbering), then new faces.
-        With ``weld=True`` the welded mesh is the input here: its vertices (the first
-        copy of each position, in order of first occurrence) are renumbered.
-    vertex_map : (V,) int64
-        Output index of each input vertex, -1 for removed ones (with ``weld=True``, every
-        copy of a position maps to the same output vertex).
-    face_source : (F_out,) int64
-        Input face of each output face, -1 for new faces.
-    region : (F,) bool
-        Input faces that were re-generated (the region after growth).
-    stats : RepairStats
-    """
-
-    mesh: PolygonMesh
-    vertex_map: IntArray
-    face_source: IntArray
-    region: BoolArray
-    stats: RepairStats
-
-
 def verify_repair(plan: RepairPlan | AutoPlan, result: RepairResult) -> list[str]:
     """What a repair changed beyond the grown region (empty when nothing).
 
     The faces a repair may change are exactly the plan's grown region
-    (``plan.cut.region``, computed before any network ran): every other input face must
+    (``plan.cut.region``, computed before any network ran), and the faces a region still
+    crossing was grown by (:mod:`spacemesh.repair.regrow`; counted in the stats'
+    ``fill["regrown_faces"]``, the plan's region kept whole): every other input face must
     come back first, in input order, as the same polygon on the same positions (same
     cycle, same first corner), and only new faces may follow. A server runs this on
     every repair before it answers, so a faulty repair is refused, never returned.
@@ -284,9 +149,13 @@ def verify_repair(plan: RepairPlan | AutoPlan, result: RepairResult) -> list[str
             issues.append("the repair removed faces outside the planned regions")
             return issues
     else:
-        source, region = plan.cut.mesh, plan.cut.region
-        if not np.array_equal(np.asarray(result.region, dtype=bool), region):
-            issues.append("the repair reports another region than the plan's grown region")
+        source, region = plan.cut.mesh, np.asarray(result.region, dtype=bool)
+        regrown = int(result.stats.fill.get("regrown_faces", 0))
+        if (region.shape != plan.cut.region.shape or (plan.cut.region & ~region).any()
+                or int(region.sum() - plan.cut.region.sum()) != regrown):
+            issues.append("the repair reports another region than the plan's grown region"
+                          " (and the growth around its crossings it reports)")
+            return issues
     if len(face_source) != out.n_faces:
         return [*issues, f"{len(face_source)} face sources for {out.n_faces} faces"]
     expected = np.flatnonzero(~region)
@@ -541,6 +410,7 @@ def repair_mesh(
     fit_patch: bool = True,
     max_growth: float | None = None,
     policy: FillPolicy = DEFAULT_POLICY,
+    regrow: bool = True,
 ) -> RepairResult:
     """Re-generate the vertices and faces of ``region`` (paper Sec. 5.5, Supplement D).
 
@@ -583,6 +453,10 @@ def repair_mesh(
         How automatic regions of holes are filled once the model's passes are done
         (:class:`spacemesh.repair.fill.policy.FillPolicy`; the default is the one the docs
         report); its ``euler`` also tells whether a sampling's fill added a handle.
+    regrow : bool
+        A marked region whose new faces still cross once every sampling crossed and the
+        mending is done is grown around the crossings and repaired again
+        (:func:`spacemesh.repair.regrow.regrow_crossings`; its stats say so).
 
     Returns
     -------
@@ -707,7 +581,13 @@ def repair_mesh(
     )
     vertex_map = spliced.vertex_map if plan.weld_map is None else (
         spliced.vertex_map[plan.weld_map])
-    return RepairResult(spliced.mesh, vertex_map, spliced.face_source, cut.region, stats)
+    repaired = RepairResult(spliced.mesh, vertex_map, spliced.face_source, cut.region, stats)
+    if not (regrow and crossing):
+        return repaired
+    return regrow_crossings(plan.input_mesh, repaired, lambda grown: repair_mesh(
+        plan.input_mesh, grown, backend=backend, spec=spec, seed=seed, steps=steps,
+        method=method, progress=progress, weld=weld, fit_patch=fit_patch,
+        max_growth=max_growth, policy=policy, regrow=False))
 
 
 _FALLBACK_RANK = ("none", "removed-new-vertices", "polygon", FillKind.FAN.value,
@@ -730,7 +610,7 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
                               "region")
         return repair_mesh(mesh, faces, backend=backend, spec=spec, seed=seed + index,
                            steps=steps, method=method, progress=progress, plan=step,
-                           fit_patch=fit_patch, policy=policy)
+                           fit_patch=fit_patch, policy=policy, regrow=False)
 
     state, findings, regions = repair_auto(plan, run_pass, fair=fit_patch, policy=policy)
     passes = list(state.passes)
