@@ -9,6 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from repair_testing import (
+    NoiseBackend,
     OracleBackend,
     assert_closed_manifold,
     assert_outside_identical,
@@ -19,8 +20,14 @@ from repair_testing import (
 
 from spacemesh.examples import icosphere
 from spacemesh.mesh import PolygonMesh
-from spacemesh.repair import RegionError, plan_repair, repair_mesh, verify_repair
-from spacemesh.repair.regrow import crossing_new_faces, grown_around, regrow_crossings
+from spacemesh.primitives import faces_subset
+from spacemesh.repair import Region, RegionError, plan_repair, repair_mesh, verify_repair
+from spacemesh.repair.regrow import (
+    crossing_new_faces,
+    grown_around,
+    refill_crossings,
+    regrow_crossings,
+)
 
 SPEC = make_spec(max_vertices=64)
 REGION = {"sphere": {"center": [0.0, 0.0, 1.0], "radius": 0.6}}
@@ -33,12 +40,14 @@ def sphere_and_embeddings():
     return mesh, fitted_embeddings(mesh)
 
 
-def _oracle_repair(mesh: PolygonMesh, embeddings, region, spec=SPEC):
-    """The repair of ``region`` by networks that know ``mesh`` (the original comes back;
-    fit_patch=False keeps it exact), without regrowing."""
+def _oracle_repair(mesh: PolygonMesh, embeddings, region, spec=SPEC, target=None):
+    """The repair of ``region`` of ``mesh`` by networks that know ``target`` (default
+    ``mesh``, whose vertices it shares; it comes back, as fit_patch=False keeps it exact),
+    without regrowing."""
+    target = mesh if target is None else target
     plan = plan_repair(mesh, region, spec.max_vertices)
     ids = np.concatenate([plan.patch.known, plan.cut.removed_vertices])
-    backend = OracleBackend(plan.patch.to_unit(mesh.vertices[ids]), subset(embeddings, ids),
+    backend = OracleBackend(plan.patch.to_unit(target.vertices[ids]), subset(embeddings, ids),
                             spec.schedule)
     return plan, repair_mesh(mesh, region, backend=backend, spec=spec, plan=plan,
                              fit_patch=False, regrow=False)
@@ -134,3 +143,63 @@ def test_the_growth_takes_the_crossed_kept_faces_else_the_ring(sphere_and_embedd
     touching = np.array([np.isin(face, inputs).any() for face in mesh.faces])
     assert np.array_equal(grown, repaired.region | touching)
     assert (grown & ~repaired.region).any()
+
+
+@pytest.fixture(scope="module")
+def filled_hole():
+    """An icosphere with a hole of 6 vertices, its automatic repair ({"auto": "holes"}
+    over the noise networks; 6 new vertices) and the embeddings fitted to the repaired
+    mesh."""
+    pytest.importorskip("torch")
+    sphere = icosphere(1)
+    punched = Region.sphere(sphere.vertices[0], 0.6).face_mask(sphere)
+    holed, _ = faces_subset(sphere, ~punched).remove_unreferenced_vertices()
+    plan = plan_repair(holed, {"auto": "holes"}, SPEC.max_vertices)
+    result = repair_mesh(holed, {"auto": "holes"}, backend=NoiseBackend(), spec=SPEC,
+                         plan=plan)
+    assert len(crossing_new_faces(result)) == 0 and verify_repair(plan, result) == []
+    assert result.stats.new_vertices == 6
+    return holed, plan, result, fitted_embeddings(result.mesh)
+
+
+@pytest.mark.parametrize("alone_mends", [True, False])
+def test_a_crossing_fill_is_made_again_as_a_region(filled_hole, alone_mends):
+    """The crossing faces alone are made again first; where that still crosses, the
+    fill they belong to, whole."""
+    holed, plan, result, embeddings = filled_hole
+    crossing = _pierced(result)
+    crossing_faces_alone = np.unique(crossing_new_faces(crossing))
+    crossing_faces_alone = crossing_faces_alone[crossing.face_source[crossing_faces_alone] < 0]
+    regions = []
+
+    def repair(region):  # the fill as a marked region of the output, by networks that
+        regions.append(region.copy())  # know the repaired mesh before it was pierced
+        again = _oracle_repair(crossing.mesh, embeddings, region, target=result.mesh)[1]
+        return again if alone_mends or len(regions) > 1 else _pierced(again, count=100)
+
+    again = refill_crossings(crossing, repair)
+
+    assert len(regions) == (1 if alone_mends else 2)
+    assert np.array_equal(np.flatnonzero(regions[0]), crossing_faces_alone)
+    if not alone_mends:
+        assert np.array_equal(regions[1], crossing.face_source < 0)  # the whole fill
+    assert len(crossing_new_faces(again)) == 0
+    assert np.allclose(again.mesh.vertices[again.vertex_map[again.vertex_map >= 0]],
+                       holed.vertices[again.vertex_map >= 0])
+    assert verify_repair(plan, again) == []  # every input face comes back as it was
+    assert np.array_equal(again.region, result.region)
+    assert again.stats.fill["refilled_faces"] == int(regions[-1].sum())
+    assert again.stats.fill["regrown_faces"] == 0
+    assert again.stats.new_faces == int(np.sum(again.face_source < 0))
+    assert_closed_manifold(again.mesh)
+
+
+def test_a_fill_that_cannot_be_planned_stays(filled_hole):
+    _, _, result, embeddings = filled_hole
+    crossing = _pierced(result)
+
+    def too_large(region):
+        return _oracle_repair(crossing.mesh, embeddings, region, spec=make_spec(8))[1]
+
+    assert refill_crossings(crossing, too_large) is crossing
+    assert refill_crossings(result, too_large) is result  # nothing crosses: not called

@@ -59,7 +59,7 @@ from spacemesh.repair.region import (
     RegionError,
     parse_region,
 )
-from spacemesh.repair.regrow import regrow_crossings
+from spacemesh.repair.regrow import refill_crossings, regrow_crossings
 from spacemesh.repair.result import RepairResult, RepairStats
 from spacemesh.repair.splice import Spliced, fill_hole, splice
 from spacemesh.repair.weld import weld_region, weld_vertices
@@ -123,7 +123,9 @@ def verify_repair(plan: RepairPlan | AutoPlan, result: RepairResult) -> list[str
     The faces a repair may change are exactly the plan's grown region
     (``plan.cut.region``, computed before any network ran), and the faces a region still
     crossing was grown by (:mod:`spacemesh.repair.regrow`; counted in the stats'
-    ``fill["regrown_faces"]``, the plan's region kept whole): every other input face must
+    ``fill["regrown_faces"]``, the plan's region kept whole; for an automatic plan, its
+    fills re-generated as a region, :func:`spacemesh.repair.regrow.refill_crossings`):
+    every other input face must
     come back first, in input order, as the same polygon on the same positions (same
     cycle, same first corner), and only new faces may follow. A server runs this on
     every repair before it answers, so a faulty repair is refused, never returned.
@@ -145,8 +147,11 @@ def verify_repair(plan: RepairPlan | AutoPlan, result: RepairResult) -> list[str
     issues: list[str] = []
     if isinstance(plan, AutoPlan):
         source, region = plan.mesh, np.asarray(result.region, dtype=bool)
-        if region.shape != plan.changeable.shape or (region & ~plan.changeable).any():
-            issues.append("the repair removed faces outside the planned regions")
+        regrown = int(result.stats.fill.get("regrown_faces", 0))
+        if (region.shape != plan.changeable.shape
+                or int((region & ~plan.changeable).sum()) > regrown):
+            issues.append("the repair removed faces outside the planned regions (and the"
+                          " growth around its crossings it reports)")
             return issues
     else:
         source, region = plan.cut.mesh, np.asarray(result.region, dtype=bool)
@@ -456,7 +461,10 @@ def repair_mesh(
     regrow : bool
         A marked region whose new faces still cross once every sampling crossed and the
         mending is done is grown around the crossings and repaired again
-        (:func:`spacemesh.repair.regrow.regrow_crossings`; its stats say so).
+        (:func:`spacemesh.repair.regrow.regrow_crossings`; its stats say so). An
+        automatic region's fills that still cross once it is finished are made again as
+        a marked region (:func:`spacemesh.repair.regrow.refill_crossings`). Both only
+        with ``fit_patch``.
 
     Returns
     -------
@@ -486,7 +494,7 @@ def repair_mesh(
     if isinstance(plan, AutoPlan):
         return _repair_automatic(plan, backend, spec, seed=int(seed), steps=steps,
                                  method=method, progress=progress, fit_patch=fit_patch,
-                                 started=t_start, policy=policy)
+                                 started=t_start, policy=policy, regrow=regrow)
     cut, patch = plan.cut, plan.patch
     mesh = cut.mesh  # the input, or its weld
     timings = {"cut": plan.seconds}
@@ -596,7 +604,8 @@ _FALLBACK_RANK = ("none", "removed-new-vertices", "polygon", FillKind.FAN.value,
 
 def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed: int,
                       steps: int, method: str, progress: ProgressFn | None, fit_patch: bool,
-                      started: float, policy: FillPolicy = DEFAULT_POLICY) -> RepairResult:
+                      started: float, policy: FillPolicy = DEFAULT_POLICY,
+                      regrow: bool = True) -> RepairResult:
     """Run the passes of an automatic plan (:func:`spacemesh.repair.auto.repair_auto`)
     and put their results together; pass ``k`` uses the seed ``seed + k``."""
     def run_pass(mesh: PolygonMesh, faces: BoolArray, tolerated: BoolArray,
@@ -665,4 +674,9 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
     # the working mesh's vertices after the input's are copies made by unzip_defects
     vertex_map = (state.vertex_map[:plan.source.n_vertices] if plan.weld_map is None
                   else state.vertex_map[plan.weld_map])
-    return RepairResult(out, vertex_map, state.face_source, removed, stats)
+    repaired = RepairResult(out, vertex_map, state.face_source, removed, stats)
+    if not (fit_patch and regrow):
+        return repaired
+    return refill_crossings(repaired, lambda region: repair_mesh(
+        out, region, backend=backend, spec=spec, seed=seed, steps=steps, method=method,
+        progress=progress, fit_patch=fit_patch, policy=policy))

@@ -1,6 +1,8 @@
 """A marked region whose new faces still cross once its samplings and the mending of
 :mod:`spacemesh.repair.crossings` are spent is grown around the crossings and
-re-generated (docs/REPAIR.md, "Limits").
+re-generated (:func:`regrow_crossings`), and an automatic repair's fills that still
+cross are made again as a marked region of its output (:func:`refill_crossings`;
+docs/REPAIR.md, "Limits").
 
 What the samplings and the mending cannot fix comes from the kept faces the new ones
 must meet: a loop that wraps around a strip of kept triangles with all their corners on
@@ -20,11 +22,13 @@ from dataclasses import replace
 
 import numpy as np
 
-from spacemesh.geometry.intersections import crossing_pairs
+from spacemesh.geometry.intersections import crossing_faces, crossing_pairs
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import faces_touching, triangles_of, vertices_of
+from spacemesh.primitives.graph import component_labels
 from spacemesh.repair.region import RegionError
 from spacemesh.repair.result import RepairResult
+from spacemesh.topology import face_adjacency
 from spacemesh.typed import BoolArray, IntArray
 
 #: Times a region still crossing is grown and re-generated.
@@ -122,3 +126,81 @@ def regrow_crossings(mesh: PolygonMesh, result: RepairResult,
 def _crossing_count(pairs: IntArray) -> int:
     """Faces in the crossing ``pairs``."""
     return len(np.unique(pairs))
+
+
+def refill_crossings(result: RepairResult,
+                     repair: Callable[[BoolArray], RepairResult]) -> RepairResult:
+    """An automatic repair's fills that cross, re-generated as a marked region of its
+    output (the samplings, the mending and the growth of :func:`regrow_crossings`): the
+    crossing faces alone, else, where crossings remain, the fills they belong to whole;
+    the one with the fewest crossing faces is kept when fewer cross than before.
+
+    Parameters
+    ----------
+    result : RepairResult
+        An automatic repair (its ``region`` in the faces of the plan's working mesh).
+    repair : callable
+        ``repair(region)``: the marked-region repair of ``region`` ((F_out,) bool) of
+        ``result.mesh``, regrowing included.
+
+    Returns
+    -------
+    RepairResult
+        ``result``, or the two repairs composed: the faces and vertices of the second,
+        their sources and the vertex map traced back to the input, the region the input
+        faces either removed. The stats count the faces again (``new_vertices``,
+        ``new_faces``, ``new_face_degrees``, ``region_faces``) and give, in ``fill``,
+        ``refilled_faces`` (the fills' faces re-generated) and ``regrown_faces`` (input
+        faces the second repair took in, outside the planned regions); the samplings and
+        timings of both are summed.
+    """
+    mesh, new = result.mesh, result.face_source < 0
+    crossing = crossing_faces(mesh, new)  # (K,) new faces crossing a face
+    if len(crossing) == 0:
+        return result
+    alone = np.zeros(mesh.n_faces, dtype=bool)
+    alone[crossing] = True
+    adjacent = face_adjacency(mesh)  # (A, 2)
+    _, label = component_labels(mesh.n_faces, adjacent[new[adjacent].all(axis=1)])
+    whole = new & np.isin(label, label[crossing])  # (F_out,) the crossing fills, whole
+    best: tuple[int, BoolArray, RepairResult, IntArray] | None = None
+    for refill in (alone, whole):
+        if best is not None and np.array_equal(refill, best[1]):
+            continue
+        try:
+            again = repair(refill)
+        except RegionError:
+            continue  # cannot be planned as a region (too large, a hole left open)
+        source = np.where(again.face_source >= 0,  # (F_again,) input face, -1: new
+                          result.face_source[np.maximum(again.face_source, 0)], -1)
+        count = len(crossing_faces(again.mesh, source < 0))
+        if count < (len(crossing) if best is None else best[0]):
+            best = (count, refill, again, source)
+        if count == 0:
+            break
+    if best is None:
+        return result
+    _, refill, again, face_source = best
+    taken = result.face_source[again.region & ~new]  # input faces the second removed
+    region = result.region.copy()
+    region[taken] = True
+    vertex_map = np.where(result.vertex_map >= 0,
+                          again.vertex_map[np.maximum(result.vertex_map, 0)], -1)
+    out = again.mesh
+    added = face_source < 0
+    sizes, counts = np.unique(out.face_sizes[added], return_counts=True)
+    kept_vertices = np.unique(vertex_map[vertex_map >= 0])
+    fill = dict(result.stats.fill)
+    fill["refilled_faces"] = int(refill.sum())
+    fill["regrown_faces"] = len(taken)
+    timings = dict(result.stats.timings)
+    for key, value in again.stats.timings.items():
+        timings[key] = timings.get(key, 0.0) + value
+    stats = replace(
+        result.stats, region_faces=int(region.sum()),
+        new_vertices=out.n_vertices - len(kept_vertices), new_faces=int(added.sum()),
+        new_face_degrees={int(s): int(c) for s, c in zip(sizes, counts, strict=True)},
+        fill=fill, samplings=result.stats.samplings + again.stats.samplings,
+        timings=timings)
+    return replace(result, mesh=out, vertex_map=vertex_map, face_source=face_source,
+                   region=region, stats=stats)
