@@ -99,3 +99,16 @@ def test_a_faulty_repair_is_never_written(fake_model, tmp_path, monkeypatch, fau
     assert result.exit_code == 1, result.output
     assert "outside the grown region" in result.output and "Traceback" not in result.output
     assert not out.exists()
+
+
+def test_the_summary_says_what_was_done_about_crossings():
+    from spacemesh.cli.repair import crossings_summary
+    from spacemesh.repair import RepairStats
+
+    assert crossings_summary(RepairStats(fill={"uncrossed_faces": 2})) == ""
+    assert crossings_summary(RepairStats(fill={"regrown_faces": 3, "regrowths": 1})) == (
+        ", 3 taken in where the new faces crossed")
+    assert crossings_summary(RepairStats(fill={"regrown_faces": 0, "regrowths": 1})) == (
+        ", new faces still cross (the region grown around them did not mend them)")
+    assert crossings_summary(RepairStats(fill={"refilled_faces": 12, "regrown_faces": 3})) == (
+        ", 12 faces made again and 3 taken in where the new faces crossed")

@@ -97,6 +97,20 @@ def auto_summary(stats: Any) -> str:
             + (f", {stats.reversed_faces} faces reoriented" if stats.reversed_faces else ""))
 
 
+def crossings_summary(stats: Any) -> str:
+    """What the repair did about faces that crossed (docs/REPAIR.md, "Limits"): ``""``
+    when nothing, else e.g. ``", 12 faces made again and 3 taken in where the new faces
+    crossed"``, or that they still cross when growing the region did not mend them."""
+    fill = stats.fill
+    again = int(fill.get("refilled_faces", 0))
+    taken = int(fill.get("regrown_faces", 0))
+    if not (again or taken):  # a region grown and repaired again, not kept: still crossing
+        return (", new faces still cross (the region grown around them did not mend them)"
+                if fill.get("regrowths", 0) else "")
+    parts = ([f"{again} faces made again"] if again else []) + [f"{taken} taken in"]
+    return ", " + " and ".join(parts) + " where the new faces crossed"
+
+
 @app.command()
 def repair(
     mesh_path: Annotated[Path, typer.Argument(metavar="MESH", help="Mesh file (OBJ, PLY, "
@@ -212,5 +226,6 @@ def repair(
             f"fallback {stats.fallback}"
             + (f", {stats.welded_vertices} vertices welded" if weld else "")
             + (f", {auto_summary(stats)}" if stats.auto_region else "")
+            + crossings_summary(stats)
             + f" ({stats.timings['total']:.2f} s)"
         )
