@@ -64,3 +64,30 @@ def test_a_complete_cloud_makes_no_second_candidate(generator, bumpy_sphere):
     assert result.fit is not None and not result.fit.open_surface
     assert "surface_trimmed_first" not in result.geometry_stats
     assert result.decoded is None
+
+
+def test_a_flat_sheet_comes_back_whole_from_its_slab(generator, monkeypatch):
+    """375 points on a 2 x 2 square: decoded on its own, the sheet's two coincident
+    layers cross and come back in pieces; the slab behind it gives one piece that covers
+    the points (geometry/sheet.py), and it is kept as the better candidate."""
+    rng = np.random.default_rng(1)
+    sheet = np.c_[rng.uniform(-1, 1, (375, 2)), np.zeros(375)]  # (375, 3)
+    result = generator.generate(sheet, seed=0)
+    assert result.fit is not None and result.fit.open_surface
+    assert_valid_mesh(result.mesh, open_surface=True)
+    assert result.geometry_stats["surface_slab"] is True
+    assert result.fit.pieces == 1 and result.fit.coverage > 0.95
+    depth = np.abs(result.mesh.vertices[:, 2])  # (V,) on the sheet, not on its copy
+    assert np.quantile(depth, 0.95) < 0.01 and depth.max() < 0.05 * np.sqrt(8)
+    monkeypatch.setattr(MeshGenerator, "_flat_slab", lambda self, chosen, *args: chosen)
+    alone = generator.generate(sheet, seed=0)
+    assert alone.fit is not None and alone.fit.score > result.fit.score
+    assert alone.fit.pieces > 1 or alone.fit.coverage < 0.9
+
+
+def test_a_curved_scan_makes_no_slab(generator, bumpy_sphere):
+    points, normals = bumpy_sphere
+    seen = points[normals[:, 2] > 0]
+    result = generator.generate(seen, seed=0)
+    assert result.fit is not None and result.fit.open_surface
+    assert "surface_slab" not in result.geometry_stats

@@ -6,6 +6,7 @@
 * :mod:`~spacemesh.geometry.stage`: the stage itself (splits, fit, flips, guard);
 * :mod:`~spacemesh.geometry.intersections`: self-intersecting faces (numpy + scipy);
 * :mod:`~spacemesh.geometry.surface`: open surfaces, a closed mesh trimmed to its points;
+* :mod:`~spacemesh.geometry.sheet`: flat sheets of points, and the slab they are decoded as;
 * :mod:`~spacemesh.geometry.report`: the fit report of every response.
 
 numpy and scipy only: the service uses all of it without torch, trimesh or pymeshlab.

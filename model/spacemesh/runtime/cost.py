@@ -39,7 +39,10 @@ the count asked for) and split back up to ``V``; the estimate counts it at a cha
 0.25 (absent with ``raw``, from noise, or where no count is left). An open surface's
 second candidate (one more geometry stage for the chosen seed, made only once the
 points read as a one-sided scan: :meth:`spacemesh.runtime.MeshGenerator._trimmed_first`)
-is not counted; it is at most one ``per_seed``'s decode and geometry terms. A ``tolerance``
+is not counted; it is at most one ``per_seed``'s decode and geometry terms. Nor is the
+third candidate of an open surface whose points form a flat sheet (the whole request
+again on the points and their copy behind them, closed:
+:meth:`spacemesh.runtime.MeshGenerator._flat_slab`): it doubles such a request. A ``tolerance``
 request counts as 8 tries (its simplified generate and the search that may follow it;
 :meth:`CostModel.tolerance_tries`): the doubling ladder from
 the model's count to the count whose mesh is expected within the tolerance (a mean

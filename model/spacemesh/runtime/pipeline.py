@@ -12,7 +12,8 @@ For each request:
    (:mod:`spacemesh.runtime.choice`), more seeds when none passes, its crossing faces
    untangled (:mod:`spacemesh.geometry.untangle`); an open surface gets a second
    candidate, its decode trimmed to the points before the geometry stage, and the better
-   of the two is kept (:meth:`MeshGenerator._trimmed_first`);
+   of the two is kept (:meth:`MeshGenerator._trimmed_first`); when its points form a flat
+   sheet, a third, decoded as a slab (:meth:`MeshGenerator._flat_slab`);
 4. with ``tolerance``: a search over vertex counts (:mod:`spacemesh.runtime.tolerance`).
 
 Each seed's mesh gets its ``surface`` at the end of its geometry stage (trimmed to the
@@ -40,7 +41,8 @@ from spacemesh.geometry import FitReport, GeometryOptions, SurfaceFacts
 from spacemesh.geometry.finishing import finish_geometry, fit_trimmed_first
 from spacemesh.geometry.hull import hull_mesh
 from spacemesh.geometry.polygons import collapse_flat, merge_coplanar
-from spacemesh.geometry.surface import drop_crossing_faces
+from spacemesh.geometry.sheet import slab_points
+from spacemesh.geometry.surface import drop_crossing_faces, shape_surface
 from spacemesh.geometry.untangle import untangle
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangulate_manifold
@@ -255,6 +257,7 @@ class MeshGenerator:
             chosen.timings = spent
             chosen = self._untangled(chosen, prepared, stage)
             chosen = self._trimmed_first(chosen, prepared, stage, spec)
+            chosen = self._flat_slab(chosen, prepared, progress, stage)
             if (spec.retry_seeds and crosses(chosen)
                     and decode_count(spec, options) > vertex_count(spec, options)):
                 plain = self._generate_prepared([(prepared, options)], progress, stage,
@@ -413,6 +416,54 @@ class MeshGenerator:
         if _rank(other) < _rank(chosen):
             return other
         chosen.timings = other.timings  # both ran
+        return chosen
+
+    def _flat_slab(self, chosen: GenerateResult, prepared: PreparedInput,
+                   progress: ProgressFn | None, stage: StageFn | None) -> GenerateResult:
+        """An open surface whose points form a flat sheet gets one more candidate: the
+        points and a copy pushed back behind their plane
+        (:func:`spacemesh.geometry.sheet.slab_points`), decoded closed (the same
+        request otherwise, triangles: its seeds, retries and untangling), trimmed to the
+        points and fitted to them (:func:`shape_surface`), then untangled; kept when it
+        ranks better (:func:`_rank`). About half the slab's vertices are on the side
+        the points face, so the candidate has about half the count asked for.
+        ``geometry_stats["surface_slab"]`` says whether it was kept; its timings count
+        both runs."""
+        options = chosen.options
+        if (chosen.fit is None or options.raw or not chosen.fit.open_surface
+                or self.spec.normals or chosen.mesh.n_faces == 0):
+            return chosen
+        slab = slab_points(prepared.points, chosen.mesh.vertex_normals().sum(axis=0))
+        if slab is None:
+            return chosen
+        if stage is not None:
+            stage("surface", 1, 1)
+        slab_options = replace(options, surface="closed", face_type="triangles")
+        closed = self._generate_prepared(
+            [(self.prepare_input(GenerateRequest(slab, None, slab_options), slab_options),
+              slab_options)], progress, stage)[0]
+        started = time.perf_counter()
+        unit, normals = prepared.fit_points()
+        unit_mesh = closed.mesh.with_vertices((closed.mesh.vertices - prepared.centre)
+                                              / prepared.scale)
+        trimmed, facts, stats = shape_surface(unit_mesh, unit, normals, "open",
+                                              self.spec.geometry)
+        chosen.geometry_stats = {**chosen.geometry_stats, "surface_slab": False}
+        timings = summed_timings([chosen, closed])  # both ran
+        if not facts.open or trimmed.n_faces == 0:
+            chosen.timings = timings
+            _add_geometry_time(chosen, time.perf_counter() - started)
+            return chosen
+        mesh = trimmed.with_vertices(trimmed.vertices * prepared.scale + prepared.centre)
+        other = replace(chosen, mesh=mesh, fit=prepared.report(mesh, _decided(chosen.fit)),
+                        geometry_stats={**stats, "surface_slab": True}, timings=timings,
+                        decode_stats=closed.decode_stats,
+                        n_sampled_vertices=closed.n_sampled_vertices)
+        _add_geometry_time(other, time.perf_counter() - started)
+        other = self._untangled(other, prepared, stage)
+        if _rank(other) < _rank(chosen):
+            return other
+        chosen.timings = other.timings
         return chosen
 
     def _faced(self, result: GenerateResult, prepared: PreparedInput) -> GenerateResult:
