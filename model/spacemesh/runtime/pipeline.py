@@ -412,11 +412,7 @@ class MeshGenerator:
                         geometry_stats={**stats, "surface_trimmed_first": True},
                         timings=dict(chosen.timings))
         _add_geometry_time(other, time.perf_counter() - started)
-        other = self._untangled(other, prepared, stage)
-        if _rank(other) < _rank(chosen):
-            return other
-        chosen.timings = other.timings  # both ran
-        return chosen
+        return self._better(chosen, other, prepared, stage)
 
     def _flat_slab(self, chosen: GenerateResult, prepared: PreparedInput,
                    progress: ProgressFn | None, stage: StageFn | None) -> GenerateResult:
@@ -460,6 +456,13 @@ class MeshGenerator:
                         decode_stats=closed.decode_stats,
                         n_sampled_vertices=closed.n_sampled_vertices)
         _add_geometry_time(other, time.perf_counter() - started)
+        return self._better(chosen, other, prepared, stage)
+
+    def _better(self, chosen: GenerateResult, other: GenerateResult,
+                prepared: PreparedInput, stage: StageFn | None) -> GenerateResult:
+        """Of an open surface's chosen mesh and another candidate for it, the other
+        untangled as the chosen one was (:meth:`_untangled`), the one that ranks better
+        (:func:`_rank`); the chosen one keeps the other's timings (both ran)."""
         other = self._untangled(other, prepared, stage)
         if _rank(other) < _rank(chosen):
             return other
@@ -646,7 +649,7 @@ def _decided(fit: FitReport) -> SurfaceFacts | None:
 
 
 def _rank(result: GenerateResult) -> tuple[bool, float]:
-    """How :meth:`MeshGenerator._trimmed_first` ranks two candidates of one seed: one
+    """How :meth:`MeshGenerator._better` ranks an open surface's candidates: one
     whose faces do not cross first, then the better fit score (as the seeds are ranked,
     :func:`spacemesh.runtime.choice.best_fit`)."""
     return crosses(result), fit_score_of(result)
