@@ -91,3 +91,26 @@ def test_a_curved_scan_makes_no_slab(generator, bumpy_sphere):
     result = generator.generate(seen, seed=0)
     assert result.fit is not None and result.fit.open_surface
     assert "surface_slab" not in result.geometry_stats
+
+
+def test_a_large_sheet_gives_its_slab_the_fit_subset(generator, monkeypatch):
+    """The slab of a sheet of 12,000 points is made from the fixed subset of 4,096 the
+    fit uses, so its request stays small whatever the upload."""
+    import spacemesh.runtime.pipeline as pipeline
+    from spacemesh.runtime.request import MAX_FIT_POINTS
+
+    made = []
+    real = pipeline.slab_points
+
+    def spy(points, facing):
+        made.append(len(points))
+        return real(points, facing)
+
+    monkeypatch.setattr(pipeline, "slab_points", spy)
+    rng = np.random.default_rng(2)
+    sheet = np.c_[rng.uniform(-1, 1, (12_000, 2)), np.zeros(12_000)]
+    result = generator.generate(sheet, seed=0)
+    assert made == [MAX_FIT_POINTS]
+    assert result.fit is not None and result.fit.open_surface
+    assert "surface_slab" in result.geometry_stats
+    assert_valid_mesh(result.mesh, open_surface=True)
