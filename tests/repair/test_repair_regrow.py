@@ -190,8 +190,24 @@ def test_a_crossing_fill_is_made_again_as_a_region(filled_hole, alone_mends):
     assert np.array_equal(again.region, result.region)
     assert again.stats.fill["refilled_faces"] == int(regions[-1].sum())
     assert again.stats.fill["regrown_faces"] == 0
+    assert again.stats.fill["refills"] == len(regions)
+    assert again.stats.samplings > crossing.stats.samplings  # every run is counted
     assert again.stats.new_faces == int(np.sum(again.face_source < 0))
     assert_closed_manifold(again.mesh)
+
+
+def test_a_fill_made_again_that_crosses_more_is_not_kept(filled_hole):
+    _, _, result, embeddings = filled_hole
+    crossing = _pierced(result)
+
+    def worse(region):
+        return _pierced(_oracle_repair(crossing.mesh, embeddings, region,
+                                       target=result.mesh)[1], count=100)
+
+    again = refill_crossings(crossing, worse)
+    assert again.mesh is crossing.mesh and again.stats.fill["refills"] == 2
+    assert "refilled_faces" not in again.stats.fill
+    assert again.stats.samplings > crossing.stats.samplings  # their time is counted
 
 
 def test_a_fill_that_cannot_be_planned_stays(filled_hole):

@@ -7,12 +7,14 @@ docs/REPAIR.md, "Limits").
 What the samplings and the mending cannot fix comes from the kept faces the new ones
 must meet: a loop that wraps around a strip of kept triangles with all their corners on
 it (a flat region whose fill folds back onto them), or two loops whose fills cross each
-other and a kept triangle between them. The region then takes in every face with a
-corner on a crossing face (new or kept), so those kept triangles are re-generated with
-it, and the repair runs again on the grown region (its own samplings and mending), up to
-:data:`REGROW_ROUNDS` times. A grown repair is kept only when it adds fewer handles, or
-as many and fewer crossing faces; a growth the plan refuses (beyond ``max_growth``, too
-large for the model) ends the rounds with the repair as it was.
+other and a kept triangle between them. The region then takes in the kept faces its new
+faces cross (where they cross only each other: every face with a corner on them), so
+those are re-generated with it, and the repair runs again on the grown region (its own
+samplings and mending), up to :data:`REGROW_ROUNDS` times. A grown repair is kept only
+when it adds fewer handles, or as many and fewer crossing faces; a growth the plan
+refuses (beyond ``max_growth``, too large for the model) ends the rounds with the repair
+as it was. Taking in the whole ring around the crossing faces instead mended as many
+dev repairs but fitted the input worse (docs/REPAIR.md).
 """
 
 from __future__ import annotations
@@ -150,9 +152,10 @@ def refill_crossings(result: RepairResult,
         their sources and the vertex map traced back to the input, the region the input
         faces either removed. The stats count the faces again (``new_vertices``,
         ``new_faces``, ``new_face_degrees``, ``region_faces``) and give, in ``fill``,
-        ``refilled_faces`` (the fills' faces re-generated) and ``regrown_faces`` (input
-        faces the second repair took in, outside the planned regions); the samplings and
-        timings of both are summed.
+        ``refilled_faces`` (the fills' faces re-generated), ``regrown_faces`` (input
+        faces the second repair took in, outside the planned regions) and ``refills``
+        (the re-generations run); the samplings and timings of every run are summed, also
+        when none is kept (``refills`` alone then).
     """
     mesh, new = result.mesh, result.face_source < 0
     crossing = crossing_faces(mesh, new)  # (K,) new faces crossing a face
@@ -164,13 +167,18 @@ def refill_crossings(result: RepairResult,
     _, label = component_labels(mesh.n_faces, adjacent[new[adjacent].all(axis=1)])
     whole = new & np.isin(label, label[crossing])  # (F_out,) the crossing fills, whole
     best: tuple[int, BoolArray, RepairResult, IntArray] | None = None
+    tries, samplings = 0, result.stats.samplings
+    timings = dict(result.stats.timings)
     for refill in (alone, whole):
-        if best is not None and np.array_equal(refill, best[1]):
-            continue
+        if tries and np.array_equal(refill, alone):
+            continue  # the fills are the crossing faces: tried already
         try:
             again = repair(refill)
         except RegionError:
             continue  # cannot be planned as a region (too large, a hole left open)
+        tries, samplings = tries + 1, samplings + again.stats.samplings
+        for key, value in again.stats.timings.items():
+            timings[key] = timings.get(key, 0.0) + value
         source = np.where(again.face_source >= 0,  # (F_again,) input face, -1: new
                           result.face_source[np.maximum(again.face_source, 0)], -1)
         count = len(crossing_faces(again.mesh, source < 0))
@@ -178,8 +186,10 @@ def refill_crossings(result: RepairResult,
             best = (count, refill, again, source)
         if count == 0:
             break
-    if best is None:
-        return result
+    if best is None:  # none ran, or none crossed less: the time they took is counted
+        fill = {**result.stats.fill, "refills": tries} if tries else result.stats.fill
+        return result if not tries else replace(result, stats=replace(
+            result.stats, fill=fill, samplings=samplings, timings=timings))
     _, refill, again, face_source = best
     taken = result.face_source[again.region & ~new]  # input faces the second removed
     region = result.region.copy()
@@ -190,17 +200,12 @@ def refill_crossings(result: RepairResult,
     added = face_source < 0
     sizes, counts = np.unique(out.face_sizes[added], return_counts=True)
     kept_vertices = np.unique(vertex_map[vertex_map >= 0])
-    fill = dict(result.stats.fill)
-    fill["refilled_faces"] = int(refill.sum())
-    fill["regrown_faces"] = len(taken)
-    timings = dict(result.stats.timings)
-    for key, value in again.stats.timings.items():
-        timings[key] = timings.get(key, 0.0) + value
+    fill = {**result.stats.fill, "refills": tries, "refilled_faces": int(refill.sum()),
+            "regrown_faces": len(taken)}
     stats = replace(
         result.stats, region_faces=int(region.sum()),
         new_vertices=out.n_vertices - len(kept_vertices), new_faces=int(added.sum()),
         new_face_degrees={int(s): int(c) for s, c in zip(sizes, counts, strict=True)},
-        fill=fill, samplings=result.stats.samplings + again.stats.samplings,
-        timings=timings)
+        fill=fill, samplings=samplings, timings=timings)
     return replace(result, mesh=out, vertex_map=vertex_map, face_source=face_source,
                    region=region, stats=stats)
