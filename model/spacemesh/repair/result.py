@@ -18,7 +18,9 @@ class RepairStats:
     Attributes
     ----------
     requested_faces, region_faces, grown_faces : int
-        Faces the region selected, faces removed, and the difference (growth).
+        Faces the region selected, faces removed, and the difference (growth: pinched
+        corners, and the kept faces a region still crossing took in,
+        :mod:`spacemesh.repair.regrow`).
     removed_vertices, boundary_vertices, loops : int
     new_vertices, new_faces : int
     new_face_degrees : dict of int to int
@@ -32,7 +34,11 @@ class RepairStats:
     fill : dict
         :attr:`spacemesh.repair.splice.Fill.stats`, and ``uncrossed_faces`` where every
         sampling's new faces crossed a face: how many of them
-        :func:`spacemesh.repair.crossings.uncross_polygons` replaced.
+        :func:`spacemesh.repair.crossings.uncross_polygons` replaced; ``regrown_faces``
+        and ``regrowths`` where a region still crossing was grown and repaired again
+        (:func:`spacemesh.repair.regrow.regrow_crossings`), ``refilled_faces``,
+        ``regrown_faces`` and ``refills`` where an automatic repair's crossing fills were
+        made again (:func:`spacemesh.repair.regrow.refill_crossings`).
     inpaint : dict
         ``alive`` (free tokens alive by the mask), and of those dropped:
         ``outside_hole``, ``duplicates`` and ``over_limit`` (beyond the expected count).
@@ -58,8 +64,9 @@ class RepairStats:
         Samplings of the region run: more than 1 where a fill that added a handle (its
         Euler characteristic below the region's) or whose new faces cross a face was
         sampled again, up to :data:`TOPOLOGY_ATTEMPTS` (summed over the passes of an
-        automatic region); the fewest handles win, then the fewest crossing faces (of
-        the fitted patch: not with ``fit_patch=False``).
+        automatic region, and over the repairs run again by
+        :mod:`spacemesh.repair.regrow`); the fewest handles win, then the fewest crossing
+        faces (of the fitted patch: not with ``fit_patch=False``).
     handles_added : int
         Handles the fill kept adds to the mesh (half the drop of its Euler characteristic
         below the region's): 0 unless every sampling added one, and then the sampling
