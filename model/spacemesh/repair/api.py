@@ -60,7 +60,7 @@ from spacemesh.repair.region import (
     parse_region,
 )
 from spacemesh.repair.regrow import refill_crossings, regrow_crossings
-from spacemesh.repair.result import RepairResult, RepairStats
+from spacemesh.repair.result import RepairResult, RepairStats, new_face_degrees
 from spacemesh.repair.splice import Spliced, fill_hole, splice
 from spacemesh.repair.weld import weld_region, weld_vertices
 from spacemesh.runtime.backend import Backend, ConnectivityOutputs
@@ -570,14 +570,12 @@ def repair_mesh(
     fs = fill_stats
     fallback = ("polygon" if fs["polygon_loops"] else
                 "removed-new-vertices" if fs["n_unpinched"] or fs["n_detached"] else "none")
-    sizes, counts = np.unique(spliced.mesh.face_sizes[spliced.face_source < 0],
-                              return_counts=True)
     stats = RepairStats(
         requested_faces=int(cut.requested.sum()), region_faces=int(cut.region.sum()),
         grown_faces=cut.n_grown, removed_vertices=len(cut.removed_vertices),
         boundary_vertices=len(cut.boundary), loops=len(cut.loops),
         new_vertices=spliced.n_new_vertices, new_faces=spliced.n_new_faces,
-        new_face_degrees={int(s): int(c) for s, c in zip(sizes, counts, strict=True)},
+        new_face_degrees=new_face_degrees(spliced.mesh, spliced.face_source < 0),
         patch_faces=len(patch.faces), patch_rings=patch.rings,
         known_vertices=len(patch.known), tokens=patch.n_tokens, candidates=len(candidates),
         fallback=fallback, fill=dict(fs),
@@ -625,7 +623,6 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
     passes = list(state.passes)
     out, work = state.mesh, plan.mesh
     new = state.face_source < 0
-    sizes, counts = np.unique(out.face_sizes[new], return_counts=True)
     kept_vertices = np.unique(state.vertex_map[state.vertex_map >= 0])
     removed = np.ones(work.n_faces, dtype=bool)
     removed[state.face_source[~new]] = False
@@ -653,7 +650,7 @@ def _repair_automatic(plan: AutoPlan, backend: Backend, spec: ModelSpec, *, seed
         removed_vertices=work.n_vertices - len(kept_vertices),
         boundary_vertices=total("boundary_vertices"), loops=total("loops"),
         new_vertices=out.n_vertices - len(kept_vertices), new_faces=int(new.sum()),
-        new_face_degrees={int(s): int(c) for s, c in zip(sizes, counts, strict=True)},
+        new_face_degrees=new_face_degrees(out, new),
         patch_faces=total("patch_faces"),
         patch_rings=max([p.patch_rings for p in passes], default=0),
         known_vertices=total("known_vertices"), tokens=spec.max_vertices,

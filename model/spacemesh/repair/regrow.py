@@ -29,7 +29,7 @@ from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import faces_touching, triangles_of, vertices_of
 from spacemesh.primitives.graph import component_labels
 from spacemesh.repair.region import RegionError
-from spacemesh.repair.result import RepairResult
+from spacemesh.repair.result import RepairResult, add_timings, new_face_degrees
 from spacemesh.topology import face_adjacency
 from spacemesh.typed import BoolArray, IntArray
 
@@ -105,8 +105,7 @@ def regrow_crossings(mesh: PolygonMesh, result: RepairResult,
             break  # grown beyond what the plan allows: the repair as it was
         runs += 1
         samplings += again.stats.samplings
-        for key, value in again.stats.timings.items():
-            timings[key] = timings.get(key, 0.0) + value
+        add_timings(timings, again.stats.timings)
         again_pairs = crossing_new_faces(again)
         if (again.stats.handles_added, _crossing_count(again_pairs)) < (
                 best.stats.handles_added, _crossing_count(pairs)):
@@ -177,8 +176,7 @@ def refill_crossings(result: RepairResult,
         except RegionError:
             continue  # cannot be planned as a region (too large, a hole left open)
         tries, samplings = tries + 1, samplings + again.stats.samplings
-        for key, value in again.stats.timings.items():
-            timings[key] = timings.get(key, 0.0) + value
+        add_timings(timings, again.stats.timings)
         source = np.where(again.face_source >= 0,  # (F_again,) input face, -1: new
                           result.face_source[np.maximum(again.face_source, 0)], -1)
         count = len(crossing_faces(again.mesh, source < 0))
@@ -198,14 +196,13 @@ def refill_crossings(result: RepairResult,
                           again.vertex_map[np.maximum(result.vertex_map, 0)], -1)
     out = again.mesh
     added = face_source < 0
-    sizes, counts = np.unique(out.face_sizes[added], return_counts=True)
     kept_vertices = np.unique(vertex_map[vertex_map >= 0])
     fill = {**result.stats.fill, "refills": tries, "refilled_faces": int(refill.sum()),
             "regrown_faces": len(taken)}
     stats = replace(
         result.stats, region_faces=int(region.sum()),
         new_vertices=out.n_vertices - len(kept_vertices), new_faces=int(added.sum()),
-        new_face_degrees={int(s): int(c) for s, c in zip(sizes, counts, strict=True)},
+        new_face_degrees=new_face_degrees(out, added),
         fill=fill, samplings=samplings, timings=timings)
     return replace(result, mesh=out, vertex_map=vertex_map, face_source=face_source,
                    region=region, stats=stats)

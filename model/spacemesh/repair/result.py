@@ -7,8 +7,23 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+import numpy as np
+
 from spacemesh.mesh import PolygonMesh
 from spacemesh.typed import BoolArray, IntArray
+
+
+def new_face_degrees(mesh: PolygonMesh, new: BoolArray) -> dict[int, int]:
+    """How many of ``mesh``'s ``new`` faces ((F,) bool) have each number of corners (the
+    stats' ``new_face_degrees``)."""
+    sizes, counts = np.unique(mesh.face_sizes[new], return_counts=True)
+    return {int(size): int(count) for size, count in zip(sizes, counts, strict=True)}
+
+
+def add_timings(total: dict[str, float], more: dict[str, float]) -> None:
+    """Add the seconds of ``more`` into ``total``, stage by stage (a repair run again)."""
+    for key, value in more.items():
+        total[key] = total.get(key, 0.0) + value
 
 
 @dataclass

@@ -261,7 +261,7 @@ def run_group(backend: Backend, spec: ModelSpec,
             mesh, surface, trimmed = shape_surface(mesh, unit, normals, str(options.surface),
                                                    spec.geometry)
             geometry_stats.update(trimmed)
-        mesh = mesh.with_vertices(mesh.vertices * prepared.scale + prepared.centre)
+        mesh = prepared.to_upload(mesh)
         e2 = time.perf_counter()
         stage("report", b + 1, len(jobs))
         report = prepared.report(mesh, surface)

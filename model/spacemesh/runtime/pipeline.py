@@ -44,7 +44,6 @@ from spacemesh.geometry.polygons import collapse_flat, merge_coplanar
 from spacemesh.geometry.sheet import slab_points
 from spacemesh.geometry.surface import drop_crossing_faces, shape_surface
 from spacemesh.geometry.untangle import untangle
-from spacemesh.io.reduce import reduction_indices
 from spacemesh.mesh import PolygonMesh
 from spacemesh.primitives import triangulate_manifold
 from spacemesh.runtime.backend import Backend
@@ -63,8 +62,6 @@ from spacemesh.runtime.network import (
 from spacemesh.runtime.options import GenerateOptions
 from spacemesh.runtime.repository import ModelRepository
 from spacemesh.runtime.request import (
-    MAX_FIT_POINTS,
-    POINT_SUBSET_SEED,
     GenerateRequest,
     GenerateResult,
     PreparedInput,
@@ -337,7 +334,7 @@ class MeshGenerator:
         if stage is not None:
             stage("hull", 1, 1)
         started = time.perf_counter()
-        hull = hull.with_vertices(hull.vertices * prepared.scale + prepared.centre)
+        hull = prepared.to_upload(hull)
         mesh, stats = _refitted(hull, prepared, plain_spec(self.spec).geometry,
                                 target_vertices=count)
         chosen.mesh = mesh
@@ -410,7 +407,7 @@ class MeshGenerator:
             _add_geometry_time(chosen, time.perf_counter() - started)
             return chosen
         unit_mesh, stats = made
-        mesh = unit_mesh.with_vertices(unit_mesh.vertices * prepared.scale + prepared.centre)
+        mesh = prepared.to_upload(unit_mesh)
         other = replace(chosen, mesh=mesh, fit=prepared.report(mesh, _decided(chosen.fit)),
                         geometry_stats={**stats, "surface_trimmed_first": True},
                         timings=dict(chosen.timings))
@@ -427,14 +424,14 @@ class MeshGenerator:
         ranks better (:func:`_rank`). About half the slab's vertices are on the side
         the points face, so the candidate has about half the count asked for.
         ``geometry_stats["surface_slab"]`` says whether it was kept; its timings count
-        both runs. A cloud of more than :data:`MAX_FIT_POINTS` points gives the slab the
-        fixed subset the fit uses, so the slab's request stays small."""
+        both runs. A cloud of more than ``MAX_FIT_POINTS`` points gives the slab the
+        fixed subset the fit uses (:meth:`PreparedInput.fit_subset`), so the slab's
+        request stays small."""
         options = chosen.options
         if (chosen.fit is None or options.raw or not chosen.fit.open_surface
                 or self.spec.normals or chosen.mesh.n_faces == 0):
             return chosen
-        pick = reduction_indices(len(prepared.points), MAX_FIT_POINTS, seed=POINT_SUBSET_SEED)
-        sheet = prepared.points if pick is None else prepared.points[pick]  # (<= 4096, 3)
+        sheet = prepared.fit_subset(prepared.points)  # (<= MAX_FIT_POINTS, 3)
         slab = slab_points(sheet, chosen.mesh.vertex_normals().sum(axis=0))
         if slab is None:
             return chosen
@@ -446,17 +443,15 @@ class MeshGenerator:
               slab_options)], progress, stage)[0]
         started = time.perf_counter()
         unit, normals = prepared.fit_points()
-        unit_mesh = closed.mesh.with_vertices((closed.mesh.vertices - prepared.centre)
-                                              / prepared.scale)
-        trimmed, facts, stats = shape_surface(unit_mesh, unit, normals, "open",
-                                              self.spec.geometry)
+        trimmed, facts, stats = shape_surface(prepared.to_unit(closed.mesh), unit, normals,
+                                              "open", self.spec.geometry)
         chosen.geometry_stats = {**chosen.geometry_stats, "surface_slab": False}
         timings = summed_timings([chosen, closed])  # both ran
         if not facts.open or trimmed.n_faces == 0:
             chosen.timings = timings
             _add_geometry_time(chosen, time.perf_counter() - started)
             return chosen
-        mesh = trimmed.with_vertices(trimmed.vertices * prepared.scale + prepared.centre)
+        mesh = prepared.to_upload(trimmed)
         other = replace(chosen, mesh=mesh, fit=prepared.report(mesh, _decided(chosen.fit)),
                         geometry_stats={**stats, "surface_slab": True}, timings=timings,
                         decode_stats=closed.decode_stats,
@@ -639,11 +634,10 @@ def _refitted(mesh: PolygonMesh, prepared: PreparedInput, options: GeometryOptio
     """``mesh`` (in the upload's frame) through the geometry stage again
     (:func:`finish_geometry` on the request's fit points, in the normalised frame, edges
     split up to ``target_vertices`` when given), and its statistics."""
-    unit = mesh.with_vertices((mesh.vertices - prepared.centre) / prepared.scale)
     points, normals = prepared.fit_points()
-    refitted, stats = finish_geometry(unit, points, normals, options,
+    refitted, stats = finish_geometry(prepared.to_unit(mesh), points, normals, options,
                                       target_vertices=target_vertices)
-    return refitted.with_vertices(refitted.vertices * prepared.scale + prepared.centre), stats
+    return prepared.to_upload(refitted), stats
 
 
 def _decided(fit: FitReport) -> SurfaceFacts | None:

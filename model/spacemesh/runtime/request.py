@@ -166,11 +166,25 @@ class PreparedInput:
 
     def fit_points(self) -> tuple[FloatArray, FloatArray | None]:
         """The normalised points (and normals) the geometry stage fits to, at most
-        :data:`MAX_FIT_POINTS` of them (a fixed subset)."""
-        pick = reduction_indices(len(self.unit), MAX_FIT_POINTS, seed=POINT_SUBSET_SEED)
-        if pick is None:
-            return self.unit, self.normals
-        return self.unit[pick], None if self.normals is None else self.normals[pick]
+        :data:`MAX_FIT_POINTS` of them (a fixed subset, :meth:`fit_subset`)."""
+        return (self.fit_subset(self.unit),
+                None if self.normals is None else self.fit_subset(self.normals))
+
+    def fit_subset(self, values: np.ndarray) -> np.ndarray:
+        """The rows of ``values`` ((P, ...), one per kept point) of the fixed subset of
+        at most :data:`MAX_FIT_POINTS` points the geometry stage fits to (all of them for
+        a cloud that small)."""
+        pick = reduction_indices(len(values), MAX_FIT_POINTS, seed=POINT_SUBSET_SEED)
+        return values if pick is None else values[pick]
+
+    def to_upload(self, mesh: PolygonMesh) -> PolygonMesh:
+        """``mesh`` from the normalised frame into the upload's (``unit * scale +
+        centre``)."""
+        return mesh.with_vertices(mesh.vertices * self.scale + self.centre)
+
+    def to_unit(self, mesh: PolygonMesh) -> PolygonMesh:
+        """``mesh`` from the upload's frame into the normalised one."""
+        return mesh.with_vertices((mesh.vertices - self.centre) / self.scale)
 
 
 
